@@ -1,0 +1,252 @@
+"""Frozen configuration of one solver run, in SI units (angles in radians).
+
+This is the whole input contract of :mod:`solver`: ``projects`` builds these objects from a
+project file; tests build them directly. Nothing here imports Taichi.
+
+Conventions
+-----------
+- 2D plane strain, x to the right, y up (gravity may point anywhere).
+- Stress is positive in tension (compression negative), components ``xx, yy, xy, zz``.
+- Masses, energies and momenta are per metre out of plane.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+Scheme = Literal["mpm", "apic", "apic-affine"]
+SCHEMES: tuple[str, ...] = ("mpm", "apic", "apic-affine")
+MaterialModel = Literal["linear-elastic", "drucker-prager"]
+BoundaryKind = Literal["fixed", "slip", "friction", "open"]
+Side = Literal["left", "right", "bottom", "top"]
+SIDES: tuple[str, ...] = ("left", "right", "bottom", "top")
+StageKind = Literal["k0", "gravity", "dynamic"]
+Precision = Literal["f32", "f64"]
+Arch = Literal["auto", "cpu", "gpu"]
+GuardMode = Literal["stop", "remove"]
+
+#: Frame fields a run may be asked for (``positions`` and ``active`` are always present).
+OUTPUT_FIELDS: tuple[str, ...] = ("displacement", "velocity", "stress", "plastic_strain", "material")
+
+
+@dataclass(frozen=True)
+class Material:
+    """Parameters of one material (one row of the per-material tables).
+
+    ``tensile_strength_pa`` caps the mean stress (tension cut-off); ``None`` means the
+    Drucker-Prager apex is the only limit.
+    """
+
+    name: str
+    model: MaterialModel
+    density_kg_m3: float
+    youngs_modulus_pa: float
+    poisson_ratio: float
+    cohesion_pa: float = 0.0
+    friction_angle_rad: float = 0.0
+    dilatancy_angle_rad: float = 0.0
+    tensile_strength_pa: float | None = None
+
+    @property
+    def bulk_modulus_pa(self) -> float:
+        return self.youngs_modulus_pa / (3.0 * (1.0 - 2.0 * self.poisson_ratio))
+
+    @property
+    def shear_modulus_pa(self) -> float:
+        return self.youngs_modulus_pa / (2.0 * (1.0 + self.poisson_ratio))
+
+    @property
+    def p_wave_speed_m_s(self) -> float:
+        """Speed of the dilatational wave, sqrt((K + 4G/3) / rho)."""
+        constrained = self.bulk_modulus_pa + 4.0 * self.shear_modulus_pa / 3.0
+        return math.sqrt(constrained / self.density_kg_m3)
+
+    @property
+    def default_k0(self) -> float:
+        """Jaky's K0 = 1 - sin(phi) for frictional soil, nu/(1-nu) for an elastic solid."""
+        if self.model == "drucker-prager" and self.friction_angle_rad > 0.0:
+            return 1.0 - math.sin(self.friction_angle_rad)
+        return self.poisson_ratio / (1.0 - self.poisson_ratio)
+
+
+@dataclass(frozen=True)
+class Boundary:
+    """Velocity constraint of one side of the grid box.
+
+    - ``fixed``: no-slip, both velocity components of the wall nodes are zero.
+    - ``slip``: frictionless contact; the velocity component into the wall is removed,
+      separation is allowed (symmetry plane / roller for material pressing on it).
+    - ``friction``: as ``slip`` plus Coulomb friction: the tangential speed is reduced by
+      ``tan(friction_angle) * |normal velocity removed|``, never reversed.
+    - ``open``: no constraint; particles that leave the box are removed and counted as lost.
+    """
+
+    kind: BoundaryKind = "slip"
+    friction_angle_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class Grid:
+    """The background grid: a box of square cells. ``size_m`` is rounded up to whole cells."""
+
+    origin_m: tuple[float, float]
+    size_m: tuple[float, float]
+    cell_size_m: float
+    left: Boundary = Boundary()
+    right: Boundary = Boundary()
+    bottom: Boundary = Boundary("fixed")
+    top: Boundary = Boundary("open")
+
+    @property
+    def cells(self) -> tuple[int, int]:
+        return (
+            max(1, math.ceil(self.size_m[0] / self.cell_size_m - 1e-9)),
+            max(1, math.ceil(self.size_m[1] / self.cell_size_m - 1e-9)),
+        )
+
+    def boundary(self, side: str) -> Boundary:
+        return getattr(self, side)
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One stage of the analysis.
+
+    - ``k0``: no time passes; geostatic stress from the overburden, horizontal = K0 * vertical.
+      ``k0`` overrides every material's default K0.
+    - ``gravity``: gravity ramped linearly from zero over ``duration_s`` with local damping
+      (``damping``, default 0.7 if zero is given), then all velocities are set to zero.
+    - ``dynamic``: free motion for ``duration_s``; may stop early once the kinetic energy falls
+      below ``stop_when_kinetic_energy_below`` times the stage's peak, after ``min_duration_s``.
+
+    ``materials`` replaces the material table at the start of the stage (``None``: unchanged);
+    this is how a trigger such as "cohesion to zero" is expressed.
+    ``damping`` is Cundall's local damping coefficient (0 = none).
+    """
+
+    name: str
+    kind: StageKind
+    duration_s: float = 0.0
+    damping: float = 0.0
+    k0: float | None = None
+    materials: tuple[Material, ...] | None = None
+    stop_when_kinetic_energy_below: float | None = None
+    min_duration_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class Numerics:
+    """Time integration and runtime choices. Give ``time_step_s`` or ``cfl``, not both.
+
+    ``cfl`` is the fraction of the critical step ``dx / (c_p + max particle speed)``.
+    ``guard``: what the stability guard does with particles faster than the physical bound:
+    ``stop`` ends the run with a message; ``remove`` takes them out of the computation and
+    counts them (used by the stability studies). NaN always stops the run.
+    """
+
+    scheme: Scheme = "apic-affine"
+    time_step_s: float | None = None
+    cfl: float | None = 0.5
+    precision: Precision = "f32"
+    arch: Arch = "auto"
+    guard: GuardMode = "stop"
+    speed_bound_factor: float = 3.0
+
+
+@dataclass(frozen=True)
+class Output:
+    """Frames every ``interval_s`` of simulated time with the named ``fields`` (OUTPUT_FIELDS)."""
+
+    interval_s: float = 0.01
+    fields: tuple[str, ...] = OUTPUT_FIELDS
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    grid: Grid
+    materials: tuple[Material, ...]
+    stages: tuple[Stage, ...]
+    gravity_m_s2: tuple[float, float] = (0.0, -9.81)
+    numerics: Numerics = Numerics()
+    output: Output = Output()
+
+
+@dataclass(frozen=True, eq=False)
+class Particles:
+    """Initial particle state.
+
+    Attributes
+    ----------
+    positions_m : (N, 2) float
+    volumes_m2 : (N,) float, area per metre out of plane
+    material_ids : (N,) int, index into ``SimulationConfig.materials``
+    velocities_m_s : (N, 2) float, optional (zeros)
+    """
+
+    positions_m: np.ndarray
+    volumes_m2: np.ndarray
+    material_ids: np.ndarray
+    velocities_m_s: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        n = len(self.positions_m)
+        if np.shape(self.positions_m) != (n, 2):
+            raise ValueError(f"positions_m must have shape (N, 2), got {np.shape(self.positions_m)}")
+        if np.shape(self.volumes_m2) != (n,) or np.shape(self.material_ids) != (n,):
+            raise ValueError("volumes_m2 and material_ids must have shape (N,) matching positions_m")
+        if self.velocities_m_s is not None and np.shape(self.velocities_m_s) != (n, 2):
+            raise ValueError("velocities_m_s must have shape (N, 2) matching positions_m")
+
+    def __len__(self) -> int:
+        return len(self.positions_m)
+
+
+@dataclass(frozen=True)
+class Diagnostics:
+    """Scalar state of the run at one output time (per metre out of plane)."""
+
+    time_s: float
+    stage: str
+    stage_index: int
+    stage_time_s: float
+    step: int
+    dt_s: float
+    kinetic_energy_J_per_m: float
+    momentum_x: float
+    momentum_y: float
+    max_speed_m_s: float
+    unstable_particles: int
+    lost_particles: int
+    total_mass_kg_per_m: float
+    yielding_particles: int
+
+
+@dataclass(frozen=True, eq=False)
+class Frame:
+    """A snapshot at one output time.
+
+    ``fields`` always holds ``positions`` (N, 2) and ``active`` (N,) bool; plus what the
+    output asked for: ``displacement`` (N, 2) m, ``velocity`` (N, 2) m/s, ``stress`` (N, 4) Pa
+    as xx, yy, xy, zz, ``plastic_strain`` (N,), ``material_id`` (N,) int.
+    Particles keep their index for the whole run; removed ones have ``active`` False.
+    """
+
+    diagnostics: Diagnostics
+    fields: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+class SolverError(Exception):
+    """Bad solver input (inconsistent configuration or particles)."""
+
+
+class InstabilityError(Exception):
+    """The stability guard stopped the run. ``step`` and ``time_s`` say where."""
+
+    def __init__(self, message: str, step: int, time_s: float):
+        super().__init__(message)
+        self.step = step
+        self.time_s = time_s

@@ -1,0 +1,128 @@
+"""Constitutive models behind one interface: per-material parameter tables and ``stress_update``.
+
+Each model lives in its own module (``linear_elastic``, ``drucker_prager``); the three step
+schemes all call :func:`MaterialTable.stress_update`, so they are compared on the same physics.
+Material parameters live in per-material tables (one row per material); state lives per particle.
+"""
+
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import taichi as ti
+
+from solver.config import Material
+from solver.materials import drucker_prager, linear_elastic
+
+MODEL_CODES = {"linear-elastic": 0, "drucker-prager": 1}
+
+
+def material_rows(materials: Sequence[Material]) -> dict[str, np.ndarray]:
+    """The per-material parameter table as numpy columns (SI units)."""
+    rows: dict[str, list[float]] = {k: [] for k in ("model", "K", "G", "alpha", "kc", "alpha_psi", "t_cut", "rho0")}
+    for m in materials:
+        alpha, kc, alpha_psi = drucker_prager.dp_constants(m.friction_angle_rad, m.dilatancy_angle_rad, m.cohesion_pa)
+        if m.model == "drucker-prager":
+            apex = kc / (3.0 * alpha) if alpha > 0.0 else math.inf
+            t_cut = apex if m.tensile_strength_pa is None else min(apex, m.tensile_strength_pa)
+        else:
+            t_cut = math.inf
+        rows["model"].append(MODEL_CODES[m.model])
+        rows["K"].append(m.bulk_modulus_pa)
+        rows["G"].append(m.shear_modulus_pa)
+        rows["alpha"].append(alpha)
+        rows["kc"].append(kc)
+        rows["alpha_psi"].append(alpha_psi)
+        rows["t_cut"].append(min(t_cut, 1e30))
+        rows["rho0"].append(m.density_kg_m3)
+    return {k: np.asarray(v, dtype=np.int32 if k == "model" else np.float64) for k, v in rows.items()}
+
+
+@ti.data_oriented
+class MaterialTable:
+    """Taichi fields holding one row of constitutive constants per material."""
+
+    def __init__(self, materials: Sequence[Material], np_float=np.float32):
+        n = max(1, len(materials))
+        self.np_float = np_float
+        self.count = len(materials)
+        self.model = ti.field(ti.i32, n)
+        self.K = ti.field(float, n)
+        self.G = ti.field(float, n)
+        self.alpha = ti.field(float, n)
+        self.kc = ti.field(float, n)
+        self.alpha_psi = ti.field(float, n)
+        self.t_cut = ti.field(float, n)
+        self.rho0 = ti.field(float, n)
+        self.load(materials)
+
+    def load(self, materials: Sequence[Material]) -> None:
+        """Replace every row (a stage's material changes)."""
+        rows = material_rows(materials)
+        for name, column in rows.items():
+            getattr(self, name).from_numpy(column.astype(np.int32 if name == "model" else self.np_float))
+
+    @ti.func
+    def stress_update(self, mat, s, D, W, dt):
+        """Jaumann elastic trial, then the material's plastic correction.
+
+        Returns (stress vec4, equivalent plastic strain increment, yielded 0/1).
+        """
+        K = self.K[mat]
+        G = self.G[mat]
+        trial = linear_elastic.trial_stress(s, D, W, dt, K, G)
+        out = trial
+        deq = 0.0 * K
+        yielded = 0
+        if self.model[mat] == 1:
+            out, deq, yielded = drucker_prager.return_map(
+                trial, K, G, self.alpha[mat], self.kc[mat], self.alpha_psi[mat], self.t_cut[mat]
+            )
+        return out, deq, yielded
+
+
+@ti.data_oriented
+class MaterialPointDriver:
+    """Single-point driver for closed-form material tests: applies ``stress_update`` to a batch.
+
+    Needs an acquired runtime (:func:`solver.runtime.acquire`).
+    """
+
+    def __init__(self, materials: Sequence[Material], n: int, np_float=np.float64):
+        self.table = MaterialTable(materials, np_float)
+        self.np_float = np_float
+        self.n = n
+        self.s = ti.Vector.field(4, float, n)
+        self.L = ti.Matrix.field(2, 2, float, n)
+        self.mat = ti.field(ti.i32, n)
+        self.deq = ti.field(float, n)
+        self.yielded = ti.field(ti.i32, n)
+
+    @ti.kernel
+    def _update(self, dt: float):
+        for i in range(self.n):
+            L = self.L[i]
+            D = 0.5 * (L + L.transpose())
+            W = 0.5 * (L - L.transpose())
+            s, deq, y = self.table.stress_update(self.mat[i], self.s[i], D, W, dt)
+            self.s[i] = s
+            self.deq[i] += deq
+            self.yielded[i] = y
+
+    def run(self, stress: np.ndarray, velocity_gradient: np.ndarray, dt_s: float, steps: int = 1,
+            material_ids: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Apply ``steps`` updates with a constant velocity gradient.
+
+        Parameters
+        ----------
+        stress : (n, 4) float, Pa (xx, yy, xy, zz)
+        velocity_gradient : (n, 2, 2) float, 1/s
+        """
+        self.s.from_numpy(np.asarray(stress, dtype=self.np_float))
+        self.L.from_numpy(np.asarray(velocity_gradient, dtype=self.np_float))
+        self.mat.from_numpy(np.zeros(self.n, np.int32) if material_ids is None else material_ids.astype(np.int32))
+        self.deq.fill(0.0)
+        for _ in range(steps):
+            self._update(dt_s)
+        return {"stress": self.s.to_numpy(), "plastic_strain": self.deq.to_numpy(), "yielded": self.yielded.to_numpy()}

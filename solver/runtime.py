@@ -1,0 +1,91 @@
+"""The one owner of the Taichi runtime.
+
+Taichi keeps global state (the backend, the default float type, every field). Runout never calls
+``ti.init`` at import time; a :class:`~solver.simulation.Simulation` asks this module for a runtime
+when it is built, and the runtime is reset each time, so solvers can be built, run and disposed
+repeatedly in one process. Taichi state is tied to the thread that initialised it: build, run and
+close a simulation in the same thread.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+
+import taichi as ti
+
+log = logging.getLogger(__name__)
+
+_lock = threading.Lock()
+_owner: int | None = None
+_current: tuple[str, str] | None = None
+
+
+def gpu_available() -> bool:
+    """Whether Taichi can see a CUDA or Vulkan device (cheap, does not initialise Taichi)."""
+    try:
+        from taichi._lib import core as _ti_core
+
+        return bool(_ti_core.with_cuda() or _ti_core.with_vulkan()) and _probe_gpu()
+    except (ImportError, AttributeError, RuntimeError):
+        return False
+
+
+def _probe_gpu() -> bool:
+    # with_cuda() only says the wheel was built with CUDA; a driver is needed too.
+    import ctypes.util
+
+    return ctypes.util.find_library("cuda") is not None
+
+
+def acquire(arch: str, precision: str) -> str:
+    """(Re)initialise Taichi for this thread; return the arch actually used ("cpu" or "gpu").
+
+    Parameters
+    ----------
+    arch : "auto" | "cpu" | "gpu"
+        ``auto`` and ``gpu`` fall back to the CPU, with a log line, when no GPU is usable.
+    precision : "f32" | "f64"
+    """
+    global _owner, _current
+    fp = {"f32": ti.f32, "f64": ti.f64}[precision]
+    with _lock:
+        if _current is not None:
+            ti.reset()
+        want_gpu = arch in ("auto", "gpu") and gpu_available()
+        if arch == "gpu" and not want_gpu:
+            log.warning("no usable GPU found; running on the CPU instead")
+        used = "cpu"
+        if want_gpu:
+            try:
+                ti.init(arch=ti.gpu, default_fp=fp, default_ip=ti.i32, offline_cache=True, log_level=ti.WARN)
+                used = "gpu" if ti.lang.impl.current_cfg().arch != ti.x64 else "cpu"
+            except RuntimeError as exc:  # driver present but unusable
+                log.warning("GPU initialisation failed (%s); running on the CPU instead", exc)
+                ti.reset()
+                want_gpu = False
+        if not want_gpu:
+            ti.init(arch=ti.cpu, default_fp=fp, default_ip=ti.i32, offline_cache=True, log_level=ti.WARN)
+        if arch == "auto" and used == "cpu":
+            log.info("Taichi runtime on the CPU (no GPU found)")
+        _owner = threading.get_ident()
+        _current = (used, precision)
+        return used
+
+
+def check_owner() -> None:
+    """Raise if the calling thread is not the one that initialised the runtime."""
+    if _owner is not None and _owner != threading.get_ident():
+        raise RuntimeError(
+            "the Taichi runtime belongs to another thread: build, run and close a Simulation in one thread"
+        )
+
+
+def release() -> None:
+    """Free every Taichi field; a later :func:`acquire` starts afresh."""
+    global _owner, _current
+    with _lock:
+        if _current is not None:
+            ti.reset()
+        _owner = None
+        _current = None
