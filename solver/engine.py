@@ -142,18 +142,21 @@ class Engine:
         g = ti.Vector([float(gravity[0]), float(gravity[1])])
         if self.scheme == "apic-affine":
             self._reset_grid()
-            if damping > 0.0:
-                self._p2g_fused(dt, g, False)
-            else:
-                self._p2g_fused(dt, g, True)
+            self._p2g_fused(dt, g, damping <= 0.0)
+            self._fold_ghosts(True, damping > 0.0)
             self._grid_update_fused(dt, damping)
+            self._mirror_ghosts(False)
             self._g2p(dt)
         else:
             self._reset_grid()
             self._p2g_momentum()
+            self._fold_ghosts(True, False)
             self._grid_velocity()
+            self._mirror_ghosts(True)
             self._stress_and_force(dt, g)
+            self._fold_ghosts(False, True)
             self._grid_update(dt, damping)
+            self._mirror_ghosts(False)
             self._g2p(dt)
 
     # ------------------------------------------------------------------ shared pieces
@@ -223,6 +226,66 @@ class Engine:
                 base, fx, w, dw = self._stencil(self.x[p])
                 ti.atomic_min(self.next_lo[None], base)
                 ti.atomic_max(self.next_hi[None], base + 3)
+
+    # ------------------------------------------------------------------ walls as mirror planes
+    # A closed wall sits on a node line; the ghost node one cell beyond it would only be reached by
+    # material on the far side of the wall. Folding its contributions, mirrored, onto the node one
+    # cell inside completes the truncated B-spline support there (the mirror-image method): without
+    # it a uniform stress pushes on the first interior node and the stress oscillates near walls.
+    @ti.func
+    def _wall_pairs(self, side: ti.template(), k):
+        """(ghost node, mirror node) for the k-th node along a side."""
+        axis = ti.static(side // 2)
+        low = ti.static(side % 2 == 0)
+        wall = ti.static(PAD if low else PAD + (self.cells[0] if axis == 0 else self.cells[1]))
+        step = ti.static(1 if low else -1)
+        ghost = ti.Vector([0, 0])
+        mirror = ti.Vector([0, 0])
+        ghost[axis] = wall - step
+        mirror[axis] = wall + step
+        ghost[1 - axis] = k
+        mirror[1 - axis] = k
+        return ghost, mirror
+
+    @ti.func
+    def _in_box(self, I):
+        lo = self.lo[None]
+        hi = self.hi[None]
+        return lo[0] <= I[0] < hi[0] and lo[1] <= I[1] < hi[1]
+
+    @ti.kernel
+    def _fold_ghosts(self, momentum: ti.template(), forces: ti.template()):
+        for side in ti.static(range(4)):
+            axis = ti.static(side // 2)
+            if self.bc_kind[side] != 3:
+                for k in range(self.nodes[1 - axis]):
+                    ghost, mirror = self._wall_pairs(side, k)
+                    if self._in_box(ghost) and self._in_box(mirror):
+                        flip = ti.Vector([1.0, 1.0])
+                        flip[axis] = -1.0
+                        if ti.static(momentum):
+                            self.g_mass[mirror] += self.g_mass[ghost]
+                            self.g_mom[mirror] += flip * self.g_mom[ghost]
+                        if ti.static(forces):
+                            self.g_f[mirror] += flip * self.g_f[ghost]
+
+    @ti.kernel
+    def _mirror_ghosts(self, old: ti.template()):
+        for side in ti.static(range(4)):
+            axis = ti.static(side // 2)
+            kind = self.bc_kind[side]
+            if kind != 3:
+                for k in range(self.nodes[1 - axis]):
+                    ghost, mirror = self._wall_pairs(side, k)
+                    if self._in_box(ghost) and self._in_box(mirror):
+                        flip = ti.Vector([1.0, 1.0])
+                        flip[axis] = -1.0
+                        if kind == 0:
+                            flip = ti.Vector([-1.0, -1.0])  # no-slip: antisymmetric extension
+                        if ti.static(old):
+                            self.g_v_old[ghost] = flip * self.g_v_old[mirror]
+                        else:
+                            self.g_v[ghost] = flip * self.g_v[mirror]
 
     # ------------------------------------------------------------------ four-stage (apic-affine)
     @ti.kernel

@@ -272,7 +272,7 @@ class Simulation:
                 at_output = self.time_s >= next_output - 1e-9 * interval
                 if stage_steps % CHECK_EVERY == 0 or at_output:
                     d = e.diagnostics()
-                    self._check(h, d)
+                    self._check(dt, d)
                     if cfg.numerics.time_step_s is None:
                         dt = self._time_step(d["max_speed"])
                     peak_ke = max(peak_ke, d["kinetic_energy"])

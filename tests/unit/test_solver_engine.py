@@ -1,0 +1,134 @@
+"""Grid transfers and boundary conditions of the engine (unit tests on the kernels, f64, CPU)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from solver import runtime
+from solver.config import Boundary, Grid, Material
+from solver.engine import PAD
+
+MAT = (Material("e", "linear-elastic", 1000.0, 1e6, 0.3),)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _runtime():
+    runtime.acquire("cpu", "f64")
+    yield
+    runtime.release()
+
+
+def make_engine(scheme="apic-affine", n=200, seed=0, **sides):
+    from solver.engine import Engine
+
+    grid = Grid((0.0, 0.0), (1.0, 1.0), 0.1, **sides)
+    eng = Engine(grid, MAT, n, scheme, np.float64)
+    rng = np.random.default_rng(seed)
+    pos = 0.3 + 0.4 * rng.random((n, 2))
+    eng.load_particles(pos, np.full(n, 1e-3), np.zeros(n, np.int32), rng.normal(size=(n, 2)))
+    return eng, pos
+
+
+def test_apic_round_trip_reproduces_an_affine_velocity_field():
+    eng, pos = make_engine("apic")
+    a = np.array([0.3, -0.2])
+    B = np.array([[0.5, -1.2], [0.7, 0.2]])
+    v = a + pos @ B.T
+    eng.set_velocity(v, np.tile(B, (len(pos), 1, 1)))
+    eng.transfer_only()
+    st = eng.state(("v", "C", "x"))
+    np.testing.assert_allclose(st["v"], v, atol=1e-12)
+    np.testing.assert_allclose(st["C"], np.tile(B, (len(pos), 1, 1)), atol=1e-11)
+    np.testing.assert_allclose(st["x"], pos, atol=0)
+
+
+@pytest.mark.parametrize("scheme", ["mpm", "apic", "apic-affine"])
+def test_transfers_conserve_mass_and_momentum(scheme):
+    eng, pos = make_engine(scheme, seed=1)
+    rng = np.random.default_rng(2)
+    v = rng.normal(size=(len(pos), 2))
+    C = rng.normal(size=(len(pos), 2, 2)) if scheme != "mpm" else None
+    eng.set_velocity(v, C)
+    st = eng.state(("m",))
+    mass = st["m"].sum()
+    momentum = (st["m"][:, None] * v).sum(axis=0)
+    eng.transfer_only()
+    grid_mass, grid_momentum = eng.grid_totals()
+    assert grid_mass == pytest.approx(mass, rel=1e-12)
+    np.testing.assert_allclose(grid_momentum, momentum, rtol=1e-12, atol=1e-14)
+    after = eng.state(("v", "m"))
+    np.testing.assert_allclose((after["m"][:, None] * after["v"]).sum(axis=0), momentum, rtol=1e-10, atol=1e-12)
+
+
+def _grid_velocities(eng, v):
+    nodes = eng.nodes
+    return np.tile(np.asarray(v, float), (nodes[0], nodes[1], 1))
+
+
+def test_fixed_wall_stops_its_nodes_and_leaves_the_interior():
+    eng, _ = make_engine(left=Boundary("fixed"), right=Boundary("open"), bottom=Boundary("open"), top=Boundary("open"))
+    out = eng.apply_boundaries(_grid_velocities(eng, [0.5, 0.3]))
+    np.testing.assert_array_equal(out[: PAD + 1], 0.0)  # ghost and wall nodes
+    np.testing.assert_allclose(out[PAD + 1 :], np.broadcast_to([0.5, 0.3], out[PAD + 1 :].shape))
+
+
+def test_slip_wall_removes_only_the_velocity_into_the_wall():
+    eng, _ = make_engine(left=Boundary("open"), right=Boundary("slip"), bottom=Boundary("open"), top=Boundary("open"))
+    wall = PAD + eng.cells[0]
+    into = eng.apply_boundaries(_grid_velocities(eng, [0.5, -0.3]))
+    np.testing.assert_allclose(into[wall:], np.broadcast_to([0.0, -0.3], into[wall:].shape))
+    np.testing.assert_allclose(into[:wall], np.broadcast_to([0.5, -0.3], into[:wall].shape))
+    away = eng.apply_boundaries(_grid_velocities(eng, [-0.5, -0.3]))  # separating: untouched
+    np.testing.assert_allclose(away, np.broadcast_to([-0.5, -0.3], away.shape))
+
+
+def test_friction_wall_reduces_tangential_speed_by_mu_times_normal_and_never_reverses():
+    phi = math.radians(20.0)
+    mu = math.tan(phi)
+    eng, _ = make_engine(bottom=Boundary("friction", phi), left=Boundary("open"), right=Boundary("open"), top=Boundary("open"))
+    out = eng.apply_boundaries(_grid_velocities(eng, [1.0, -0.5]))
+    np.testing.assert_allclose(out[:, : PAD + 1], np.broadcast_to([1.0 - mu * 0.5, 0.0], out[:, : PAD + 1].shape))
+    np.testing.assert_allclose(out[:, PAD + 1 :], np.broadcast_to([1.0, -0.5], out[:, PAD + 1 :].shape))
+    slow = eng.apply_boundaries(_grid_velocities(eng, [-0.1, -0.5]))  # |vt| < mu |vn|: stops, not reversed
+    np.testing.assert_allclose(slow[:, : PAD + 1], 0.0, atol=1e-15)
+
+
+def test_open_sides_do_not_constrain():
+    eng, _ = make_engine(left=Boundary("open"), right=Boundary("open"), bottom=Boundary("open"), top=Boundary("open"))
+    v = _grid_velocities(eng, [-0.7, -0.2])
+    np.testing.assert_allclose(eng.apply_boundaries(v), v)
+
+
+def test_open_boundary_removes_and_counts_leaving_particles():
+    from solver.engine import Engine
+
+    grid = Grid((0.0, 0.0), (1.0, 1.0), 0.1, left=Boundary("slip"), right=Boundary("open"),
+                bottom=Boundary("slip"), top=Boundary("open"))
+    n = 100
+    eng = Engine(grid, MAT, n, "apic-affine", np.float64)
+    pos = np.c_[np.linspace(0.55, 0.95, n), np.full(n, 0.5)]
+    eng.load_particles(pos, np.full(n, 1e-4), np.zeros(n, np.int32), np.tile([2.0, 0.0], (n, 1)))
+    for _ in range(60):  # 0.3 s at 2 m/s: everything crosses x = 1
+        eng.step(0.005, (0.0, 0.0))
+    st = eng.state()
+    d = eng.diagnostics()
+    assert d["lost"] == n and d["active"] == 0
+    assert np.all(st["active"] == 0) and np.all(np.isfinite(st["x"]))
+    assert d["kinetic_energy"] == 0.0
+
+
+def test_closed_walls_keep_particles_inside():
+    from solver.engine import Engine
+
+    grid = Grid((0.0, 0.0), (1.0, 1.0), 0.1, left=Boundary("slip"), right=Boundary("slip"),
+                bottom=Boundary("fixed"), top=Boundary("slip"))
+    n = 50
+    eng = Engine(grid, MAT, n, "apic", np.float64)
+    pos = np.c_[np.linspace(0.8, 0.95, n), np.full(n, 0.5)]
+    eng.load_particles(pos, np.full(n, 1e-4), np.zeros(n, np.int32), np.tile([3.0, 0.0], (n, 1)))
+    for _ in range(200):  # dt below the critical 2.7e-3 s
+        eng.step(0.001, (0.0, 0.0))
+    st = eng.state()
+    assert eng.diagnostics()["lost"] == 0
+    assert np.all(st["x"][:, 0] <= 1.0) and np.all(st["active"] == 1)
