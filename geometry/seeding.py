@@ -1,0 +1,280 @@
+"""Material points from body polygons: grid-aligned lattice or Gauss points of a quad mesh.
+
+Both seeders take the bodies in painting order (where bodies overlap, the later body owns
+the overlap) and return :class:`Seeds`: positions, volumes (area per unit thickness in plane
+strain) and the index of the body each point belongs to.
+
+lattice
+    Each background-grid cell (square, side ``cell_size_m``, cells start at ``origin_m``) is
+    split into ``per_cell x per_cell`` sub-cells of side ``h = cell_size_m / per_cell``; a point
+    sits at the centre of every sub-cell whose centre lies in a body, with volume ``h**2``.
+gauss
+    The bodies are meshed into quadrilaterals of edge ``cell_size_m`` (gmsh, see
+    :mod:`geometry.gmsh_bodies`); each quad gets ``per_cell x per_cell`` Gauss-Legendre points
+    with volume ``w_i w_j |det J|``. The volumes of a body sum to its area to round-off.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from geometry.polygons import check_simple, owner_of_points
+
+logger = logging.getLogger(__name__)
+
+# Lattice points are located in blocks of rows to bound the temporary memory.
+_LATTICE_BLOCK_POINTS = 2_000_000
+
+
+@dataclass(frozen=True)
+class Seeds:
+    """Material points seeded in bodies.
+
+    Attributes
+    ----------
+    positions_m : numpy.ndarray, shape (N, 2), float64, m
+        Point positions.
+    volumes_m2 : numpy.ndarray, shape (N,), float64, m2
+        Volume of each point per unit thickness (plane strain).
+    body_index : numpy.ndarray, shape (N,), int64
+        Index of the body (in the list given to the seeder) each point belongs to.
+    """
+
+    positions_m: np.ndarray
+    volumes_m2: np.ndarray
+    body_index: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.volumes_m2)
+
+    def body_volumes_m2(self, n_bodies: int) -> np.ndarray:
+        """Total volume of each body's points.
+
+        Parameters
+        ----------
+        n_bodies : int
+            Number of bodies seeded (bodies without points get 0).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n_bodies,), float64, m2
+        """
+        return np.bincount(self.body_index, weights=self.volumes_m2, minlength=n_bodies)
+
+
+def _check_per_cell(per_cell: int) -> int:
+    if isinstance(per_cell, bool) or not isinstance(per_cell, (int, np.integer)) or per_cell < 1:
+        raise ValueError(
+            f"per_cell must be an integer >= 1 (points per cell per direction), got {per_cell!r}"
+        )
+    return int(per_cell)
+
+
+def _check_cell_size(cell_size_m: float) -> float:
+    try:
+        size = float(cell_size_m)
+    except (TypeError, ValueError):
+        size = float("nan")
+    if not np.isfinite(size) or size <= 0.0:
+        raise ValueError(f"cell_size_m must be a positive number of metres, got {cell_size_m!r}")
+    return size
+
+
+def _empty() -> Seeds:
+    return Seeds(np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=np.int64))
+
+
+def seed_lattice(
+    polygons: Sequence[np.ndarray],
+    origin_m: tuple[float, float],
+    cell_size_m: float,
+    per_cell: int,
+) -> Seeds:
+    """Seed points on a lattice aligned with the background grid, clipped by the bodies.
+
+    Every grid cell ``[ox + i dx, ox + (i+1) dx] x [oy + j dx, oy + (j+1) dx]`` is divided into
+    ``per_cell x per_cell`` sub-cells of side ``h = dx / per_cell``. A point is placed at the
+    centre of each sub-cell whose centre lies in a body (overlaps go to the later body) and
+    gets the sub-cell's area ``h**2`` as its volume.
+
+    Volume bound: the volumes of a body sum to its area exactly when its edges run along
+    sub-cell lines (e.g. a rectangle aligned with the grid). Otherwise the difference comes
+    only from sub-cells cut by the boundary. A straight edge leaves at least half of a
+    sub-cell on the side of its centre, so each cut sub-cell is off by at most ``h**2 / 2``,
+    and the signed errors along an edge largely cancel. For bodies without features thinner
+    than ``h``::
+
+        |sum of volumes - area| <= perimeter * h / 2
+
+    (on random polygons the worst case found is about 0.4 of this bound). A needle thinner
+    than ``h`` can exceed it by up to ``h**2`` per needle; the unconditional bound, counting
+    every sub-cell an edge meets as wholly wrong, is ``h * sum(|dx_e| + |dy_e|) + 3 K h**2``
+    over the K edges ``e``.
+
+    Parameters
+    ----------
+    polygons : sequence of array_like, each shape (K_i, 2), m
+        Simple body outlines in painting order.
+    origin_m : (float, float), m
+        Lower-left corner of the background grid (cell corners lie at ``origin + i * dx``).
+    cell_size_m : float, m
+        Background-grid cell size ``dx``.
+    per_cell : int
+        Points per cell per direction (``per_cell**2`` points in a full cell).
+
+    Returns
+    -------
+    Seeds
+        Points ordered by row (y), then by x.
+
+    Raises
+    ------
+    ValueError
+        For non-simple polygons, a non-positive cell size or ``per_cell < 1``.
+    """
+    polys = [check_simple(p, f"polygons[{i}]") for i, p in enumerate(polygons)]
+    dx = _check_cell_size(cell_size_m)
+    n = _check_per_cell(per_cell)
+    ox, oy = (float(v) for v in origin_m)
+    if not polys:
+        return _empty()
+    h = dx / n
+    allpts = np.concatenate(polys)
+    lo, hi = allpts.min(axis=0), allpts.max(axis=0)
+    # Sub-cell indices whose centres can fall inside the bounding box.
+    i0 = int(np.floor((lo[0] - ox) / h)) - 1
+    i1 = int(np.ceil((hi[0] - ox) / h)) + 1
+    j0 = int(np.floor((lo[1] - oy) / h)) - 1
+    j1 = int(np.ceil((hi[1] - oy) / h)) + 1
+    # Centres computed from integer indices, so that no rounding accumulates along a row.
+    xs = ox + (np.arange(i0, i1) + 0.5) * h
+    ys = oy + (np.arange(j0, j1) + 0.5) * h
+    rows_per_block = max(1, _LATTICE_BLOCK_POINTS // max(1, len(xs)))
+
+    positions: list[np.ndarray] = []
+    owners: list[np.ndarray] = []
+    for start in range(0, len(ys), rows_per_block):
+        gy, gx = np.meshgrid(ys[start : start + rows_per_block], xs, indexing="ij")
+        pts = np.column_stack([gx.ravel(), gy.ravel()])
+        owner = owner_of_points(pts, polys)
+        keep = owner >= 0
+        positions.append(pts[keep])
+        owners.append(owner[keep])
+    pos = np.concatenate(positions)
+    body = np.concatenate(owners)
+    _warn_empty(body, len(polys), "lattice")
+    return Seeds(positions_m=pos, volumes_m2=np.full(len(pos), h * h), body_index=body)
+
+
+def gauss_legendre(per_cell: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre points and weights on [-1, 1].
+
+    Parameters
+    ----------
+    per_cell : int
+        Number of points.
+
+    Returns
+    -------
+    points : numpy.ndarray, shape (per_cell,)
+    weights : numpy.ndarray, shape (per_cell,)
+        They sum to 2.
+    """
+    return np.polynomial.legendre.leggauss(_check_per_cell(per_cell))
+
+
+def quad_gauss_points(
+    nodes_m: np.ndarray, quads: np.ndarray, per_cell: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss points of bilinear quadrilaterals and their volumes.
+
+    The reference square [-1, 1]^2 maps to each quad by the bilinear map with corners
+    (-1, -1), (1, -1), (1, 1), (-1, 1) at the quad's nodes 0..3. The volume of a point is
+    ``w_i w_j |det J|`` at that point; ``det J`` is linear in each reference coordinate, so
+    the volumes of a quad sum to its area exactly (up to round-off) for any ``per_cell``.
+
+    Parameters
+    ----------
+    nodes_m : numpy.ndarray, shape (M, 2), m
+    quads : numpy.ndarray, shape (Q, 4), int
+        Node indices, counter-clockwise.
+    per_cell : int
+        Points per quad per direction.
+
+    Returns
+    -------
+    positions_m : numpy.ndarray, shape (Q * per_cell**2, 2), m
+        Ordered by quad, then by point.
+    volumes_m2 : numpy.ndarray, shape (Q * per_cell**2,), m2
+    """
+    xi, w = gauss_legendre(per_cell)
+    r, s = np.meshgrid(xi, xi, indexing="ij")
+    r, s = r.ravel(), s.ravel()
+    weights = np.outer(w, w).ravel()
+    # Bilinear shape functions and their derivatives at the points: (P, 4).
+    sign_r = np.array([-1.0, 1.0, 1.0, -1.0])
+    sign_s = np.array([-1.0, -1.0, 1.0, 1.0])
+    shape = 0.25 * (1 + np.outer(r, sign_r)) * (1 + np.outer(s, sign_s))
+    d_r = 0.25 * sign_r[None, :] * (1 + np.outer(s, sign_s))
+    d_s = 0.25 * sign_s[None, :] * (1 + np.outer(r, sign_r))
+    corners = np.asarray(nodes_m, dtype=np.float64)[np.asarray(quads)]  # (Q, 4, 2)
+    positions = np.einsum("pa,qad->qpd", shape, corners)  # (Q, P, 2)
+    j_r = np.einsum("pa,qad->qpd", d_r, corners)
+    j_s = np.einsum("pa,qad->qpd", d_s, corners)
+    det = j_r[..., 0] * j_s[..., 1] - j_r[..., 1] * j_s[..., 0]  # (Q, P)
+    volumes = weights[None, :] * np.abs(det)
+    return positions.reshape(-1, 2), volumes.ravel()
+
+
+def seed_gauss(polygons: Sequence[np.ndarray], cell_size_m: float, per_cell: int) -> Seeds:
+    """Seed points at the Gauss points of a conforming quad mesh of the bodies.
+
+    The bodies are meshed together with gmsh (:func:`geometry.gmsh_bodies.mesh_bodies`,
+    element size ``cell_size_m``); overlaps are meshed once and belong to the later body,
+    so no area is counted twice. Each quad gets ``per_cell x per_cell`` Gauss-Legendre
+    points; the volume of a point is its weight times ``|det J|``. The volumes of a body
+    sum to its area (less what later bodies cover) to round-off.
+
+    Parameters
+    ----------
+    polygons : sequence of array_like, each shape (K_i, 2), m
+        Simple body outlines in painting order.
+    cell_size_m : float, m
+        Quad edge length (normally the background-grid cell size).
+    per_cell : int
+        Points per quad per direction.
+
+    Returns
+    -------
+    Seeds
+        Points ordered by quad.
+
+    Raises
+    ------
+    ValueError
+        For non-simple polygons, a non-positive cell size or ``per_cell < 1``.
+    RuntimeError
+        If gmsh fails.
+    """
+    # Imported here so that the lattice path works without gmsh's heavy import.
+    from geometry.gmsh_bodies import mesh_bodies
+
+    n = _check_per_cell(per_cell)
+    size = _check_cell_size(cell_size_m)
+    if len(polygons) == 0:
+        return _empty()
+    mesh = mesh_bodies(polygons, size)
+    positions, volumes = quad_gauss_points(mesh.nodes_m, mesh.quads, n)
+    body = np.repeat(mesh.quad_body, n * n)
+    _warn_empty(body, len(polygons), "gauss")
+    return Seeds(positions_m=positions, volumes_m2=volumes, body_index=body.astype(np.int64))
+
+
+def _warn_empty(body: np.ndarray, n_bodies: int, method: str) -> None:
+    counts = np.bincount(body, minlength=n_bodies) if len(body) else np.zeros(n_bodies, dtype=int)
+    for index in np.nonzero(counts == 0)[0]:
+        logger.warning("%s seeding placed no points in body %d", method, index)

@@ -1,0 +1,197 @@
+"""Parametric scenes: a slope on a foundation, optionally in horizontal layers.
+
+The slope profile, with the crest on the left and the toe on the right (origin at the
+lower-left corner ``(x0, y0)``)::
+
+    y0+D+H  +-----------+
+            |    crest   \\   face at angle_deg
+            |              \\
+    y0+D    |                +-----------+
+            |                       toe  |
+    y0      +----------------------------+
+            x0          x0+Lc   x0+Lc+H/tan(angle)   x0+Lc+H/tan(angle)+Lt
+
+with ``H = height_m``, ``D = foundation_depth_m``, ``Lc = crest_length_m``,
+``Lt = toe_length_m``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from geometry.polygons import counter_clockwise, drop_repeated_vertices, remove_spikes
+
+# Lengths below this fraction of the profile's size count as zero (coincident vertices).
+_REL_TOL = 1e-9
+
+
+@dataclass(frozen=True)
+class SlopeLayer:
+    """A horizontal soil layer, counted from the top of the slope down.
+
+    Attributes
+    ----------
+    name : str
+        Body name given to the layer's polygon.
+    thickness_m : float, m
+        Vertical thickness.
+    """
+
+    name: str
+    thickness_m: float
+
+
+def _check_number(name: str, value: float, allow_zero: bool) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a number, got {value!r}") from exc
+    if not math.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
+        allowed = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} must be {allowed} (metres), got {value!r}")
+    return v
+
+
+def slope_profile(
+    height_m: float,
+    angle_deg: float,
+    crest_length_m: float,
+    toe_length_m: float,
+    foundation_depth_m: float,
+    layers: Sequence[SlopeLayer] = (),
+    origin_m: tuple[float, float] = (0.0, 0.0),
+    remainder_name: str = "foundation",
+) -> list[tuple[str, np.ndarray]]:
+    """Named body polygons of a slope on a foundation.
+
+    Without layers the whole profile (slope and foundation together) is one body named
+    ``"slope"``. With layers, each layer is the horizontal band of the profile between its
+    top and bottom (the first layer starts at the crest, ``y0 + D + H``, and the layers follow
+    downwards), clipped to the profile and named after the layer; what remains below the last
+    layer is one more body named ``remainder_name``, omitted when the layers reach the base.
+    A band may extend below the toe level, where it spans the full width.
+
+    Parameters
+    ----------
+    height_m : float, m
+        Slope height from the toe surface to the crest, > 0.
+    angle_deg : float, degrees
+        Face angle from the horizontal, 0 < angle_deg < 90.
+    crest_length_m : float, m
+        Horizontal length of the crest, >= 0.
+    toe_length_m : float, m
+        Horizontal length of the ground in front of the toe, >= 0.
+    foundation_depth_m : float, m
+        Depth of the foundation below the toe surface, >= 0.
+    layers : sequence of SlopeLayer
+        Layers from the crest down; thicknesses > 0, unique names, total thickness at most
+        ``height_m + foundation_depth_m``.
+    origin_m : (float, float), m
+        Lower-left corner of the profile.
+    remainder_name : str
+        Name of the body below the last layer.
+
+    Returns
+    -------
+    list of (str, numpy.ndarray of shape (K, 2), m)
+        Bodies from top to bottom, each polygon counter-clockwise without a repeated vertex.
+
+    Raises
+    ------
+    ValueError
+        Naming the argument and the allowed range when an argument is out of range.
+    """
+    height = _check_number("height_m", height_m, allow_zero=False)
+    try:
+        angle = float(angle_deg)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"angle_deg must be a number, got {angle_deg!r}") from exc
+    if not (0.0 < angle < 90.0):
+        raise ValueError(f"angle_deg must be in the open range (0, 90) degrees, got {angle_deg!r}")
+    crest = _check_number("crest_length_m", crest_length_m, allow_zero=True)
+    toe = _check_number("toe_length_m", toe_length_m, allow_zero=True)
+    depth = _check_number("foundation_depth_m", foundation_depth_m, allow_zero=True)
+    try:
+        x0, y0 = (float(v) for v in origin_m)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"origin_m must be a pair of numbers (x, y) in metres, got {origin_m!r}") from exc
+    if not (math.isfinite(x0) and math.isfinite(y0)):
+        raise ValueError(f"origin_m must be finite, got {origin_m!r}")
+
+    run = height / math.tan(math.radians(angle))
+    width = crest + run + toe
+    top = y0 + depth + height
+    toe_y = y0 + depth
+    profile = drop_repeated_vertices(
+        np.array(
+            [
+                [x0, y0],
+                [x0 + width, y0],
+                [x0 + width, toe_y],
+                [x0 + crest + run, toe_y],
+                [x0 + crest, top],
+                [x0, top],
+            ]
+        ),
+        _REL_TOL * max(width, depth + height),
+    )
+    if not layers:
+        return [("slope", counter_clockwise(profile))]
+
+    total_height = depth + height
+    tol = _REL_TOL * max(width, total_height)
+    names: set[str] = set()
+    bodies: list[tuple[str, np.ndarray]] = []
+    upper = top
+    for index, layer in enumerate(layers):
+        if not isinstance(layer, SlopeLayer):
+            raise ValueError(f"layers[{index}] must be a SlopeLayer, got {type(layer).__name__}")
+        if not layer.name or not isinstance(layer.name, str):
+            raise ValueError(f"layers[{index}].name must be a non-empty string, got {layer.name!r}")
+        if layer.name in names or layer.name == remainder_name:
+            raise ValueError(f"layers[{index}].name {layer.name!r} is used twice")
+        names.add(layer.name)
+        thickness = _check_number(f"layers[{index}].thickness_m", layer.thickness_m, allow_zero=False)
+        lower = upper - thickness
+        if lower < y0 - tol:
+            total = top - lower
+            raise ValueError(
+                f"layers total thickness {total:g} m exceeds the profile height "
+                f"height_m + foundation_depth_m = {total_height:g} m"
+            )
+        lower = max(lower, y0)
+        bodies.append((layer.name, counter_clockwise(_clip_band(profile, lower, upper, tol))))
+        upper = lower
+    if upper > y0 + tol:
+        bodies.append((remainder_name, counter_clockwise(_clip_band(profile, y0, upper, tol))))
+    return bodies
+
+
+def _clip_band(polygon: np.ndarray, y_lo: float, y_hi: float, tol: float) -> np.ndarray:
+    """Clip a polygon to the band y_lo <= y <= y_hi (Sutherland-Hodgman, two half-planes).
+
+    The result is connected because every horizontal line cuts the slope profile in a single
+    interval.
+    """
+    clipped = _clip_half_plane(polygon, y_lo, keep_above=True)
+    clipped = _clip_half_plane(clipped, y_hi, keep_above=False)
+    return remove_spikes(drop_repeated_vertices(clipped, tol), tol)
+
+
+def _clip_half_plane(polygon: np.ndarray, y_cut: float, keep_above: bool) -> np.ndarray:
+    out: list[np.ndarray] = []
+    n = len(polygon)
+    for i in range(n):
+        cur, nxt = polygon[i], polygon[(i + 1) % n]
+        cur_in = cur[1] >= y_cut if keep_above else cur[1] <= y_cut
+        nxt_in = nxt[1] >= y_cut if keep_above else nxt[1] <= y_cut
+        if cur_in:
+            out.append(cur)
+        if cur_in != nxt_in:
+            t = (y_cut - cur[1]) / (nxt[1] - cur[1])
+            out.append(np.array([cur[0] + t * (nxt[0] - cur[0]), y_cut]))
+    return np.array(out)

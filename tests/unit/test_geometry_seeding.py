@@ -1,0 +1,141 @@
+"""Lattice and Gauss seeding: volumes, the overlap rule and material assignment."""
+
+import numpy as np
+import pytest
+
+from geometry.polygons import owner_of_points, polygon_area, polygon_perimeter
+from geometry.seeding import quad_gauss_points, seed_gauss, seed_lattice
+from geometry.templates import SlopeLayer, slope_profile
+
+SLOPE = np.array([[0.0, 0.0], [30.0, 0.0], [30.0, 5.0], [20.0, 5.0], [10.0, 15.0], [0.0, 15.0]])
+TRIANGLE = np.array([[0.1, 0.2], [3.3, 0.45], [1.2, 2.9]])
+
+
+def test_lattice_rectangle_aligned_with_grid_is_exact():
+    rect = np.array([[0.2, 0.4], [1.0, 0.4], [1.0, 1.0], [0.2, 1.0]])
+    seeds = seed_lattice([rect], origin_m=(0.0, 0.0), cell_size_m=0.2, per_cell=2)
+    assert len(seeds) == 4 * 3 * 4  # 4 x 3 cells, 4 points each
+    assert seeds.volumes_m2.sum() == pytest.approx(0.48, rel=1e-12)
+    np.testing.assert_allclose(seeds.volumes_m2, 0.01)
+    # Points sit at the sub-cell centres: a quarter cell (0.05 m) in from the edges.
+    assert seeds.positions_m[:, 0].min() == pytest.approx(0.25)
+    assert seeds.positions_m[:, 1].max() == pytest.approx(0.95)
+    assert np.all(seeds.body_index == 0)
+
+
+def test_lattice_is_aligned_with_the_grid_origin():
+    rect = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    seeds = seed_lattice([rect], origin_m=(0.03, -0.01), cell_size_m=0.1, per_cell=1)
+    frac = (seeds.positions_m - [0.03, -0.01]) / 0.1 - 0.5
+    np.testing.assert_allclose(frac, np.round(frac), atol=1e-9)
+
+
+@pytest.mark.parametrize("per_cell", [1, 2, 3])
+@pytest.mark.parametrize("origin", [(0.0, 0.0), (0.37, -0.11)])
+@pytest.mark.parametrize("polygon", [TRIANGLE, SLOPE / 10.0], ids=["triangle", "slope"])
+def test_lattice_volume_within_documented_bound(polygon, origin, per_cell):
+    cell = 0.25
+    seeds = seed_lattice([polygon], origin, cell, per_cell)
+    h = cell / per_cell
+    error = abs(seeds.volumes_m2.sum() - polygon_area(polygon))
+    assert error <= polygon_perimeter(polygon) * h / 2
+    # And the bound is not vacuous: the error is of the boundary's order, not zero volume.
+    assert seeds.volumes_m2.sum() > 0.5 * polygon_area(polygon)
+
+
+def test_lattice_bound_holds_on_random_polygons():
+    rng = np.random.default_rng(7)
+    for _ in range(60):
+        k = int(rng.integers(3, 10))
+        angles = np.arange(k) * 2 * np.pi / k + rng.uniform(0, 0.9 * 2 * np.pi / k, k)
+        radii = rng.uniform(0.4, 1.5, k)
+        poly = np.column_stack([radii * np.cos(angles), radii * np.sin(angles)])
+        cell, per_cell = float(rng.uniform(0.05, 0.4)), int(rng.integers(1, 4))
+        seeds = seed_lattice([poly], tuple(rng.uniform(-1, 1, 2)), cell, per_cell)
+        bound = polygon_perimeter(poly) * cell / per_cell / 2
+        assert abs(seeds.volumes_m2.sum() - polygon_area(poly)) <= bound
+
+
+def test_lattice_overlap_belongs_to_later_body_and_is_counted_once():
+    lower = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]])
+    upper = np.array([[1.0, 0.5], [3.0, 0.5], [3.0, 2.0], [1.0, 2.0]])
+    seeds = seed_lattice([lower, upper], (0.0, 0.0), 0.25, 2)
+    volumes = seeds.body_volumes_m2(2)
+    assert volumes[0] == pytest.approx(2.0 - 0.5)
+    assert volumes[1] == pytest.approx(3.0)
+    x, y = seeds.positions_m[:, 0], seeds.positions_m[:, 1]
+    in_overlap = (x > 1) & (x < 2) & (y > 0.5) & (y < 1)
+    assert in_overlap.any() and np.all(seeds.body_index[in_overlap] == 1)
+    # No point is seeded twice.
+    assert len(np.unique(seeds.positions_m, axis=0)) == len(seeds)
+
+
+def test_lattice_rejects_bad_arguments():
+    with pytest.raises(ValueError, match="per_cell must be an integer >= 1"):
+        seed_lattice([TRIANGLE], (0, 0), 0.1, 0)
+    with pytest.raises(ValueError, match="cell_size_m must be a positive"):
+        seed_lattice([TRIANGLE], (0, 0), -0.1, 2)
+    with pytest.raises(ValueError, match=r"polygons\[1\] is self-intersecting"):
+        seed_lattice([TRIANGLE, [[0, 0], [1, 1], [1, 0], [0, 1]]], (0, 0), 0.1, 2)
+
+
+def test_quad_gauss_points_integrate_a_distorted_quad_exactly():
+    nodes = np.array([[0.0, 0.0], [2.0, 0.3], [2.4, 1.9], [-0.2, 1.2]])
+    quads = np.array([[0, 1, 2, 3]])
+    area = polygon_area(nodes)
+    for per_cell in (1, 2, 3):
+        positions, volumes = quad_gauss_points(nodes, quads, per_cell)
+        assert positions.shape == (per_cell**2, 2)
+        assert volumes.sum() == pytest.approx(area, rel=1e-13)
+    # One point per quad sits at the image of the reference centre.
+    positions, _ = quad_gauss_points(nodes, quads, 1)
+    np.testing.assert_allclose(positions[0], nodes.mean(axis=0))
+
+
+@pytest.mark.parametrize("per_cell", [1, 2])
+def test_gauss_volumes_sum_to_slope_area(per_cell):
+    seeds = seed_gauss([SLOPE], cell_size_m=2.5, per_cell=per_cell)
+    assert seeds.volumes_m2.sum() == pytest.approx(polygon_area(SLOPE), rel=1e-9)
+    assert np.all(seeds.volumes_m2 > 0)
+    # Every Gauss point lies inside the body.
+    assert np.all(owner_of_points(seeds.positions_m, [SLOPE]) == 0)
+
+
+def test_gauss_overlap_counted_once_and_owned_by_later_body():
+    lower = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]])
+    upper = np.array([[1.0, 0.5], [3.0, 0.5], [3.0, 2.0], [1.0, 2.0]])
+    seeds = seed_gauss([lower, upper], cell_size_m=0.25, per_cell=2)
+    volumes = seeds.body_volumes_m2(2)
+    assert volumes[0] == pytest.approx(1.5, rel=1e-9)  # its 2 m2 less the 0.5 m2 overlap
+    assert volumes[1] == pytest.approx(3.0, rel=1e-9)
+    assert volumes.sum() == pytest.approx(4.5, rel=1e-9)  # union area: no double count
+    # Points agree with the numpy overlap rule.
+    np.testing.assert_array_equal(owner_of_points(seeds.positions_m, [lower, upper]), seeds.body_index)
+
+
+@pytest.mark.parametrize("method", ["lattice", "gauss"])
+def test_material_assignment_on_a_layered_slope(method):
+    layers = [SlopeLayer("topsoil", 4.0), SlopeLayer("clay", 6.0)]
+    bodies = slope_profile(10.0, 45.0, 6.0, 8.0, 4.0, layers=layers)
+    names = [name for name, _ in bodies]
+    assert names == ["topsoil", "clay", "foundation"]
+    polygons = [poly for _, poly in bodies]
+    if method == "lattice":
+        seeds = seed_lattice(polygons, (0.0, 0.0), 1.0, 2)
+    else:
+        seeds = seed_gauss(polygons, 1.0, 2)
+    y = seeds.positions_m[:, 1]
+    # Crest at y = 14; interfaces at 10 (topsoil/clay) and 4 (clay/foundation, the toe level).
+    np.testing.assert_array_equal(seeds.body_index[y > 10.0], 0)
+    np.testing.assert_array_equal(seeds.body_index[(y < 10.0) & (y > 4.0)], 1)
+    np.testing.assert_array_equal(seeds.body_index[y < 4.0], 2)
+    volumes = seeds.body_volumes_m2(3)
+    expected = np.array([polygon_area(p) for p in polygons])
+    if method == "gauss":
+        np.testing.assert_allclose(volumes, expected, rtol=1e-9)
+    else:
+        # The 45-degree face runs through sub-cell centres, which the half-open point test
+        # leaves outside; the error stays within the documented bound of each body.
+        bounds = np.array([polygon_perimeter(p) * 0.5 / 2 for p in polygons])
+        assert np.all(np.abs(volumes - expected) <= bounds)
+        assert volumes[2] == pytest.approx(expected[2])  # the foundation is grid-aligned
