@@ -119,7 +119,8 @@ class Stage:
     - ``k0``: no time passes; geostatic stress from the overburden, horizontal = K0 * vertical.
       ``k0`` overrides every material's default K0.
     - ``gravity``: gravity ramped linearly from zero over ``duration_s`` with local damping
-      (``damping``, default 0.7 if zero is given), then all velocities are set to zero.
+      (``damping``; the project layer fills in 0.7 when the file gives none), then all
+      velocities are set to zero.
     - ``dynamic``: free motion for ``duration_s``; may stop early once the kinetic energy falls
       below ``stop_when_kinetic_energy_below`` times the stage's peak, after ``min_duration_s``.
 

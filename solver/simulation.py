@@ -252,7 +252,7 @@ class Simulation:
                 next_output = self.time_s + interval
             stage_start = self.time_s
             stage_end = stage_start + stage.duration_s
-            damping = stage.damping if stage.damping > 0 else (0.7 if stage.kind == "gravity" else 0.0)
+            damping = stage.damping
             peak_ke = 0.0
             stage_steps = 0
             reason = ""

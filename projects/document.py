@@ -1,0 +1,462 @@
+"""Reading, writing and overriding project files (TOML, schema version 1).
+
+- :func:`load_project` / :func:`loads_project` parse and validate (every problem at once,
+  TOML syntax errors with line and column).
+- :func:`save_project` / :func:`dumps_project` write a project back. Saving is atomic (a
+  temporary file in the same folder, flushed and synced, then renamed over the target), and
+  ``load(save(p)) == p`` exactly: floats are written with ``repr``, which round-trips.
+  Comments of the original file are not kept.
+- :func:`apply_overrides` applies ``KEY=VALUE`` overrides (the command line's ``--set``):
+  dotted key paths, list indices as integers, the value read as a TOML value or else taken
+  as a string, then the whole project validated again.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import logging
+import os
+import re
+import stat
+import tempfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import tomlkit
+import tomlkit.exceptions
+import tomlkit.items
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: tomlkit reads too
+    tomllib = None  # type: ignore[assignment]
+
+from projects.schema import (
+    Boundary,
+    Problem,
+    Project,
+    ProjectError,
+    schema_kind,
+    validate_project,
+)
+
+logger = logging.getLogger(__name__)
+
+# Polygons with more points than this are written one point per line.
+_INLINE_POINTS = 8
+_HEADER = "Runout project file, schema version 1: SI units, angles in degrees (docs/project-format.md)."
+_TOMLKIT_AT = re.compile(r"\s+at line \d+ col \d+\s*$")
+_TOMLLIB_AT = re.compile(r"\s*\(at line (\d+), column (\d+)\)")
+
+
+# --------------------------------------------------------------------------------------------
+# Reading
+
+
+def parse_toml(text: str, source: str | None = None) -> dict[str, Any]:
+    """Parse TOML text into plain data (dicts, lists, str, int, float, bool, dates).
+
+    Uses the standard library's ``tomllib`` where present (Python >= 3.11), else tomlkit.
+
+    Parameters
+    ----------
+    text : str
+    source : str, optional
+        Name used in error messages (a file name).
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    ProjectError
+        On a syntax error (duplicate keys included), with its line and column.
+    """
+    try:
+        return _parse(text)
+    except _TomlSyntaxError as exc:
+        raise ProjectError([Problem("", None, str(exc))], source) from None
+
+
+class _TomlSyntaxError(Exception):
+    pass
+
+
+def _parse(text: str) -> dict[str, Any]:
+    if tomllib is not None:
+        try:
+            return tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            found = _TOMLLIB_AT.search(str(exc))
+            reason = _TOMLLIB_AT.sub("", str(exc)).strip()
+            if found is None:
+                raise _TomlSyntaxError(f"TOML syntax error: {reason}") from None
+            line, col = found.groups()
+            raise _TomlSyntaxError(f"TOML syntax error at line {line}, column {col}: {reason}") from None
+    try:
+        return tomlkit.parse(text).unwrap()
+    except tomlkit.exceptions.ParseError as exc:
+        reason = _TOMLKIT_AT.sub("", str(exc)).rstrip(". ")
+        raise _TomlSyntaxError(f"TOML syntax error at line {exc.line}, column {exc.col}: {reason}") from None
+    except tomlkit.exceptions.TOMLKitError as exc:
+        raise _TomlSyntaxError(f"TOML syntax error: {exc}") from None
+
+
+def loads_project(text: str, overrides: Sequence[str] = (), source: str | None = None) -> Project:
+    """Validate a project from TOML text.
+
+    Parameters
+    ----------
+    text : str
+        The file's contents.
+    overrides : sequence of str
+        ``KEY=VALUE`` overrides applied before validation (see :func:`apply_overrides`).
+    source : str, optional
+        Name used in error messages.
+
+    Returns
+    -------
+    Project
+
+    Raises
+    ------
+    ProjectError
+        Listing every problem found.
+    """
+    data = parse_toml(text, source)
+    try:
+        if overrides:
+            return apply_overrides(data, overrides)
+        return validate_project(data)
+    except ProjectError as exc:
+        raise ProjectError(exc.problems, source) from None
+
+
+def load_project(path: str | os.PathLike[str], overrides: Sequence[str] = ()) -> Project:
+    """Read and validate a project file.
+
+    Parameters
+    ----------
+    path : path-like
+        A ``.toml`` project file.
+    overrides : sequence of str
+        ``KEY=VALUE`` overrides applied before validation, so that an override may repair
+        a value of the file (see :func:`apply_overrides`).
+
+    Returns
+    -------
+    Project
+
+    Raises
+    ------
+    ProjectError
+        When the file cannot be read or is not a valid project; the message starts with
+        the file name.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        raise ProjectError([Problem("", None, f"cannot read the file: {reason}")], str(path)) from None
+    except UnicodeDecodeError as exc:
+        raise ProjectError([Problem("", None, f"not UTF-8 text: {exc.reason}")], str(path)) from None
+    return loads_project(text, overrides, source=str(path))
+
+
+# --------------------------------------------------------------------------------------------
+# Writing
+
+
+def dumps_project(project: Project) -> str:
+    """Write a project as TOML text, in the layout of the shipped examples.
+
+    Parameters
+    ----------
+    project : Project
+
+    Returns
+    -------
+    str
+        TOML that :func:`loads_project` reads back to an equal project.
+    """
+    data = project.to_dict()
+    doc = tomlkit.document()
+    doc.add(tomlkit.comment(_HEADER))
+    doc.add(tomlkit.nl())
+    doc["runout"] = _table(data["runout"])
+
+    domain = _table({k: v for k, v in data["domain"].items() if k != "boundaries"})
+    boundaries = tomlkit.table()
+    for side, boundary in data["domain"]["boundaries"].items():
+        boundaries[side] = _inline(boundary) if isinstance(boundary, Mapping) else boundary
+    domain["boundaries"] = boundaries
+    doc["domain"] = domain
+
+    materials = tomlkit.table(is_super_table=True)
+    for name, material in data["materials"].items():
+        materials[name] = _table(material)
+    doc["materials"] = materials
+
+    bodies = tomlkit.aot()
+    for body in data["bodies"]:
+        table = tomlkit.table()
+        for key, value in body.items():
+            table[key] = _points(value) if key == "polygon_m" else _value(value)
+        bodies.append(table)
+    doc["bodies"] = bodies
+
+    doc["particles"] = _table(data["particles"])
+    doc["numerics"] = _table(data["numerics"])
+
+    stages = tomlkit.aot()
+    for stage in data["stages"]:
+        table = tomlkit.table()
+        for key, value in stage.items():
+            if key == "damping":
+                table[key] = _inline(value)
+            elif key == "material_changes":
+                changes = tomlkit.table(is_super_table=True)
+                for name, change in value.items():
+                    changes[name] = _table(change)
+                table[key] = changes
+            else:
+                table[key] = _value(value)
+        stages.append(table)
+    doc["stages"] = stages
+
+    doc["output"] = _table(data["output"])
+    return tomlkit.dumps(doc)
+
+
+def _value(value: Any) -> Any:
+    if isinstance(value, list):
+        array = tomlkit.array()
+        array.extend(_value(v) for v in value)
+        return array
+    return tomlkit.item(value)
+
+
+def _table(values: Mapping[str, Any]) -> tomlkit.items.Table:
+    table = tomlkit.table()
+    for key, value in values.items():
+        table[key] = _inline(value) if isinstance(value, Mapping) else _value(value)
+    return table
+
+
+def _inline(values: Mapping[str, Any]) -> tomlkit.items.InlineTable:
+    table = tomlkit.inline_table()
+    for key, value in values.items():
+        table[key] = _value(value)
+    return table
+
+
+def _points(points: list[list[float]]) -> tomlkit.items.Array:
+    array = tomlkit.array()
+    for point in points:
+        array.append(_value(point))
+    if len(points) > _INLINE_POINTS:
+        array.multiline(True)
+    return array
+
+
+def save_project(project: Project, path: str | os.PathLike[str]) -> None:
+    """Write a project file atomically.
+
+    The text goes to a temporary file in the target's folder, is flushed and synced to disk,
+    and then renamed over the target (``os.replace``), so a reader sees the old file or the
+    new one, never a partial one; a failure leaves the old file untouched. An existing
+    file's permission bits are kept.
+
+    Parameters
+    ----------
+    project : Project
+    path : path-like
+        Target file; its folder must exist.
+
+    Raises
+    ------
+    OSError
+        When the folder is not writable or the disk is full (the target is unchanged).
+    """
+    path = Path(path)
+    text = dumps_project(project)
+    try:
+        mode = stat.S_IMODE(os.stat(path).st_mode)
+    except FileNotFoundError:
+        mode = 0o644
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
+            _write(handle, text)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.chmod(tmp_name, mode)
+        os.replace(tmp_name, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp_name)
+        raise
+    _sync_folder(path.parent)
+    logger.debug("saved project %s", path)
+
+
+def _write(handle: Any, text: str) -> None:
+    handle.write(text)
+
+
+def _sync_folder(folder: Path) -> None:
+    """Make the rename durable where the platform allows syncing a directory."""
+    flags = getattr(os, "O_DIRECTORY", None)
+    if flags is None:
+        return
+    with contextlib.suppress(OSError):
+        fd = os.open(folder, os.O_RDONLY | flags)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+# --------------------------------------------------------------------------------------------
+# Overrides
+
+
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """Split ``KEY=VALUE`` into the key path and the value.
+
+    The value is read as a TOML value (``0.3``, ``true``, ``"x"``, ``[[0, 0], [1, 0]]``,
+    ``{type = "friction", friction_angle_deg = 25}``); text that is not valid TOML is taken
+    as a string (``apic``, ``My run``). Whitespace around the key and the value is ignored.
+
+    Parameters
+    ----------
+    text : str
+
+    Returns
+    -------
+    (list of str, value)
+
+    Raises
+    ------
+    ProjectError
+        When there is no ``=`` or the key is malformed.
+    """
+    key, sep, raw = text.partition("=")
+    key = key.strip()
+    if not sep:
+        raise ProjectError([Problem(key, None, "expected KEY=VALUE")])
+    parts = key.split(".")
+    if not key or any(not part.strip() for part in parts):
+        problem = Problem(key or "(empty)", None, "malformed key path; expected names and indices joined by dots")
+        raise ProjectError([problem])
+    return [part.strip() for part in parts], _parse_value(raw.strip())
+
+
+def _parse_value(raw: str) -> Any:
+    try:
+        values = _parse(f"value = {raw}\n")
+    except _TomlSyntaxError:
+        return raw
+    if list(values) != ["value"]:  # e.g. "1\nother = 2": not one value
+        return raw
+    return values["value"]
+
+
+def apply_overrides(project_or_dict: Project | Mapping[str, Any], overrides: Sequence[str]) -> Project:
+    """Apply ``KEY=VALUE`` overrides and validate the result like a file.
+
+    Key paths are dotted, with list indices as integers: ``numerics.scheme=apic``,
+    ``materials.bars.friction_angle_deg=25``, ``bodies.0.polygon_m=[[0,0],[1,0],[1,1]]``,
+    ``stages.1.material_changes.soil.cohesion_pa=0``. A key may be any key the schema allows
+    at that place, present in the file or not, but materials, bodies and stages must exist.
+    Setting ``numerics.time_step_s`` removes ``numerics.cfl`` and the other way round.
+
+    Parameters
+    ----------
+    project_or_dict : Project or mapping
+        A validated project or the parsed (possibly invalid) file data; not modified.
+    overrides : sequence of str
+
+    Returns
+    -------
+    Project
+
+    Raises
+    ------
+    ProjectError
+        For unknown key paths (naming the key and what exists there) and for every problem
+        of the resulting project.
+    """
+    if isinstance(project_or_dict, Project):
+        data: dict[str, Any] = project_or_dict.to_dict()
+    else:
+        data = copy.deepcopy(dict(project_or_dict))
+    problems: list[Problem] = []
+    for text in overrides:
+        try:
+            parts, value = parse_override(text)
+        except ProjectError as exc:
+            problems.extend(exc.problems)
+            continue
+        problem = _set_path(data, parts, value)
+        if problem is not None:
+            problems.append(problem)
+        else:
+            logger.debug("override %s", text)
+    if problems:
+        raise ProjectError(problems)
+    return validate_project(data)
+
+
+def _set_path(data: dict[str, Any], parts: list[str], value: Any) -> Problem | None:
+    """Set ``value`` at the key path, creating tables the schema allows; a Problem if the path is wrong."""
+    node: Any = data
+    schema: Any = Project
+    done: list[str] = []
+    for depth, part in enumerate(parts):
+        last = depth == len(parts) - 1
+        path = ".".join([*done, part])
+        where = ".".join(done) if done else "the project"
+        kind, inner = schema_kind(schema)
+        if kind == "model":
+            fields = inner.model_fields
+            if part not in fields:
+                return Problem(path, None, "unknown key; allowed: " + ", ".join(fields))
+            child_schema = fields[part].annotation
+            key: Any = part
+        elif kind == "dict":
+            is_change = done and done[-1] == "material_changes"
+            if part not in node and not is_change:
+                names = ", ".join(node) if node else "none"
+                return Problem(path, None, f"no such material; defined: {names}")
+            child_schema, key = inner, part
+        elif kind == "list":
+            count = len(node)
+            if not re.fullmatch(r"\d+", part) or int(part) >= count:
+                items = f"indices 0 to {count - 1}" if count else "no items"
+                return Problem(path, None, f"no such item; {where} has {items}")
+            child_schema, key = inner, int(part)
+        else:  # only reached through a pair such as origin_m
+            return Problem(".".join(parts), None, f"{where} is a value, not a table")
+        if last:
+            node[key] = value
+            if done == ["numerics"] and part in ("time_step_s", "cfl"):
+                node.pop("cfl" if part == "time_step_s" else "time_step_s", None)
+            return None
+        child = node.get(key) if isinstance(node, dict) else node[key]
+        child_kind = schema_kind(child_schema)[0]
+        if child is None and child_kind in ("model", "dict"):
+            child = node[key] = {}
+        elif isinstance(child, str) and schema_kind(child_schema)[1] is Boundary:
+            child = node[key] = {"type": child}
+        if child_kind == "list" and not isinstance(child, list):
+            child = node[key] = list(child) if isinstance(child, tuple) else child
+        if not isinstance(child, (dict, list)):
+            return Problem(".".join(parts), None, f"{path} is a value, not a table")
+        node, schema = child, child_schema
+        done.append(part)
+    return None

@@ -1,0 +1,970 @@
+"""The project document, schema version 1: typed models and validation with readable errors.
+
+A project file (TOML, SI units, angles in degrees) is validated into a :class:`Project`. Every
+problem found is reported at once as a :class:`Problem` naming the key path (dotted, list
+indices as integers, the same syntax as ``--set``), the offending value and what is allowed,
+collected in one :class:`ProjectError`. The message texts are part of the interface: tests
+compare them verbatim, so change them deliberately.
+
+Validation runs in two passes over the same input:
+
+1. the pydantic models check structure, types, unknown keys and each value on its own
+   (ranges, choices, polygon simplicity);
+2. :func:`_rule_problems` checks rules that involve several keys (bodies name existing
+   materials, polygons lie inside the domain, stage order, model-dependent keys, ...). It
+   reads the raw input tolerantly, so it runs even when pass 1 failed and both sets of
+   problems are reported together.
+
+``docs/project-format.md`` documents every key; keep it in step with this module.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import re
+import types
+import typing
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    ValidationError,
+    ValidationInfo,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
+
+from geometry.polygons import distinct_vertex_count, is_simple, self_intersections
+
+logger = logging.getLogger(__name__)
+
+#: The schema version this module reads and writes.
+SCHEMA_VERSION = 1
+
+MATERIAL_MODELS: tuple[str, ...] = ("linear-elastic", "drucker-prager")
+BOUNDARY_TYPES: tuple[str, ...] = ("fixed", "slip", "open", "friction")
+SIDES: tuple[str, ...] = ("left", "right", "bottom", "top")
+SEEDINGS: tuple[str, ...] = ("lattice", "gauss")
+SCHEMES: tuple[str, ...] = ("mpm", "apic", "apic-affine")
+PRECISIONS: tuple[str, ...] = ("f32", "f64")
+ARCHS: tuple[str, ...] = ("auto", "cpu", "gpu")
+STAGE_TYPES: tuple[str, ...] = ("k0", "gravity", "dynamic")
+DAMPING_TYPES: tuple[str, ...] = ("local",)
+OUTPUT_FIELDS: tuple[str, ...] = ("displacement", "velocity", "stress", "plastic_strain", "material")
+#: Material keys that only a Drucker-Prager material may have.
+PLASTIC_KEYS: tuple[str, ...] = (
+    "cohesion_pa",
+    "friction_angle_deg",
+    "dilatancy_angle_deg",
+    "tensile_strength_pa",
+)
+#: Numerics keys of the time step: give one of them (none: cfl = DEFAULT_CFL).
+DEFAULT_CFL = 0.5
+#: Damping coefficient of a gravity stage that gives none.
+DEFAULT_GRAVITY_DAMPING = 0.7
+
+_SECTION_ORDER = ("runout", "domain", "materials", "bodies", "particles", "numerics", "stages", "output")
+_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+_VALUE_WIDTH = 60
+# Context flag: the caller runs the multi-key rules itself (on the raw input).
+_RULES_DONE = "runout_rules_done"
+
+
+# --------------------------------------------------------------------------------------------
+# Problems and the one exception type
+
+
+def format_value(value: Any) -> str:
+    """Write a value the way it would look in a TOML file, shortened to about 60 characters.
+
+    Parameters
+    ----------
+    value : Any
+        A value read from TOML (or a model value: tuples are written as arrays).
+
+    Returns
+    -------
+    str
+    """
+    text = _toml_text(value)
+    if len(text) > _VALUE_WIDTH:
+        text = text[: _VALUE_WIDTH - 3] + "..."
+    return text
+
+
+def _toml_text(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, Mapping):
+        return "{" + ", ".join(f"{k} = {_toml_text(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_text(v) for v in value) + "]"
+    if isinstance(value, BaseModel):
+        return _toml_text(value.model_dump(exclude_none=True))
+    return str(value)
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One thing wrong with a project.
+
+    Attributes
+    ----------
+    path : str
+        Dotted key path (``materials.bars.poisson_ratio``, ``bodies.0.material``); empty for
+        problems of the file as a whole (TOML syntax).
+    value : Any
+        The offending value, or None where there is none to show (missing or unknown keys).
+    message : str
+        What is wrong and what is allowed.
+    """
+
+    path: str
+    value: Any
+    message: str
+
+    def __str__(self) -> str:
+        head = self.path
+        if self.value is not None:
+            head = f"{head} = {format_value(self.value)}"
+        return f"{head}: {self.message}" if head else self.message
+
+
+class ProjectError(Exception):
+    """A project could not be read or is not valid; ``problems`` lists every problem found.
+
+    Parameters
+    ----------
+    problems : sequence of Problem
+    source : str, optional
+        Where the project came from (a file name), prefixed to the message.
+    """
+
+    def __init__(self, problems: Sequence[Problem], source: str | None = None):
+        self.problems: list[Problem] = list(problems)
+        self.source = source
+        super().__init__(self._message())
+
+    def _message(self) -> str:
+        lines = [str(p) for p in self.problems]
+        prefix = f"{self.source}: " if self.source else ""
+        if len(lines) == 1:
+            return prefix + lines[0]
+        return f"{prefix}{len(lines)} problems\n" + "\n".join("  " + line for line in lines)
+
+
+# --------------------------------------------------------------------------------------------
+# Value types with fixed messages
+
+
+def _fail(message: str) -> PydanticCustomError:
+    # No context is passed, so pydantic leaves braces in the message alone.
+    return PydanticCustomError("runout", message)
+
+
+def _to_number(value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise _fail("must be a number")
+    try:
+        number = float(value)
+    except OverflowError:
+        raise _fail("must be a finite number") from None
+    if not math.isfinite(number):
+        raise _fail("must be a finite number")
+    return number
+
+
+def _fmt_bound(x: float) -> str:
+    return f"{x:g}"
+
+
+def _number_type(
+    *,
+    gt: float | None = None,
+    ge: float | None = None,
+    lt: float | None = None,
+    le: float | None = None,
+    optional: bool = False,
+) -> Any:
+    """An annotated float with a range, its message built from the bounds (``must be > 0``)."""
+    parts = []
+    if gt is not None:
+        parts.append(f"> {_fmt_bound(gt)}")
+    if ge is not None:
+        parts.append(f">= {_fmt_bound(ge)}")
+    if lt is not None:
+        parts.append(f"< {_fmt_bound(lt)}")
+    if le is not None:
+        parts.append(f"<= {_fmt_bound(le)}")
+    message = "must be " + " and ".join(parts)
+
+    def before(value: Any) -> Any:
+        if value is None and optional:
+            return None
+        return _to_number(value)
+
+    def after(value: float | None) -> float | None:
+        if value is None:
+            return value
+        ok = (
+            (gt is None or value > gt)
+            and (ge is None or value >= ge)
+            and (lt is None or value < lt)
+            and (le is None or value <= le)
+        )
+        if not ok:
+            raise _fail(message)
+        return value
+
+    base = float | None if optional else float
+    if not parts:
+        return Annotated[base, BeforeValidator(before)]
+    return Annotated[base, BeforeValidator(before), AfterValidator(after)]
+
+
+def _to_int(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise _fail("must be an integer")
+    return value
+
+
+def _to_str(value: Any) -> str:
+    if not isinstance(value, str):
+        raise _fail("must be a string")
+    return value
+
+
+def _nonempty(value: str) -> str:
+    if not value.strip():
+        raise _fail("must not be empty")
+    return value
+
+
+def _choice(choices: Sequence[str]):
+    allowed = ", ".join(json.dumps(c) for c in choices)
+
+    def check(value: Any) -> Any:
+        if not isinstance(value, str) or value not in choices:
+            raise _fail(f"must be one of {allowed}")
+        return value
+
+    return BeforeValidator(check)
+
+
+def _to_pair(value: Any) -> tuple[float, float]:
+    if (
+        not isinstance(value, (list, tuple))
+        or len(value) != 2
+        or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value)
+    ):
+        raise _fail("must be a pair of numbers [x, y]")
+    x, y = (_to_number(v) for v in value)
+    return (x, y)
+
+
+def _positive_pair(value: tuple[float, float]) -> tuple[float, float]:
+    if value[0] <= 0.0 or value[1] <= 0.0:
+        raise _fail("both components must be > 0")
+    return value
+
+
+def _points(value: Any) -> Any:
+    if not isinstance(value, (list, tuple)):
+        raise _fail("must be an array of points [[x, y], ...]")
+    return value
+
+
+def _simple_polygon(points: tuple[tuple[float, float], ...]) -> tuple[tuple[float, float], ...]:
+    if len(points) < 3:
+        raise _fail(f"needs at least 3 points, got {len(points)}")
+    arr = np.asarray(points, dtype=np.float64)
+    if distinct_vertex_count(arr) < 3:
+        raise _fail("needs at least 3 distinct points")
+    crossings = self_intersections(arr)
+    if crossings:
+        shown = ", ".join(f"{i} and {j}" for i, j in crossings[:3])
+        more = f" (and {len(crossings) - 3} more pairs)" if len(crossings) > 3 else ""
+        raise _fail(f"not a simple polygon: edges {shown} cross or touch{more}")
+    if not is_simple(arr):
+        raise _fail("not a simple polygon: it has zero area")
+    return points
+
+
+def _bare_key(value: str) -> str:
+    if not _BARE_KEY.match(value):
+        raise _fail("names may only use letters, digits, _ and -")
+    return value
+
+
+def _unique_fields(value: tuple[str, ...]) -> tuple[str, ...]:
+    for index, name in enumerate(value):
+        if name in value[:index]:
+            raise _fail(f"{json.dumps(name)} is listed twice")
+    return value
+
+
+def _nonempty_list(what: str):
+    def check(value: Any) -> Any:
+        if len(value) == 0:
+            raise _fail(f"needs at least one {what}")
+        return value
+
+    return AfterValidator(check)
+
+
+Float = _number_type()
+Positive = _number_type(gt=0.0)
+OptPositive = _number_type(gt=0.0, optional=True)
+OptNonNegative = _number_type(ge=0.0, optional=True)
+PoissonRatio = _number_type(ge=0.0, lt=0.5)
+OptAngleDeg = _number_type(ge=0.0, lt=90.0, optional=True)
+OptCfl = _number_type(gt=0.0, le=1.0, optional=True)
+OptFraction = _number_type(gt=0.0, lt=1.0, optional=True)
+DampingCoefficient = _number_type(ge=0.0, lt=1.0)
+Int = Annotated[int, BeforeValidator(_to_int)]
+Str = Annotated[str, BeforeValidator(_to_str)]
+OptName = Annotated[
+    str | None,
+    BeforeValidator(lambda v: v if v is None else _to_str(v)),
+    AfterValidator(lambda v: v if v is None else _nonempty(v)),
+]
+Name = Annotated[str, BeforeValidator(_to_str), AfterValidator(_nonempty)]
+MaterialName = Annotated[str, BeforeValidator(_to_str), AfterValidator(_bare_key)]
+Vec2 = Annotated[tuple[float, float], BeforeValidator(_to_pair)]
+PositiveVec2 = Annotated[tuple[float, float], BeforeValidator(_to_pair), AfterValidator(_positive_pair)]
+Polygon = Annotated[tuple[Vec2, ...], BeforeValidator(_points), AfterValidator(_simple_polygon)]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=False)
+
+
+# --------------------------------------------------------------------------------------------
+# The models, one per table of the file
+
+
+class Header(_Model):
+    """``[runout]``: what the file is."""
+
+    schema_version: Int
+    title: Str = ""
+
+    @model_validator(mode="after")
+    def _version(self) -> Header:
+        if self.schema_version != SCHEMA_VERSION:
+            raise _fail(_VERSION_MESSAGE)
+        return self
+
+
+_VERSION_MESSAGE = f"unsupported schema version; this Runout reads schema version {SCHEMA_VERSION}"
+
+
+def _boundary_input(value: Any) -> Any:
+    if isinstance(value, str):
+        if value in ("fixed", "slip", "open"):
+            return {"type": value}
+        raise _fail('must be "fixed", "slip", "open" or a table {type = "friction", friction_angle_deg = ...}')
+    return value
+
+
+class Boundary(_Model):
+    """One side of the grid: ``"fixed" | "slip" | "open"`` or ``{type = "friction", friction_angle_deg = ..}``."""
+
+    type: Annotated[Literal["fixed", "slip", "open", "friction"], _choice(BOUNDARY_TYPES)]
+    friction_angle_deg: OptAngleDeg = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _from_string(cls, data: Any) -> Any:
+        return _boundary_input(data)
+
+
+class Boundaries(_Model):
+    """``[domain.boundaries]``: the four sides (defaults: slip sides, fixed bottom, open top)."""
+
+    left: Boundary = Boundary(type="slip")
+    right: Boundary = Boundary(type="slip")
+    bottom: Boundary = Boundary(type="fixed")
+    top: Boundary = Boundary(type="open")
+
+
+class Domain(_Model):
+    """``[domain]``: the background grid and gravity."""
+
+    origin_m: Vec2 = (0.0, 0.0)
+    size_m: PositiveVec2
+    cell_size_m: Positive
+    gravity_m_s2: Vec2 = (0.0, -9.81)
+    boundaries: Boundaries = Boundaries()
+
+
+class Material(_Model):
+    """``[materials.<name>]``: one material. The plastic keys are for Drucker-Prager only."""
+
+    model: Annotated[Literal["linear-elastic", "drucker-prager"], _choice(MATERIAL_MODELS)]
+    density_kg_m3: Positive
+    youngs_modulus_pa: Positive
+    poisson_ratio: PoissonRatio
+    cohesion_pa: OptNonNegative = None
+    friction_angle_deg: OptAngleDeg = None
+    dilatancy_angle_deg: OptAngleDeg = None
+    tensile_strength_pa: OptNonNegative = None
+
+
+class MaterialChange(_Model):
+    """``[stages.material_changes.<name>]``: new values of a material's numeric keys."""
+
+    density_kg_m3: OptPositive = None
+    youngs_modulus_pa: OptPositive = None
+    poisson_ratio: _number_type(ge=0.0, lt=0.5, optional=True) = None
+    cohesion_pa: OptNonNegative = None
+    friction_angle_deg: OptAngleDeg = None
+    dilatancy_angle_deg: OptAngleDeg = None
+    tensile_strength_pa: OptNonNegative = None
+
+
+class Body(_Model):
+    """``[[bodies]]``: a polygon of one material."""
+
+    name: Name
+    material: Str
+    polygon_m: Polygon
+    initial_velocity_m_s: Vec2 = (0.0, 0.0)
+
+
+class Particles(_Model):
+    """``[particles]``: how bodies become material points."""
+
+    per_cell: Annotated[int, BeforeValidator(_to_int), AfterValidator(lambda v: _in_int_range(v, 1, 8))] = 2
+    seeding: Annotated[Literal["lattice", "gauss"], _choice(SEEDINGS)] = "lattice"
+
+
+def _in_int_range(value: int, lo: int, hi: int) -> int:
+    if not lo <= value <= hi:
+        raise _fail(f"must be >= {lo} and <= {hi}")
+    return value
+
+
+class Numerics(_Model):
+    """``[numerics]``: scheme, time step (``time_step_s`` or ``cfl``), precision, device."""
+
+    scheme: Annotated[Literal["mpm", "apic", "apic-affine"], _choice(SCHEMES)] = "apic-affine"
+    time_step_s: OptPositive = None
+    cfl: OptCfl = None
+    precision: Annotated[Literal["f32", "f64"], _choice(PRECISIONS)] = "f32"
+    arch: Annotated[Literal["auto", "cpu", "gpu"], _choice(ARCHS)] = "auto"
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_cfl(cls, data: Any) -> Any:
+        if isinstance(data, Mapping) and data.get("time_step_s") is None and data.get("cfl") is None:
+            return {**data, "cfl": DEFAULT_CFL}
+        return data
+
+
+class Damping(_Model):
+    """``damping = {type = "local", coefficient = ..}``: Cundall's local damping."""
+
+    type: Annotated[Literal["local"], _choice(DAMPING_TYPES)] = "local"
+    coefficient: DampingCoefficient
+
+
+class Stage(_Model):
+    """``[[stages]]``: one stage of the analysis (see docs/project-format.md)."""
+
+    name: OptName = None
+    type: Annotated[Literal["k0", "gravity", "dynamic"], _choice(STAGE_TYPES)]
+    duration_s: OptPositive = None
+    k0: OptPositive = None
+    damping: Damping | None = None
+    stop_when_kinetic_energy_below: OptFraction = None
+    min_duration_s: OptNonNegative = None
+    material_changes: dict[MaterialName, MaterialChange] = {}
+
+    @property
+    def label(self) -> str:
+        """The stage's name, or its type where it has none."""
+        return self.name if self.name is not None else self.type
+
+
+class Output(_Model):
+    """``[output]``: frames every ``interval_s`` with ``fields``."""
+
+    interval_s: Positive = 0.01
+    fields: Annotated[
+        tuple[Annotated[str, _choice(OUTPUT_FIELDS)], ...],
+        BeforeValidator(lambda v: v if isinstance(v, (list, tuple)) else _raise_array()),
+        AfterValidator(_unique_fields),
+    ] = OUTPUT_FIELDS
+
+
+def _raise_array() -> Any:
+    raise _fail("must be an array")
+
+
+class Project(_Model):
+    """A whole project file (schema version 1).
+
+    Build one with :func:`validate_project` (or :mod:`projects.document`), which reports every
+    problem at once. ``materials`` keeps the file's order: material ids follow it.
+    """
+
+    runout: Header
+    domain: Domain
+    materials: Annotated[dict[MaterialName, Material], _nonempty_list("material ([materials.NAME])")]
+    bodies: Annotated[list[Body], _nonempty_list("body ([[bodies]])")]
+    particles: Particles = Particles()
+    numerics: Numerics = Numerics()
+    stages: Annotated[list[Stage], _nonempty_list("stage ([[stages]])")]
+    output: Output = Output()
+
+    @model_validator(mode="after")
+    def _rules(self, info: ValidationInfo) -> Project:
+        if info.context and info.context.get(_RULES_DONE):
+            return self
+        problems = _rule_problems(self.to_dict())
+        if problems:
+            raise PydanticCustomError(
+                "runout_rules", "{count} problem(s)", {"count": len(problems), "problems": tuple(problems)}
+            )
+        return self
+
+    @property
+    def material_names(self) -> tuple[str, ...]:
+        """Material names in file order (material id = position)."""
+        return tuple(self.materials)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The project as plain TOML-shaped data (lists, dicts, str, int, float).
+
+        Keys with no value are left out, boundaries without a friction angle are written as
+        their type string, empty ``material_changes`` are left out. ``validate_project`` of the
+        result gives back an equal project.
+
+        Returns
+        -------
+        dict
+        """
+        data = _plain(self.model_dump(mode="python", exclude_none=True))
+        for side, boundary in data["domain"]["boundaries"].items():
+            if set(boundary) == {"type"}:
+                data["domain"]["boundaries"][side] = boundary["type"]
+        for stage in data["stages"]:
+            if not stage.get("material_changes"):
+                stage.pop("material_changes", None)
+        return data
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+# --------------------------------------------------------------------------------------------
+# Validation entry point
+
+
+def validate_project(data: Mapping[str, Any]) -> Project:
+    """Validate TOML-shaped data into a :class:`Project`, reporting every problem at once.
+
+    Parameters
+    ----------
+    data : mapping
+        The parsed file (plain dicts, lists and scalars).
+
+    Returns
+    -------
+    Project
+
+    Raises
+    ------
+    ProjectError
+        With one :class:`Problem` per thing wrong, in file order.
+    """
+    if not isinstance(data, Mapping):
+        raise ProjectError([Problem("", None, "a project must be a TOML table")])
+    header = data.get("runout")
+    version = header.get("schema_version") if isinstance(header, Mapping) else None
+    if isinstance(version, int) and not isinstance(version, bool) and version != SCHEMA_VERSION:
+        # Other problems would be judged by the wrong schema; report the version alone.
+        raise ProjectError([Problem("runout.schema_version", version, _VERSION_MESSAGE)])
+    problems: list[Problem] = []
+    project = None
+    try:
+        project = Project.model_validate(data, context={_RULES_DONE: True})
+    except ValidationError as exc:
+        problems.extend(_from_pydantic(exc))
+    problems.extend(_rule_problems(data))
+    if problems:
+        raise ProjectError(_in_file_order(problems, data))
+    assert project is not None
+    return project
+
+
+def _in_file_order(problems: list[Problem], data: Mapping[str, Any]) -> list[Problem]:
+    def key(problem: Problem) -> tuple[int, int]:
+        parts = problem.path.split(".")
+        section = parts[0]
+        first = _SECTION_ORDER.index(section) if section in _SECTION_ORDER else len(_SECTION_ORDER)
+        second = 0
+        if len(parts) > 1:
+            if parts[1].isdigit():
+                second = int(parts[1])
+            elif section == "materials" and isinstance(data.get("materials"), Mapping):
+                names = list(data["materials"])
+                second = names.index(parts[1]) if parts[1] in names else len(names)
+        return (first, second)
+
+    return sorted(problems, key=key)
+
+
+def _from_pydantic(exc: ValidationError) -> list[Problem]:
+    problems = []
+    for error in exc.errors(include_url=False):
+        loc = tuple(part for part in error["loc"] if part != "[key]")
+        path = ".".join(str(part) for part in loc)
+        kind = error["type"]
+        # A bad table key is named by the path already.
+        value = None if "[key]" in error["loc"] else error.get("input")
+        if kind == "runout_rules":
+            problems.extend(error["ctx"]["problems"])
+        elif kind == "runout":
+            problems.append(Problem(path, value, error["msg"]))
+        elif kind == "missing":
+            problems.append(Problem(path, None, "required key is missing"))
+        elif kind == "extra_forbidden":
+            allowed = _allowed_keys(loc[:-1])
+            problems.append(Problem(path, None, "unknown key; allowed: " + ", ".join(allowed)))
+        elif kind in ("model_type", "model_attributes_type", "dict_type"):
+            problems.append(Problem(path, value, "must be a table"))
+        elif kind in ("list_type", "tuple_type"):
+            problems.append(Problem(path, value, "must be an array"))
+        else:  # not expected with the value types above; keep pydantic's words
+            logger.debug("unmapped pydantic error %s at %s", kind, path)
+            problems.append(Problem(path, value, error["msg"]))
+    return problems
+
+
+def _allowed_keys(loc: tuple[Any, ...]) -> list[str]:
+    """The keys allowed in the table at ``loc`` (walks the model annotations)."""
+    node: Any = Project
+    for part in loc:
+        node = _child_schema(node, part)
+        if node is None:
+            return []
+    return list(node.model_fields) if _is_model(node) else []
+
+
+def _is_model(node: Any) -> bool:
+    return isinstance(node, type) and issubclass(node, BaseModel)
+
+
+def _unwrap(annotation: Any) -> Any:
+    """Strip Annotated and Optional from a field annotation."""
+    while True:
+        origin = typing.get_origin(annotation)
+        if origin is Annotated:
+            annotation = typing.get_args(annotation)[0]
+        elif origin in (typing.Union, types.UnionType):
+            args = [a for a in typing.get_args(annotation) if a is not type(None)]
+            if len(args) != 1:
+                return annotation
+            annotation = args[0]
+        else:
+            return annotation
+
+
+def schema_kind(node: Any) -> tuple[str, Any]:
+    """Classify a schema node: ``("model", cls)``, ``("dict", value)``, ``("list", item)``
+    or ``("value", annotation)``. Used to walk key paths (errors, overrides)."""
+    node = _unwrap(node)
+    if _is_model(node):
+        return ("model", node)
+    origin = typing.get_origin(node)
+    if origin is dict:
+        return ("dict", typing.get_args(node)[1])
+    if origin in (list, tuple):
+        args = typing.get_args(node)
+        # Pairs (tuple[float, float]) are values; homogeneous tuples and lists are arrays.
+        if origin is list or (len(args) == 2 and args[1] is Ellipsis):
+            return ("list", args[0])
+    return ("value", node)
+
+
+def _child_schema(node: Any, part: Any) -> Any:
+    kind, inner = schema_kind(node)
+    if kind == "model":
+        field = inner.model_fields.get(part)
+        return None if field is None else field.annotation
+    if kind in ("dict", "list"):
+        return inner
+    return None
+
+
+# --------------------------------------------------------------------------------------------
+# Rules that involve several keys, on raw (possibly invalid) data
+
+
+def _num(value: Any) -> float | None:
+    """The value as a float when it is a finite number, else None (judged elsewhere)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) else None
+
+
+def _pair(value: Any) -> tuple[float, float] | None:
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        return None
+    x, y = _num(value[0]), _num(value[1])
+    return None if x is None or y is None else (x, y)
+
+
+def _table(value: Any) -> Mapping[str, Any]:
+    return value if isinstance(value, Mapping) else {}
+
+
+def _array(value: Any) -> list[Any]:
+    return list(value) if isinstance(value, (list, tuple)) else []
+
+
+def _rule_problems(data: Mapping[str, Any]) -> list[Problem]:
+    problems: list[Problem] = []
+    domain = _table(data.get("domain"))
+    materials = _table(data.get("materials"))
+    problems += _domain_rules(domain)
+    problems += _material_rules(materials)
+    problems += _body_rules(_array(data.get("bodies")), materials, domain)
+    problems += _numerics_rules(_table(data.get("numerics")))
+    problems += _stage_rules(_array(data.get("stages")), materials)
+    return problems
+
+
+def _domain_rules(domain: Mapping[str, Any]) -> list[Problem]:
+    problems = []
+    size = _pair(domain.get("size_m"))
+    cell = _num(domain.get("cell_size_m"))
+    if size and cell and min(size) > 0.0 and cell > 0.0 and cell > min(size):
+        problems.append(
+            Problem("domain.cell_size_m", cell, f"larger than the domain ({size[0]:g} x {size[1]:g} m)")
+        )
+    for side, boundary in _table(domain.get("boundaries")).items():
+        if not isinstance(boundary, Mapping) or side not in SIDES:
+            continue
+        kind = boundary.get("type")
+        path = f"domain.boundaries.{side}.friction_angle_deg"
+        if kind == "friction" and "friction_angle_deg" not in boundary:
+            problems.append(Problem(path, None, 'required for type "friction"'))
+        elif kind in ("fixed", "slip", "open") and "friction_angle_deg" in boundary:
+            problems.append(Problem(path, boundary["friction_angle_deg"], 'only allowed with type "friction"'))
+    return problems
+
+
+def _material_rules(materials: Mapping[str, Any]) -> list[Problem]:
+    problems = []
+    for name, material in materials.items():
+        if not isinstance(material, Mapping):
+            continue
+        path = f"materials.{name}"
+        model = material.get("model")
+        if model == "drucker-prager":
+            for key in ("cohesion_pa", "friction_angle_deg"):
+                if key not in material:
+                    problems.append(Problem(f"{path}.{key}", None, 'required for model "drucker-prager"'))
+            problems += _dilatancy_rule(path, material, changed=None)
+        elif model == "linear-elastic":
+            for key in PLASTIC_KEYS:
+                if key in material:
+                    problems.append(
+                        Problem(f"{path}.{key}", material[key], 'only allowed with model "drucker-prager"')
+                    )
+    return problems
+
+
+def _valid_angle(value: Any) -> float | None:
+    angle = _num(value)
+    return angle if angle is not None and 0.0 <= angle < 90.0 else None
+
+
+def _dilatancy_rule(path: str, values: Mapping[str, Any], changed: Mapping[str, Any] | None) -> list[Problem]:
+    """Dilatancy must not exceed friction; with ``changed``, blame the key the stage changed."""
+    psi = _valid_angle(values.get("dilatancy_angle_deg", 0.0))
+    phi = _valid_angle(values.get("friction_angle_deg"))
+    if psi is None or phi is None or psi <= phi:
+        return []
+    if changed is not None and "dilatancy_angle_deg" not in changed:
+        return [Problem(f"{path}.friction_angle_deg", phi, f"must not be below dilatancy_angle_deg ({psi:g})")]
+    return [Problem(f"{path}.dilatancy_angle_deg", psi, f"must not exceed friction_angle_deg ({phi:g})")]
+
+
+def _defined(names: Sequence[str]) -> str:
+    return ", ".join(names) if names else "none"
+
+
+def _body_rules(bodies: list[Any], materials: Mapping[str, Any], domain: Mapping[str, Any]) -> list[Problem]:
+    problems = []
+    origin = _pair(domain.get("origin_m", (0.0, 0.0)))
+    size = _pair(domain.get("size_m"))
+    box = None
+    if origin and size and min(size) > 0.0:
+        tol = 1e-9 * max(size)
+        box = (origin[0] - tol, origin[0] + size[0] + tol, origin[1] - tol, origin[1] + size[1] + tol)
+    seen: dict[str, int] = {}
+    for index, body in enumerate(bodies):
+        if not isinstance(body, Mapping):
+            continue
+        path = f"bodies.{index}"
+        material = body.get("material")
+        if isinstance(material, str) and material not in materials:
+            problems.append(
+                Problem(f"{path}.material", material, f"no such material; defined: {_defined(list(materials))}")
+            )
+        name = body.get("name")
+        if isinstance(name, str):
+            if name in seen:
+                problems.append(Problem(f"{path}.name", name, f"duplicate; bodies.{seen[name]} has the same name"))
+            else:
+                seen[name] = index
+        if box is not None:
+            problems += _outside_points(path, _array(body.get("polygon_m")), box, origin, size)
+    return problems
+
+
+def _outside_points(path: str, points: list[Any], box: tuple[float, ...], origin: Any, size: Any) -> list[Problem]:
+    outside = []
+    for k, point in enumerate(points):
+        xy = _pair(point)
+        if xy is not None and not (box[0] <= xy[0] <= box[1] and box[2] <= xy[1] <= box[3]):
+            outside.append((k, point))
+    if not outside:
+        return []
+    k, point = outside[0]
+    extra = len(outside) - 1
+    more = f" (and {extra} more point{'s' if extra > 1 else ''})" if extra else ""
+    span = (
+        f"x in [{origin[0]:g}, {origin[0] + size[0]:g}], "
+        f"y in [{origin[1]:g}, {origin[1] + size[1]:g}]"
+    )
+    return [Problem(f"{path}.polygon_m.{k}", _plain(point), f"outside the domain ({span}){more}")]
+
+
+def _numerics_rules(numerics: Mapping[str, Any]) -> list[Problem]:
+    if numerics.get("time_step_s") is not None and numerics.get("cfl") is not None:
+        return [
+            Problem(
+                "numerics.cfl",
+                numerics["cfl"],
+                f"give time_step_s or cfl, not both (time_step_s = {format_value(numerics['time_step_s'])})",
+            )
+        ]
+    return []
+
+
+_INITIAL_STRESS = ("k0", "gravity")
+
+
+def _stage_rules(stages: list[Any], materials: Mapping[str, Any]) -> list[Problem]:
+    problems = []
+    first_dynamic = None
+    initial = None
+    # Material values in force at each stage: changes persist into later stages.
+    current = {name: dict(m) for name, m in materials.items() if isinstance(m, Mapping)}
+    for index, stage in enumerate(stages):
+        if not isinstance(stage, Mapping):
+            continue
+        path = f"stages.{index}"
+        kind = stage.get("type")
+        if kind in _INITIAL_STRESS:
+            if first_dynamic is not None:
+                problems.append(
+                    Problem(f"{path}.type", kind, f"must come before the first dynamic stage (stages.{first_dynamic})")
+                )
+            elif initial is not None:
+                problems.append(
+                    Problem(f"{path}.type", kind, f"only one k0 or gravity stage is allowed (stages.{initial} is one)")
+                )
+            else:
+                initial = index
+        elif kind == "dynamic" and first_dynamic is None:
+            first_dynamic = index
+        if kind in STAGE_TYPES:
+            problems += _stage_keys(path, kind, stage)
+        problems += _change_rules(path, _table(stage.get("material_changes")), current)
+    return problems
+
+
+def _stage_keys(path: str, kind: str, stage: Mapping[str, Any]) -> list[Problem]:
+    problems = []
+    if kind == "k0":
+        for key in ("duration_s", "damping"):
+            if key in stage:
+                problems.append(Problem(f"{path}.{key}", stage[key], "not allowed on a k0 stage (it takes no time)"))
+    elif "duration_s" not in stage:
+        problems.append(Problem(f"{path}.duration_s", None, f"required for a {kind} stage"))
+    if kind == "gravity" and _num(_table(stage.get("damping")).get("coefficient")) == 0.0:
+        # An undamped gravity stage never settles (and the solver would use 0.7 instead).
+        problems.append(Problem(f"{path}.damping.coefficient", 0.0, "must be > 0 on a gravity stage"))
+    if kind != "k0" and "k0" in stage:
+        problems.append(Problem(f"{path}.k0", stage["k0"], "only allowed on a k0 stage"))
+    if kind != "dynamic":
+        for key in ("stop_when_kinetic_energy_below", "min_duration_s"):
+            if key in stage:
+                problems.append(Problem(f"{path}.{key}", stage[key], "only allowed on a dynamic stage"))
+    elif "min_duration_s" in stage:
+        minimum = _num(stage["min_duration_s"])
+        duration = _num(stage.get("duration_s"))
+        if "stop_when_kinetic_energy_below" not in stage:
+            problems.append(
+                Problem(f"{path}.min_duration_s", stage["min_duration_s"], "only allowed with stop_when_kinetic_energy_below")
+            )
+        elif minimum is not None and duration is not None and minimum > duration:
+            problems.append(Problem(f"{path}.min_duration_s", minimum, f"must not exceed duration_s ({duration:g})"))
+    return problems
+
+
+def _change_rules(path: str, changes: Mapping[str, Any], current: dict[str, dict[str, Any]]) -> list[Problem]:
+    problems = []
+    for name, change in changes.items():
+        change_path = f"{path}.material_changes.{name}"
+        if name not in current:
+            problems.append(Problem(change_path, None, f"no such material; defined: {_defined(list(current))}"))
+            continue
+        if not isinstance(change, Mapping):
+            continue
+        material = current[name]
+        if material.get("model") == "linear-elastic":
+            for key in PLASTIC_KEYS:
+                if key in change:
+                    problems.append(
+                        Problem(f"{change_path}.{key}", change[key], 'only allowed with model "drucker-prager"')
+                    )
+            continue
+        material.update(change)
+        touches_angles = "friction_angle_deg" in change or "dilatancy_angle_deg" in change
+        if material.get("model") == "drucker-prager" and touches_angles:
+            problems += _dilatancy_rule(change_path, material, changed=change)
+    return problems
