@@ -69,6 +69,8 @@ class Engine:
         self.g_f = ti.Vector.field(2, float, self.nodes)
         self.g_v_old = ti.Vector.field(2, float, self.nodes)
         self.g_v = ti.Vector.field(2, float, self.nodes)
+        # tangential momentum that Coulomb friction removes at nodes receiving a mirrored reaction
+        self.g_friction = ti.Vector.field(2, float, self.nodes)
 
         # stencil bounding box [lo, hi) of the current positions, and the one being built in G2P
         self.lo = ti.Vector.field(2, ti.i32, ())
@@ -143,18 +145,18 @@ class Engine:
         if self.scheme == "apic-affine":
             self._reset_grid()
             self._p2g_fused(dt, g, damping <= 0.0)
-            self._fold_ghosts(True, damping > 0.0)
+            self._fold_ghosts(True, damping > 0.0, dt)
             self._grid_update_fused(dt, damping)
             self._mirror_ghosts(False)
             self._g2p(dt)
         else:
             self._reset_grid()
             self._p2g_momentum()
-            self._fold_ghosts(True, False)
+            self._fold_ghosts(True, False, dt)
             self._grid_velocity()
             self._mirror_ghosts(True)
             self._stress_and_force(dt, g)
-            self._fold_ghosts(False, True)
+            self._fold_ghosts(False, True, dt)
             self._grid_update(dt, damping)
             self._mirror_ghosts(False)
             self._g2p(dt)
@@ -193,6 +195,16 @@ class Engine:
         return v
 
     @ti.func
+    def _friction(self, I, v, mass):
+        """Coulomb friction of the mirrored wall reaction: slow the tangential speed, never reverse it."""
+        loss = self.g_friction[I] / mass
+        for d in ti.static(range(2)):
+            if loss[d] > 0.0:
+                reduced = ti.max(ti.abs(v[d]) - loss[d], 0.0)
+                v[d] = reduced if v[d] >= 0.0 else -reduced
+        return v
+
+    @ti.func
     def _stress_point(self, p, L, dt):
         """Constitutive update of particle p from its velocity gradient L; returns its volume."""
         D = 0.5 * (L + L.transpose())
@@ -216,6 +228,7 @@ class Engine:
             self.g_mass[I] = 0.0
             self.g_mom[I] = ti.Vector.zero(float, 2)
             self.g_f[I] = ti.Vector.zero(float, 2)
+            self.g_friction[I] = ti.Vector.zero(float, 2)
 
     @ti.kernel
     def _compute_bounds(self):
@@ -254,20 +267,27 @@ class Engine:
         return lo[0] <= I[0] < hi[0] and lo[1] <= I[1] < hi[1]
 
     @ti.kernel
-    def _fold_ghosts(self, momentum: ti.template(), forces: ti.template()):
+    def _fold_ghosts(self, momentum: ti.template(), forces: ti.template(), dt: float):
         for side in ti.static(range(4)):
             axis = ti.static(side // 2)
-            if self.bc_kind[side] != 3:
+            inward = ti.static(1.0 if side % 2 == 0 else -1.0)
+            kind = self.bc_kind[side]
+            if kind != 3:
                 for k in range(self.nodes[1 - axis]):
                     ghost, mirror = self._wall_pairs(side, k)
                     if self._in_box(ghost) and self._in_box(mirror):
                         flip = ti.Vector([1.0, 1.0])
                         flip[axis] = -1.0
+                        impulse = 0.0 * dt  # normal momentum the mirror turns back into the domain
                         if ti.static(momentum):
                             self.g_mass[mirror] += self.g_mass[ghost]
                             self.g_mom[mirror] += flip * self.g_mom[ghost]
+                            impulse += ti.max(-inward * self.g_mom[ghost][axis], 0.0)
                         if ti.static(forces):
                             self.g_f[mirror] += flip * self.g_f[ghost]
+                            impulse += ti.max(-inward * self.g_f[ghost][axis], 0.0) * dt
+                        if kind == 2:  # that reaction is wall contact too: Coulomb friction acts on it
+                            self.g_friction[mirror][1 - axis] += self.bc_mu[side] * impulse
 
     @ti.kernel
     def _mirror_ghosts(self, old: ti.template()):
@@ -328,7 +348,7 @@ class Engine:
                     for d in ti.static(range(2)):
                         f[d] -= damping * ti.abs(f[d]) * (1.0 if v[d] > 0.0 else (-1.0 if v[d] < 0.0 else 0.0))
                     v += dt * f / mass
-                self.g_v[I] = self._boundary(I, v)
+                self.g_v[I] = self._boundary(I, self._friction(I, v, mass))
             else:
                 self.g_v[I] = ti.Vector.zero(float, 2)
 
@@ -395,7 +415,7 @@ class Engine:
                 if damping > 0.0:
                     for d in ti.static(range(2)):
                         f[d] -= damping * ti.abs(f[d]) * (1.0 if v[d] > 0.0 else (-1.0 if v[d] < 0.0 else 0.0))
-                self.g_v[I] = self._boundary(I, v + dt * f / mass)
+                self.g_v[I] = self._boundary(I, self._friction(I, v + dt * f / mass, mass))
             else:
                 self.g_v[I] = ti.Vector.zero(float, 2)
 

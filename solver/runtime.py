@@ -9,6 +9,8 @@ close a simulation in the same thread.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import logging
 import threading
 
@@ -38,6 +40,14 @@ def _probe_gpu() -> bool:
     return ctypes.util.find_library("cuda") is not None
 
 
+def _init(**kwargs) -> None:
+    # ti.init prints "[Taichi] Starting on arch=..." to stdout; scripts read stdout, so log it instead
+    with contextlib.redirect_stdout(io.StringIO()) as banner:
+        ti.init(**kwargs)
+    if banner.getvalue().strip():
+        log.debug(banner.getvalue().strip())
+
+
 def acquire(arch: str, precision: str) -> str:
     """(Re)initialise Taichi for this thread; return the arch actually used ("cpu" or "gpu").
 
@@ -58,14 +68,14 @@ def acquire(arch: str, precision: str) -> str:
         used = "cpu"
         if want_gpu:
             try:
-                ti.init(arch=ti.gpu, default_fp=fp, default_ip=ti.i32, offline_cache=True, log_level=ti.WARN)
+                _init(arch=ti.gpu, default_fp=fp, default_ip=ti.i32, offline_cache=True, log_level=ti.WARN)
                 used = "gpu" if ti.lang.impl.current_cfg().arch != ti.x64 else "cpu"
             except RuntimeError as exc:  # driver present but unusable
                 log.warning("GPU initialisation failed (%s); running on the CPU instead", exc)
                 ti.reset()
                 want_gpu = False
         if not want_gpu:
-            ti.init(arch=ti.cpu, default_fp=fp, default_ip=ti.i32, offline_cache=True, log_level=ti.WARN)
+            _init(arch=ti.cpu, default_fp=fp, default_ip=ti.i32, offline_cache=True, log_level=ti.WARN)
         if arch == "auto" and used == "cpu":
             log.info("Taichi runtime on the CPU (no GPU found)")
         _owner = threading.get_ident()

@@ -1,0 +1,397 @@
+"""The ``runout`` command line (typer + rich).
+
+Commands: ``run``, ``validate``, ``render``, ``animate`` and ``gui``. Results and summaries go to
+standard output, progress bars and errors to standard error. Bad input (an invalid project, a
+missing results folder, an unknown field) is reported as one line per problem, never as a
+traceback; ``--verbose`` shows the log, with tracebacks of solver failures.
+
+Exit status: 0 success; 1 invalid input (project problems, unreadable results, bad options);
+3 the run failed (see the message and ``summary.json``); 130 stopped by Ctrl-C (SIGINT), 143
+stopped by SIGTERM.
+
+Other commands (``bench``, ``study``) register themselves on :data:`cli` with
+``@cli.command()`` and reuse :func:`fail`, :func:`load_or_exit` and :func:`stop_on_signals`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import logging
+import os
+import signal
+import sys
+from collections.abc import Iterator
+from enum import Enum
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any, NoReturn
+
+import typer
+from rich.console import Console
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from projects.runner import RunResult, StopRequest
+    from projects.schema import Project
+
+EXIT_OK = 0
+EXIT_INVALID = 1
+EXIT_FAILED = 3
+EXIT_SIGINT = 128 + signal.SIGINT
+EXIT_SIGTERM = 128 + signal.SIGTERM
+
+cli = typer.Typer(
+    name="runout",
+    help="Runout: landslide run-out analysis with the material point method.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+out = Console(soft_wrap=True, highlight=False)
+err = Console(stderr=True, soft_wrap=True, highlight=False)
+
+
+class Arch(str, Enum):
+    cpu = "cpu"
+    gpu = "gpu"
+
+
+# --------------------------------------------------------------------------------------------
+# shared helpers (also for commands defined in other modules)
+
+
+def fail(message: str, code: int = EXIT_INVALID) -> NoReturn:
+    """Print ``error: message`` on standard error and exit with ``code``."""
+    err.print(f"error: {message}", markup=False)
+    raise typer.Exit(code)
+
+
+def load_or_exit(path: Path, overrides: list[str] | None = None) -> Project:
+    """Load and validate a project with ``--set`` overrides; every problem printed on failure."""
+    from projects.document import load_project
+    from projects.schema import ProjectError
+
+    try:
+        return load_project(path, overrides or ())
+    except ProjectError as exc:
+        fail(str(exc))
+
+
+@contextlib.contextmanager
+def stop_on_signals(stop: StopRequest) -> Iterator[StopRequest]:
+    """Turn SIGINT and SIGTERM into a stop request while the block runs.
+
+    A second Ctrl-C raises KeyboardInterrupt, for a solver that does not reach its next check.
+    Outside the main thread (signals cannot be caught there) the block runs unchanged.
+    """
+
+    def handler(signum: int, _frame: object) -> None:
+        if stop.requested and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        stop.request(signal.Signals(signum).name)
+
+    if sys.platform == "win32" or not _in_main_thread():
+        yield stop
+        return
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield stop
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+def _in_main_thread() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
+
+
+def _setup_logging(verbose: bool, quiet: bool = False) -> None:
+    from rich.logging import RichHandler
+
+    level = logging.DEBUG if verbose else logging.ERROR if quiet else logging.WARNING
+    root = logging.getLogger()
+    if not any(isinstance(h, RichHandler) for h in root.handlers):
+        handler = RichHandler(console=err, show_time=False, show_path=False, markup=False)
+        root.addHandler(handler)
+    root.setLevel(level)
+
+
+def _results_path(path: Path) -> Path:
+    """A results folder, or the default results folder of a project file."""
+    from projects.runner import default_results_dir
+
+    if path.suffix.lower() == ".toml" and path.is_file():
+        return default_results_dir(path)
+    return path
+
+
+def _open_results(path: Path):  # noqa: ANN202 - Results, imported lazily
+    from projects.results import Results, ResultsError
+
+    try:
+        return Results(_results_path(path))
+    except ResultsError as exc:
+        fail(str(exc))
+
+
+def _parse_size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        fail(f"--size must look like 1600x900, got {text!r}")
+    if not (16 <= w <= 16384 and 16 <= h <= 16384):
+        fail(f"--size must be between 16 and 16384 pixels per side, got {text!r}")
+    return w, h
+
+
+def _parse_frame(text: str) -> int:
+    if text.lower() in ("last", "end"):
+        return -1
+    try:
+        return int(text)
+    except ValueError:
+        fail(f"--frame must be a frame number or 'last', got {text!r}")
+
+
+def _rate(value: float) -> str:
+    """Particle-steps per second in millions, the unit of the performance notes."""
+    return f"{value / 1e6:.3g} M"
+
+
+# --------------------------------------------------------------------------------------------
+# commands
+
+
+@cli.callback()
+def _main(
+    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Show the log (debug level).")] = False,
+) -> None:
+    """Runout: landslide run-out analysis with the material point method."""
+    _setup_logging(verbose)
+
+
+class _RunProgress:
+    """Rich progress bar fed by the solver's Progress callbacks (or nothing when quiet)."""
+
+    def __init__(self, quiet: bool) -> None:
+        from rich.progress import (
+            BarColumn,
+            Progress,
+            TaskProgressColumn,
+            TextColumn,
+            TimeRemainingColumn,
+        )
+
+        self.bar = Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            TaskProgressColumn(),
+            TextColumn("{task.fields[clock]}"),
+            TextColumn("{task.fields[rate]}"),
+            TextColumn("ETA"),
+            TimeRemainingColumn(),
+            console=err,
+            disable=quiet,
+        )
+        self.task = self.bar.add_task("preparing", total=None, rate="", clock="")
+
+    def __enter__(self) -> _RunProgress:
+        self.bar.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.bar.__exit__(None, None, None)
+
+    def finish(self) -> None:
+        """Show the bar full (the summed time steps may fall short of the total by round-off)."""
+        task = self.bar.tasks[0]
+        if task.total is not None:
+            self.bar.update(self.task, completed=task.total)
+
+    def update(self, p: Any) -> None:
+        """Show a ``solver.simulation.Progress`` (time_s, total_time_s, stage, steps_per_s)."""
+        total = p.total_time_s if p.total_time_s > 0 else None
+        self.bar.update(
+            self.task,
+            description=p.stage,
+            total=total,
+            completed=min(p.time_s, total) if total else p.time_s,
+            rate=f"{p.steps_per_s:,.0f} steps/s",
+            clock=f"t = {p.time_s:.3f} / {p.total_time_s:.3f} s",
+        )
+
+
+def _summary_line(result: RunResult) -> str:
+    s = result.summary
+    return (
+        f"{result.status}: {s.get('particles', 0):,} particles, {s.get('steps', 0):,} steps, "
+        f"t = {s.get('simulated_time_s') or 0.0:.4g} s in {s.get('wall_time_s') or 0.0:.1f} s "
+        f"({_rate(s.get('particle_steps_per_s') or 0.0)} particle-steps/s, "
+        f"{s.get('arch', '?')} {s.get('precision', '')}) -> {result.out_dir}"
+    )
+
+
+@cli.command()
+def run(
+    project: Annotated[Path, typer.Argument(help="Project file (.toml).", show_default=False)],
+    out_dir: Annotated[
+        Path | None,
+        typer.Option("--out", "-o", help="Results folder (default: NAME.results next to the project)."),
+    ] = None,
+    overrides: Annotated[
+        list[str] | None,
+        typer.Option("--set", "-s", metavar="KEY=VALUE", help="Override a project key (repeatable)."),
+    ] = None,
+    arch: Annotated[Arch | None, typer.Option("--arch", help="Run on the CPU or the GPU.")] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress or summary; errors only.")] = False,
+) -> None:
+    """Run a project and write its results folder."""
+    from projects.results import ResultsError
+    from projects.runner import StopRequest, run_project
+    from projects.schema import ProjectError
+
+    if quiet:
+        _setup_logging(verbose=False, quiet=True)
+    stop = StopRequest()
+    with stop_on_signals(stop):
+        try:
+            model = load_or_exit(project, overrides)
+            # Taichi prints "[Taichi] Starting on arch=..." to stdout; keep stdout for results
+            chatter = io.StringIO() if quiet else sys.stderr
+            with _RunProgress(quiet) as progress, contextlib.redirect_stdout(chatter):
+                result = run_project(
+                    model,
+                    out_dir,
+                    project_path=project,
+                    arch=arch.value if arch is not None else None,
+                    cancel=stop,
+                    on_progress=progress.update,
+                )
+                if result.status == "completed":
+                    progress.finish()
+        except (ProjectError, ResultsError) as exc:
+            fail(str(exc))
+        except KeyboardInterrupt:
+            fail("stopped before the run started", EXIT_SIGINT)
+    if result.status == "completed":
+        if not quiet:
+            out.print(_summary_line(result), markup=False)
+        return
+    where = f"(results so far in {result.out_dir})"
+    if result.status == "stopped":
+        code = EXIT_SIGTERM if stop.reason == "SIGTERM" else EXIT_SIGINT
+        err.print(f"stopped: {result.message} {where}", markup=False)
+        raise typer.Exit(code)
+    err.print(f"failed: {result.message} {where}", markup=False)
+    raise typer.Exit(EXIT_FAILED)
+
+
+@cli.command()
+def validate(
+    project: Annotated[Path, typer.Argument(help="Project file (.toml).", show_default=False)],
+    overrides: Annotated[
+        list[str] | None,
+        typer.Option("--set", "-s", metavar="KEY=VALUE", help="Override a project key (repeatable)."),
+    ] = None,
+) -> None:
+    """Check a project: every problem, or what it would run."""
+    from projects.runner import check_project
+    from projects.schema import ProjectError
+
+    model = load_or_exit(project, overrides)
+    try:
+        built = check_project(model)
+    except ProjectError as exc:
+        fail(f"{project}: {exc}")
+    grid = built.config.grid
+    nx, ny = grid.cells
+    out.print(
+        f"ok: {len(built.particles):,} particles, {len(built.config.materials)} materials, "
+        f"{len(built.body_names)} bodies, {len(built.config.stages)} stages, "
+        f"grid {nx} x {ny} cells of {grid.cell_size_m:g} m",
+        markup=False,
+    )
+
+
+@cli.command()
+def render(
+    results: Annotated[Path, typer.Argument(help="Results folder (or its project file).", show_default=False)],
+    frame: Annotated[str, typer.Option("--frame", "-f", help="Frame number or 'last'.")] = "last",
+    field: Annotated[str, typer.Option("--field", help="Field to colour by.")] = "displacement",
+    output: Annotated[Path | None, typer.Option("-o", "--output", help="PNG file (default: in the results folder).")] = None,
+    size: Annotated[str, typer.Option("--size", help="Image size WIDTHxHEIGHT in pixels.")] = "1600x900",
+) -> None:
+    """Render one frame to a PNG (offscreen)."""
+    from app.render import render_frame
+    from projects.results import ResultsError
+
+    index = _parse_frame(frame)
+    width_height = _parse_size(size)
+    res = _open_results(results)
+    try:
+        path = render_frame(res, index, field, output, size=width_height)
+    except (ValueError, ResultsError) as exc:
+        fail(str(exc))
+    out.print(str(path), markup=False)
+
+
+@cli.command()
+def animate(
+    results: Annotated[Path, typer.Argument(help="Results folder (or its project file).", show_default=False)],
+    output: Annotated[Path, typer.Option("-o", "--output", help="Movie file, .mp4 or .gif.", show_default=False)],
+    field: Annotated[str, typer.Option("--field", help="Field to colour by.")] = "displacement",
+    fps: Annotated[float, typer.Option("--fps", help="Frames per second.")] = 10.0,
+    size: Annotated[
+        str | None, typer.Option("--size", help="Image size WIDTHxHEIGHT (default 1280x720, gif 800x450).")
+    ] = None,
+) -> None:
+    """Write a movie of all frames (mp4 or gif)."""
+    from rich.progress import Progress
+
+    from app.render import animate as make_movie
+    from projects.results import ResultsError
+
+    if size is None:
+        width_height = (800, 450) if output.suffix.lower() == ".gif" else (1280, 720)
+    else:
+        width_height = _parse_size(size)
+    res = _open_results(results)
+    try:
+        with Progress(console=err, transient=True) as bar:
+            task = bar.add_task("rendering", total=len(res))
+            path = make_movie(
+                res, output, field, fps, size=width_height,
+                on_frame=lambda done, total: bar.update(task, completed=done, total=total),
+            )
+    except (ValueError, ResultsError, OSError) as exc:
+        fail(str(exc))
+    out.print(str(path), markup=False)
+
+
+@cli.command()
+def gui(
+    project: Annotated[Path | None, typer.Argument(help="Project file to open.", show_default=False)] = None,
+) -> None:
+    """Open the Runout workbench."""
+    try:
+        from app import gui as workbench
+    except ImportError as exc:
+        fail(f"the workbench cannot start: {exc}")
+    code = workbench.main(project)
+    raise typer.Exit(int(code or 0))
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Console-script entry point (``runout``)."""
+    # Taichi prints a banner on import; keep standard output for results
+    os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "0")
+    # `run` redirects stdout around the solver; without this Taichi, imported meanwhile, would
+    # take that for a notebook and wrap every kernel call to flush kernel prints
+    os.environ.setdefault("TI_ENABLE_PYBUF", "0")
+    cli(args=argv, prog_name="runout")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -1,0 +1,548 @@
+"""Offscreen pictures and movies of results folders (no display, no Qt).
+
+Particles are drawn as square points in the xy plane, coloured by one of :data:`FIELDS`, with a
+colour bar in engineering units, the simulated time, axes in metres and the grid box outline.
+The point size follows the particle spacing, so a body looks continuous at any image size.
+
+VTK tries an X server first and logs "bad X server connection" when there is none; on Linux
+without ``DISPLAY`` this module asks VTK for its EGL (headless) window instead.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import sys
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from projects.results import Results, ResultsError
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import pyvista
+
+logger = logging.getLogger(__name__)
+
+_KPA = 1.0e-3  # stresses are shown in kPa
+
+
+@dataclass(frozen=True)
+class FieldInfo:
+    """One colourable quantity.
+
+    Attributes
+    ----------
+    name : str
+        Key used on the command line and in the GUI.
+    label : str
+        Human name for colour bars.
+    unit : str
+        Unit of the shown values ("-" for dimensionless).
+    source : str
+        Frame array it is computed from.
+    categorical : bool
+        Discrete values (material) with a legend rather than a continuous bar.
+    cmap : str
+        Default matplotlib colour map.
+    """
+
+    name: str
+    label: str
+    unit: str
+    source: str
+    categorical: bool = False
+    cmap: str = "viridis"
+
+    @property
+    def title(self) -> str:
+        """Colour bar title, for example ``"Displacement (m)"``."""
+        return self.label if self.categorical else f"{self.label} ({self.unit})"
+
+
+#: The fields that can be shown, in menu order; shared with the GUI.
+FIELDS: dict[str, FieldInfo] = {
+    f.name: f
+    for f in (
+        FieldInfo("displacement", "Displacement", "m", "displacement"),
+        FieldInfo("displacement_x", "Horizontal displacement", "m", "displacement", cmap="coolwarm"),
+        FieldInfo("displacement_y", "Vertical displacement", "m", "displacement", cmap="coolwarm"),
+        FieldInfo("velocity", "Speed", "m/s", "velocity", cmap="plasma"),
+        FieldInfo("stress_xx", "Stress xx", "kPa", "stress", cmap="turbo"),
+        FieldInfo("stress_yy", "Stress yy", "kPa", "stress", cmap="turbo"),
+        FieldInfo("stress_xy", "Shear stress xy", "kPa", "stress", cmap="coolwarm"),
+        FieldInfo("stress_zz", "Stress zz", "kPa", "stress", cmap="turbo"),
+        FieldInfo("mean_stress", "Mean stress", "kPa", "stress", cmap="turbo"),
+        FieldInfo("plastic_strain", "Plastic strain", "-", "plastic_strain", cmap="magma_r"),
+        FieldInfo("material", "Material", "", "material_id", categorical=True, cmap="tab10"),
+    )
+}
+
+_STRESS_INDEX = {"stress_xx": 0, "stress_yy": 1, "stress_xy": 2, "stress_zz": 3}
+
+
+def field_info(field: str) -> FieldInfo:
+    """The :class:`FieldInfo` of ``field``; ValueError listing the allowed names otherwise."""
+    try:
+        return FIELDS[field]
+    except KeyError:
+        raise ValueError(f"unknown field {field!r}; allowed: {', '.join(FIELDS)}") from None
+
+
+def field_values(arrays: Mapping[str, np.ndarray], field: str) -> np.ndarray:
+    """Per-particle values of ``field`` in the units of :data:`FIELDS`.
+
+    Parameters
+    ----------
+    arrays : mapping
+        One frame as returned by :meth:`projects.results.Results.frame`.
+    field : str
+        A key of :data:`FIELDS`.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N,) float64 (int for ``material``), for every particle (active or not).
+    """
+    info = field_info(field)
+    if info.source not in arrays:
+        raise ValueError(
+            f"field {field!r} needs the {info.source!r} output, which this run did not write "
+            f"(see [output] fields); available: {', '.join(sorted(arrays))}"
+        )
+    data = np.asarray(arrays[info.source])
+    if field in ("displacement", "velocity"):
+        return np.linalg.norm(data[:, :2].astype(np.float64), axis=1)
+    if field == "displacement_x":
+        return data[:, 0].astype(np.float64)
+    if field == "displacement_y":
+        return data[:, 1].astype(np.float64)
+    if field in _STRESS_INDEX:
+        return data[:, _STRESS_INDEX[field]].astype(np.float64) * _KPA
+    if field == "mean_stress":
+        s = data.astype(np.float64)
+        return (s[:, 0] + s[:, 1] + s[:, 3]) / 3.0 * _KPA
+    if field == "material":
+        return data.astype(np.int64)
+    return data.astype(np.float64)
+
+
+def _quiet_vtk() -> None:
+    """Pick VTK's headless window on Linux without a display (avoids the X server warning)."""
+    if sys.platform.startswith("linux") and not (
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    ):
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+
+def _as_results(results: Results | str | os.PathLike[str]) -> Results:
+    return results if isinstance(results, Results) else Results(results)
+
+
+def _nice_step(span: float, ticks: int = 5) -> float:
+    """A 1, 2, 2.5 or 5 times a power of ten step giving about ``ticks`` intervals."""
+    raw = span / ticks
+    power = 10.0 ** math.floor(math.log10(raw))
+    for mult in (1.0, 2.0, 2.5, 5.0, 10.0):
+        if mult * power >= raw * (1 - 1e-9):
+            return mult * power
+    return 10.0 * power
+
+
+def _nice_axis(lo: float, hi: float) -> tuple[float, float, int, float]:
+    """Extend ``[lo, hi]`` to whole tick steps; return (lo, hi, number of labels, step)."""
+    step = _nice_step(hi - lo)
+    lo2 = math.floor(lo / step + 1e-9) * step
+    hi2 = math.ceil(hi / step - 1e-9) * step
+    return lo2, hi2, int(round((hi2 - lo2) / step)) + 1, step
+
+
+def _label_format(step: float) -> str:
+    """printf format with just enough decimals for labels ``step`` apart."""
+    decimals = 0
+    while decimals < 6 and abs(round(step, decimals) - step) > 1e-9 * step:
+        decimals += 1
+    return f"%.{decimals}f"
+
+
+def _robust_range(values: np.ndarray) -> tuple[float, float]:
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        return 0.0, 1.0
+    lo, hi = float(finite.min()), float(finite.max())
+    if hi - lo <= 1e-12 * max(1.0, abs(hi)):
+        pad = max(abs(hi) * 1e-3, 1e-9)
+        lo, hi = lo - pad, hi + pad
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class _View:
+    """Camera placement: world box to show (whole axis ticks), labels and pixels per metre."""
+
+    bounds: tuple[float, float, float, float]  # xmin, xmax, ymin, ymax (m)
+    labels: tuple[int, int]  # number of tick labels along x and y
+    label_format: str
+    pixels_per_m: float
+
+
+# Fractions of the image kept for the data; the rest holds the axes labels and colour bar.
+_DATA_W, _DATA_H, _DATA_CX = 0.74, 0.74, 0.46
+
+
+def _domain_box(results: Results) -> tuple[float, float, float, float] | None:
+    domain = results.summary.get("domain") or {}
+    try:
+        (x0, y0), (w, h) = domain["origin_m"], domain["size_m"]
+    except (KeyError, TypeError, ValueError):
+        return None
+    return float(x0), float(x0) + float(w), float(y0), float(y0) + float(h)
+
+
+def _particle_box(positions: np.ndarray) -> tuple[float, float, float, float] | None:
+    if len(positions) == 0:
+        return None
+    lo, hi = positions.min(axis=0), positions.max(axis=0)
+    return float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])
+
+
+def _union(*boxes: tuple[float, float, float, float] | None) -> tuple[float, float, float, float]:
+    real = [b for b in boxes if b is not None]
+    if not real:
+        return 0.0, 1.0, 0.0, 1.0
+    x0, x1, y0, y1 = (min(b[0] for b in real), max(b[1] for b in real),
+                      min(b[2] for b in real), max(b[3] for b in real))
+    # a degenerate box (one particle, a line) still needs a visible extent
+    span = max(x1 - x0, y1 - y0, 1e-3)
+    if x1 - x0 < 1e-9 * span:
+        x0, x1 = x0 - span / 2, x1 + span / 2
+    if y1 - y0 < 1e-9 * span:
+        y0, y1 = y0 - span / 2, y1 + span / 2
+    return x0, x1, y0, y1
+
+
+def _view(bounds: tuple[float, float, float, float], size: tuple[int, int]) -> _View:
+    x0, x1, nx, xstep = _nice_axis(bounds[0], bounds[1])
+    y0, y1, ny, ystep = _nice_axis(bounds[2], bounds[3])
+    ppm = min(_DATA_W * size[0] / (x1 - x0), _DATA_H * size[1] / (y1 - y0))
+    return _View((x0, x1, y0, y1), (nx, ny), _label_format(min(xstep, ystep)), ppm)
+
+
+def _particle_spacing(results: Results, arrays: Mapping[str, np.ndarray]) -> float:
+    spacing = results.summary.get("particle_spacing_m")
+    if isinstance(spacing, (int, float)) and spacing > 0:
+        return float(spacing)
+    # no spacing recorded: assume the particles tile their bounding box
+    pos = arrays["positions"][arrays["active"]]
+    box = _particle_box(pos)
+    if box is None or len(pos) < 2:
+        return 1.0
+    area = max((box[1] - box[0]) * (box[3] - box[2]), 1e-12)
+    return math.sqrt(area / len(pos))
+
+
+class _Scene:
+    """An offscreen plotter showing one field; :meth:`show` swaps in another frame."""
+
+    def __init__(
+        self,
+        results: Results,
+        field: str,
+        size: tuple[int, int],
+        view: _View,
+        spacing_m: float,
+        cmap: str | None,
+        clim: tuple[float, float] | None,
+    ) -> None:
+        _quiet_vtk()
+        import pyvista as pv
+
+        self.results = results
+        self.info = field_info(field)
+        self.size = (int(size[0]), int(size[1]))
+        self.clim = clim
+        self.plotter = pv.Plotter(off_screen=True, window_size=list(self.size))
+        self.plotter.set_background("white")
+        self.cloud = pv.PolyData()
+        self._actor = None
+        self._spacing_m = spacing_m
+        self._view = view
+        self._cmap = cmap or self.info.cmap
+        self._font = max(8, round(self.size[1] / 56))
+        self._text = None
+
+    def close(self) -> None:
+        self.plotter.close()
+
+    def _cloud(self, arrays: Mapping[str, np.ndarray]) -> pyvista.PolyData:
+        import pyvista as pv
+
+        active = np.asarray(arrays["active"], dtype=bool)
+        pos = np.asarray(arrays["positions"])[active]
+        points = np.zeros((len(pos), 3), np.float32)
+        points[:, :2] = pos
+        cloud = pv.PolyData(points)
+        cloud.point_data["values"] = field_values(arrays, self.info.name)[active]
+        return cloud
+
+    def _add_static(self) -> None:
+        import pyvista as pv
+
+        pl = self.plotter
+        x0, x1, y0, y1 = self._view.bounds
+        domain = _domain_box(self.results)
+        if domain is not None:
+            dx0, dx1, dy0, dy1 = domain
+            outline = [[dx0, dy0, 0], [dx1, dy0, 0], [dx1, dy1, 0], [dx0, dy1, 0], [dx0, dy0, 0]]
+            pl.add_mesh(pv.MultipleLines(outline), color="#8c8c8c", line_width=1)
+        pl.show_bounds(
+            bounds=[x0, x1, y0, y1, 0.0, 0.0],
+            xtitle="x (m)",
+            ytitle="y (m)",
+            ztitle="",
+            show_zaxis=False,
+            show_zlabels=False,
+            color="black",
+            location="outer",
+            use_2d=True,
+            grid=False,
+            fmt=self._view.label_format,
+            n_xlabels=self._view.labels[0],
+            n_ylabels=self._view.labels[1],
+            font_size=self._font,
+        )
+        title = str(self.results.summary.get("title") or "")
+        if title:
+            pl.add_text(title, position="upper_edge", color="#333333", font_size=self._font)
+
+    def _place_camera(self) -> None:
+        x0, x1, y0, y1 = self._view.bounds
+        ppm = self._view.pixels_per_m
+        w, h = self.size
+        cam = self.plotter.camera
+        self.plotter.enable_parallel_projection()
+        # shift the focal point so the data sits left of centre, clear of the colour bar
+        fx = 0.5 * (x0 + x1) + (0.5 - _DATA_CX) * w / ppm
+        fy = 0.5 * (y0 + y1)
+        cam.focal_point = (fx, fy, 0.0)
+        cam.position = (fx, fy, 10.0 * max(x1 - x0, y1 - y0))
+        cam.up = (0.0, 1.0, 0.0)
+        cam.parallel_scale = h / (2.0 * ppm)
+        self.plotter.renderer.ResetCameraClippingRange()
+
+    def show(self, index: int) -> None:
+        """Draw frame ``index`` (only its active particles)."""
+        arrays = self.results.frame(index)
+        cloud = self._cloud(arrays)
+        if self._actor is None:
+            self.cloud = cloud
+            self._add_points()
+            self._add_static()
+            self._place_camera()
+        else:
+            self.cloud.copy_from(cloud)
+        time_s = float(self.results.times[index])
+        label = f"t = {time_s:.3f} s"
+        if self._text is None:
+            self._text = self.plotter.add_text(
+                label, position=(int(0.012 * self.size[0]), int(self.size[1] - 2.2 * self._font * 1.6)),
+                color="black", font_size=self._font,
+            )
+        else:
+            self._text.SetInput(label)
+
+    def _add_points(self) -> None:
+        info = self.info
+        point_px = max(1.0, math.ceil(self._spacing_m * self._view.pixels_per_m))
+        common: dict[str, Any] = dict(
+            scalars="values",
+            style="points",
+            point_size=point_px,
+            render_points_as_spheres=False,
+            lighting=False,
+        )
+        bar: dict[str, Any] = dict(
+            title=info.title,
+            color="black",
+            vertical=True,
+            position_x=0.86,
+            position_y=0.18,
+            height=0.64,
+            width=0.035,
+            title_font_size=self._font,
+            label_font_size=self._font,
+            unconstrained_font_size=True,
+        )
+        if info.categorical:
+            names = self.results.material_names
+            ids = np.asarray(self.cloud.point_data["values"])
+            count = max(len(names), int(ids.max(initial=0)) + 1, 1)
+            annotations = {i: (names[i] if i < len(names) else f"material {i}") for i in range(count)}
+            bar.update(n_labels=0)
+            self._actor = self.plotter.add_mesh(
+                self.cloud,
+                cmap=self._cmap,
+                clim=(-0.5, count - 0.5),
+                n_colors=count,
+                categories=True,
+                annotations=annotations,
+                scalar_bar_args=bar,
+                **common,
+            )
+        else:
+            clim = self.clim or _robust_range(np.asarray(self.cloud.point_data["values"]))
+            bar.update(fmt="%.3g", n_labels=5)
+            self._actor = self.plotter.add_mesh(
+                self.cloud, cmap=self._cmap, clim=clim, scalar_bar_args=bar, **common
+            )
+        # keep the bar's title clear of its top label
+        scalar_bar = self.plotter.scalar_bars[info.title]
+        scalar_bar.SetVerticalTitleSeparation(int(self._font))
+
+    def screenshot(self) -> np.ndarray:
+        """(H, W, 3) uint8 image of what is shown."""
+        # pyvista renders by itself only for the first screenshot of an offscreen plotter
+        self.plotter.render()
+        return self.plotter.screenshot(return_img=True)
+
+
+def _scene_for(
+    results: Results,
+    field: str,
+    frames: list[int],
+    size: tuple[int, int],
+    cmap: str | None,
+    clim: tuple[float, float] | None,
+) -> _Scene:
+    info = field_info(field)
+    first = results.frame(frames[0])
+    field_values(first, field)  # fail early when the run lacks the needed output
+    boxes = [_domain_box(results)]
+    values = []
+    for i in frames:
+        arrays = results.frame(i, {"positions", "active", info.source})
+        active = np.asarray(arrays["active"], bool)
+        boxes.append(_particle_box(np.asarray(arrays["positions"])[active]))
+        if clim is None and not info.categorical:
+            values.append(field_values(arrays, field)[active])
+    if clim is None and values:
+        clim = _robust_range(np.concatenate(values))
+    view = _view(_union(*boxes), size)
+    return _Scene(results, field, size, view, _particle_spacing(results, first), cmap, clim)
+
+
+def _frame_index(results: Results, frame: int) -> int:
+    if len(results) == 0:
+        raise ResultsError(f"{results.path} has no complete frames to show")
+    n = len(results)
+    j = frame + n if frame < 0 else frame
+    if not 0 <= j < n:
+        raise ValueError(f"frame {frame} out of range: the results have {n} frames (0..{n - 1})")
+    return j
+
+
+def render_frame(
+    results: Results | str | os.PathLike[str],
+    frame: int = -1,
+    field: str = "displacement",
+    path: str | os.PathLike[str] | None = None,
+    size: tuple[int, int] = (1600, 900),
+    cmap: str | None = None,
+    clim: tuple[float, float] | None = None,
+) -> Path:
+    """Render one frame of a results folder to a PNG, offscreen.
+
+    Parameters
+    ----------
+    results : Results or path-like
+        An open results folder or its path.
+    frame : int
+        Frame index; negative counts from the end (-1: the end state).
+    field : str
+        A key of :data:`FIELDS`.
+    path : path-like, optional
+        Output PNG. Default: ``<results>/<field>_<frame>.png``.
+    size : (int, int)
+        Image width and height, pixels.
+    cmap : str, optional
+        Matplotlib colour map (default per field).
+    clim : (float, float), optional
+        Colour range in the field's units (default: the frame's range).
+
+    Returns
+    -------
+    Path
+        The written image.
+    """
+    res = _as_results(results)
+    field_info(field)
+    j = _frame_index(res, frame)
+    out = Path(path) if path is not None else res.path / f"{field}_{j:05d}.png"
+    scene = _scene_for(res, field, [j], size, cmap, clim)
+    try:
+        scene.show(j)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        scene.plotter.screenshot(str(out))
+    finally:
+        scene.close()
+    logger.info("wrote %s", out)
+    return out
+
+
+def animate(
+    results: Results | str | os.PathLike[str],
+    path: str | os.PathLike[str],
+    field: str = "displacement",
+    fps: float = 10.0,
+    size: tuple[int, int] = (1280, 720),
+    cmap: str | None = None,
+    clim: tuple[float, float] | None = None,
+    on_frame: Callable[[int, int], None] | None = None,
+) -> Path:
+    """Write a movie of every frame: ``.mp4`` (H.264 via imageio-ffmpeg) or ``.gif`` (pillow).
+
+    The camera and colour range are fixed over the whole movie (the range of all frames unless
+    ``clim`` is given). ``on_frame(done, total)`` reports progress.
+
+    Returns
+    -------
+    Path
+        The written movie.
+    """
+    import imageio.v2 as imageio
+
+    res = _as_results(results)
+    field_info(field)
+    out = Path(path)
+    suffix = out.suffix.lower()
+    if suffix not in (".mp4", ".gif"):
+        raise ValueError(f"movie must be .mp4 or .gif, got {out.name!r}")
+    if fps <= 0:
+        raise ValueError(f"fps must be > 0, got {fps}")
+    if len(res) == 0:
+        raise ResultsError(f"{res.path} has no complete frames to show")
+    # H.264 in yuv420p needs even dimensions
+    size = (int(size[0]) // 2 * 2, int(size[1]) // 2 * 2)
+    frames = list(range(len(res)))
+    scene = _scene_for(res, field, frames, size, cmap, clim)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if suffix == ".mp4":
+        writer = imageio.get_writer(out, format="FFMPEG", fps=fps, codec="libx264",
+                                    quality=8, macro_block_size=1, pixelformat="yuv420p")
+    else:
+        writer = imageio.get_writer(out, format="GIF", mode="I", duration=1000.0 / fps, loop=0)
+    try:
+        for done, j in enumerate(frames, start=1):
+            scene.show(j)
+            writer.append_data(scene.screenshot())
+            if on_frame is not None:
+                on_frame(done, len(frames))
+    finally:
+        writer.close()
+        scene.close()
+    logger.info("wrote %s (%d frames)", out, len(frames))
+    return out

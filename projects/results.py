@@ -1,0 +1,965 @@
+"""Results folders: writing them while a run goes on, and reading them back.
+
+A results folder (the public contract in ``docs/project-format.md``) holds::
+
+    particles.pvd          ParaView collection indexing the complete frames, with their times
+    frames/frame_00000.vtp one VTK XML PolyData file per output time
+    series.csv             one row of diagnostics per output time
+    summary.json           status and key numbers of the run
+    project.toml           the resolved project that ran
+
+Frame files are VTK XML PolyData (version 1.0, little endian, ``UInt64`` headers), every data
+array zlib-compressed in raw appended binary. They are encoded here with numpy and zlib rather
+than through VTK so that :mod:`projects` stays light to import and the writer thread does not need
+VTK; the tests read them back with VTK's own reader. The points hold every particle (float32,
+z = 0) in particle order; vertex cells are made only for active particles, so viewers skip
+particles that were removed, while point arrays stay aligned with particle ids.
+
+Point arrays (names are fixed): ``displacement`` (3 components, m), ``velocity`` (3, m/s),
+``stress`` (4: xx, yy, xy, zz, Pa), ``plastic_strain`` (-), ``material_id`` (int32), ``active``
+(uint8) and ``particle_id`` (int32); only the fields the run asked for are present. The field
+data ``TimeValue`` holds the simulated time in seconds.
+
+Every file that is rewritten (``particles.pvd``, ``summary.json``, each frame) is written to a
+temporary name and moved into place, so a run that is killed leaves a folder that reads up to its
+last complete frame; :class:`Results` reports such a run as ``"interrupted"``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import logging
+import math
+import os
+import queue
+import re
+import shutil
+import threading
+import time
+import zlib
+from collections import OrderedDict
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+from xml.etree import ElementTree
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from solver.config import Diagnostics, Frame
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import pyvista
+
+logger = logging.getLogger(__name__)
+
+FRAMES_DIR = "frames"
+PVD_NAME = "particles.pvd"
+SERIES_NAME = "series.csv"
+SUMMARY_NAME = "summary.json"
+PROJECT_NAME = "project.toml"
+
+#: Columns of ``series.csv``, in order.
+SERIES_COLUMNS: tuple[str, ...] = (
+    "frame",
+    "time_s",
+    "stage",
+    "stage_index",
+    "stage_time_s",
+    "step",
+    "dt_s",
+    "kinetic_energy_J_per_m",
+    "momentum_x",
+    "momentum_y",
+    "max_speed_m_s",
+    "unstable_particles",
+    "lost_particles",
+    "total_mass_kg_per_m",
+    "yielding_particles",
+)
+_INT_COLUMNS = frozenset(
+    {"frame", "stage_index", "step", "unstable_particles", "lost_particles", "yielding_particles"}
+)
+_STR_COLUMNS = frozenset({"stage"})
+
+#: Final states of a run as written to ``summary.json``.
+FINAL_STATUSES: tuple[str, ...] = ("completed", "stopped", "failed")
+RUNNING = "running"
+#: What :attr:`Results.status` says for a folder whose run never closed it.
+INTERRUPTED = "interrupted"
+
+_STRESS_COMPONENTS = ("xx", "yy", "xy", "zz")
+_BLOCK_BYTES = 1 << 16
+_END_TAG = b"</VTKFile>\n"
+_FRAME_RE = re.compile(r"^frame_(\d+)\.vtp$")
+_TIME_RE = re.compile(rb'Name="TimeValue"[^>]*>\s*([^<\s]+)\s*<')
+_VTK_TYPES: dict[str, str] = {
+    "float32": "Float32",
+    "float64": "Float64",
+    "int8": "Int8",
+    "uint8": "UInt8",
+    "int32": "Int32",
+    "int64": "Int64",
+    "uint32": "UInt32",
+    "uint64": "UInt64",
+    "int16": "Int16",
+    "uint16": "UInt16",
+}
+_NUMPY_TYPES = {v: np.dtype(k).newbyteorder("<") for k, v in _VTK_TYPES.items()}
+
+
+class ResultsError(Exception):
+    """A results folder cannot be written, or what is read is not a results folder."""
+
+
+def runout_version() -> str:
+    """The installed version of Runout, or ``"unknown"`` when it is not installed."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("runout")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+# --------------------------------------------------------------------------------------------
+# small file helpers
+
+
+def _atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to a temporary sibling, then move it over ``path`` (atomic on POSIX)."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "wb") as fh:
+        fh.write(data)
+    os.replace(tmp, path)
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    _atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def _json_default(value: Any) -> Any:
+    # numpy scalars and arrays, paths and tuples from dataclasses end up in meta dicts
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def _json_float(value: float) -> float | None:
+    # JSON has no NaN/inf; a summary must stay valid JSON for other tools
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def is_results_dir(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` is a folder that looks like a Runout results folder."""
+    path = Path(path)
+    return path.is_dir() and (
+        (path / SUMMARY_NAME).is_file()
+        or (path / PVD_NAME).is_file()
+        or (path / FRAMES_DIR).is_dir()
+    )
+
+
+def prepare_results_dir(path: str | os.PathLike[str]) -> Path:
+    """Make ``path`` an empty folder for a new run.
+
+    A missing folder is created (with its parents); an empty folder is used as is; an existing
+    results folder is deleted and recreated. Any other existing path is left alone and
+    :class:`ResultsError` is raised, so a mistyped ``--out`` never wipes unrelated files.
+
+    Returns
+    -------
+    Path
+        The absolute folder path.
+    """
+    path = Path(path).expanduser().absolute()
+    if path.exists():
+        if not path.is_dir():
+            raise ResultsError(f"{path} exists and is not a folder")
+        if any(path.iterdir()):
+            if not is_results_dir(path):
+                raise ResultsError(
+                    f"{path} exists, is not empty and is not a results folder; "
+                    "refusing to overwrite it (choose another output folder)"
+                )
+            logger.info("replacing the results folder %s", path)
+            shutil.rmtree(path)
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+# --------------------------------------------------------------------------------------------
+# VTK XML encoding and decoding
+
+
+def _encode_array(array: np.ndarray, level: int) -> bytes:
+    """One appended data block: UInt64 header (blocks, block size, last size, sizes) + zlib."""
+    raw = np.ascontiguousarray(array).tobytes()
+    nbytes = len(raw)
+    nblocks = -(-nbytes // _BLOCK_BYTES)
+    blocks = [
+        zlib.compress(raw[i * _BLOCK_BYTES : (i + 1) * _BLOCK_BYTES], level) for i in range(nblocks)
+    ]
+    last = nbytes - (nblocks - 1) * _BLOCK_BYTES if nblocks else 0
+    if last == _BLOCK_BYTES:
+        last = 0  # VTK's convention: 0 means the last block is full
+    header = np.array([nblocks, _BLOCK_BYTES, last, *map(len, blocks)], dtype="<u8")
+    return header.tobytes() + b"".join(blocks)
+
+
+def _as_file_array(name: str, values: np.ndarray) -> np.ndarray:
+    """Convert one frame field to the dtype and component count stored in the file."""
+    values = np.asarray(values)
+    if name in ("active",) or values.dtype == np.bool_:
+        return values.astype(np.uint8)
+    if np.issubdtype(values.dtype, np.integer):
+        return values.astype("<i4")
+    values = values.astype("<f4")
+    if values.ndim == 2 and values.shape[1] == 2:
+        # vectors get a zero z so that ParaView treats them as vectors (glyphs, magnitude)
+        values = np.concatenate([values, np.zeros((len(values), 1), "<f4")], axis=1)
+    return values
+
+
+def encode_vtp(fields: Mapping[str, np.ndarray], time_s: float, level: int = 1) -> bytes:
+    """Encode one frame as a VTK XML PolyData file.
+
+    Parameters
+    ----------
+    fields : mapping of str to numpy.ndarray
+        ``positions`` (N, 2) m and ``active`` (N,) bool are required; every other entry is
+        written as a point array (see the module docstring for names and shapes).
+    time_s : float
+        Simulated time, stored as the field data ``TimeValue``.
+    level : int
+        zlib compression level (1 is fast and gets most of the gain on float data).
+
+    Returns
+    -------
+    bytes
+        The complete file content.
+    """
+    positions = np.asarray(fields["positions"], dtype="<f4")
+    n = len(positions)
+    if positions.shape != (n, 2):
+        raise ValueError(f"positions must have shape (N, 2), got {positions.shape}")
+    active = np.asarray(fields.get("active", np.ones(n, bool)), dtype=bool)
+    points = np.zeros((n, 3), "<f4")
+    points[:, :2] = positions
+    connectivity = np.flatnonzero(active).astype("<i8")
+    offsets = np.arange(1, len(connectivity) + 1, dtype="<i8")
+
+    point_arrays: dict[str, np.ndarray] = {"active": active.astype(np.uint8)}
+    point_arrays["particle_id"] = np.arange(n, dtype="<i4")
+    for name, values in fields.items():
+        if name in ("positions", "active", "particle_id"):
+            continue
+        arr = _as_file_array(name, values)
+        if arr.shape[0] != n:
+            raise ValueError(f"field {name!r} has {arr.shape[0]} rows for {n} particles")
+        point_arrays[name] = arr
+
+    blobs: list[bytes] = []
+    offset = 0
+
+    def data_array(name: str, arr: np.ndarray, extra: str = "") -> str:
+        nonlocal offset
+        comps = 1 if arr.ndim == 1 else arr.shape[1]
+        blob = _encode_array(arr, level)
+        tag = (
+            f'<DataArray type="{_VTK_TYPES[arr.dtype.name]}" Name={quoteattr(name)} '
+            f'NumberOfComponents="{comps}"{extra} format="appended" offset="{offset}"/>'
+        )
+        blobs.append(blob)
+        offset += len(blob)
+        return tag
+
+    lines = [
+        '<?xml version="1.0"?>',
+        '<VTKFile type="PolyData" version="1.0" byte_order="LittleEndian" '
+        'header_type="UInt64" compressor="vtkZLibDataCompressor">',
+        "<PolyData>",
+        "<FieldData>",
+        '<DataArray type="Float64" Name="TimeValue" NumberOfTuples="1" format="ascii">'
+        f"{float(time_s)!r}</DataArray>",
+        "</FieldData>",
+        f'<Piece NumberOfPoints="{n}" NumberOfVerts="{len(connectivity)}" NumberOfLines="0" '
+        'NumberOfStrips="0" NumberOfPolys="0">',
+        "<PointData>",
+    ]
+    for name, arr in point_arrays.items():
+        extra = ""
+        if name == "stress" and arr.ndim == 2 and arr.shape[1] == 4:
+            extra = "".join(
+                f' ComponentName{i}="{c}"' for i, c in enumerate(_STRESS_COMPONENTS)
+            )
+        lines.append(data_array(name, arr, extra))
+    lines += [
+        "</PointData>",
+        "<Points>",
+        data_array("Points", points),
+        "</Points>",
+        "<Verts>",
+        data_array("connectivity", connectivity),
+        data_array("offsets", offsets),
+        "</Verts>",
+        "</Piece>",
+        "</PolyData>",
+        '<AppendedData encoding="raw">',
+        "_",
+    ]
+    head = "\n".join(lines).encode("ascii")
+    return head + b"".join(blobs) + b"\n</AppendedData>\n" + _END_TAG
+
+
+@dataclass(frozen=True)
+class _VtpLayout:
+    """Where the arrays of one frame file are: XML tree of the header and the data start."""
+
+    root: ElementTree.Element
+    data_start: int
+
+
+def _vtp_layout(data: bytes, path: Path) -> _VtpLayout:
+    marker = data.find(b"<AppendedData")
+    if marker < 0:
+        raise ResultsError(f"{path}: not a Runout frame file (no appended data)")
+    underscore = data.find(b"_", data.find(b">", marker))
+    try:
+        root = ElementTree.fromstring(data[:marker] + b"</VTKFile>")
+    except ElementTree.ParseError as err:
+        raise ResultsError(f"{path}: damaged frame header ({err})") from err
+    return _VtpLayout(root, underscore + 1)
+
+
+def _decode_array(data: bytes, start: int, element: ElementTree.Element, path: Path) -> np.ndarray:
+    dtype = _NUMPY_TYPES[element.get("type", "")]
+    comps = int(element.get("NumberOfComponents", "1"))
+    try:
+        nblocks, _, _ = np.frombuffer(data, "<u8", 3, start)
+        sizes = np.frombuffer(data, "<u8", int(nblocks), start + 24)
+        pos = start + 24 + 8 * int(nblocks)
+        chunks = []
+        for size in sizes:
+            chunks.append(zlib.decompress(data[pos : pos + int(size)]))
+            pos += int(size)
+    except (ValueError, zlib.error) as err:
+        raise ResultsError(f"{path}: damaged array {element.get('Name')!r} ({err})") from err
+    arr = np.frombuffer(b"".join(chunks), dtype)
+    if comps > 1:
+        arr = arr.reshape(-1, comps)
+    return arr
+
+
+def read_vtp(path: str | os.PathLike[str], names: set[str] | None = None) -> dict[str, np.ndarray]:
+    """Read the arrays of a frame file written by :func:`encode_vtp`.
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.vtp`` file.
+    names : set of str, optional
+        Point arrays to decode (``"Points"`` for the coordinates); all when omitted.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        ``Points`` (N, 3) float32, ``connectivity`` (M,) int64 (the active particles) and the
+        point arrays as stored (vectors with 3 components).
+    """
+    path = Path(path)
+    data = path.read_bytes()
+    if not data.endswith(_END_TAG):
+        raise ResultsError(f"{path}: incomplete frame file (the run was cut off while writing it)")
+    layout = _vtp_layout(data, path)
+    out: dict[str, np.ndarray] = {}
+    piece = layout.root.find("PolyData/Piece")
+    if piece is None:
+        raise ResultsError(f"{path}: no PolyData piece")
+    for element in piece.iter("DataArray"):
+        name = element.get("Name", "")
+        if names is not None and name not in names:
+            continue
+        offset = int(element.get("offset", "0"))
+        out[name] = _decode_array(data, layout.data_start + offset, element, path)
+    return out
+
+
+def _frame_time(path: Path) -> float | None:
+    """The ``TimeValue`` of a frame file (read from its XML header), or None."""
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    match = _TIME_RE.search(head)
+    return float(match.group(1)) if match else None
+
+
+def _is_complete(path: Path) -> bool:
+    try:
+        with open(path, "rb") as fh:
+            fh.seek(0, os.SEEK_END)
+            size = fh.tell()
+            if size < len(_END_TAG):
+                return False
+            fh.seek(size - len(_END_TAG))
+            return fh.read() == _END_TAG
+    except OSError:
+        return False
+
+
+def _pvd_text(entries: list[tuple[float, str]]) -> str:
+    rows = "\n".join(
+        f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(f)}/>' for t, f in entries
+    )
+    return (
+        '<?xml version="1.0"?>\n'
+        '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+        "  <Collection>\n"
+        f"{rows}{chr(10) if rows else ''}"
+        "  </Collection>\n"
+        "</VTKFile>\n"
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# writer
+
+
+class _Stop:
+    """Queue sentinel: no more frames."""
+
+
+class ResultsWriter:
+    """Write a results folder while a run produces frames.
+
+    The caller (the solver thread) hands over each frame with :meth:`write_frame`; encoding and
+    writing happen in a background thread fed through a bounded queue, so the solver only waits
+    when the disk falls several frames behind. The arrays handed over are owned by the writer
+    from then on and must not be modified by the caller.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        The results folder; prepared with :func:`prepare_results_dir` (an existing results
+        folder there is replaced).
+    project_text : str
+        The resolved project (TOML) that runs, saved as ``project.toml``.
+    meta : dict
+        Entries for ``summary.json`` known before the run: ``title``, ``scheme``, ``arch``,
+        ``precision``, ``particles`` and anything else JSON-serialisable (for example
+        ``materials``, ``domain``, ``particle_spacing_m``, ``total_time_s``).
+    queue_size : int
+        Frames that may wait for the writer thread before :meth:`write_frame` blocks.
+    compression_level : int
+        zlib level of the frame files.
+    """
+
+    def __init__(
+        self,
+        out_dir: str | os.PathLike[str],
+        project_text: str,
+        meta: dict[str, Any],
+        *,
+        queue_size: int = 3,
+        compression_level: int = 1,
+    ) -> None:
+        try:
+            self.out_dir = prepare_results_dir(out_dir)
+            self._frames_dir = self.out_dir / FRAMES_DIR
+            self._frames_dir.mkdir()
+        except OSError as err:
+            raise ResultsError(f"cannot write results to {out_dir}: {err}") from err
+        self._level = compression_level
+        self._started = time.perf_counter()
+        self._pvd_entries: list[tuple[float, str]] = []
+        self._submitted = 0
+        self._closed = False
+        self._error: BaseException | None = None
+        self._last: Diagnostics | None = None
+        self.summary: dict[str, Any] = {
+            "status": RUNNING,
+            "message": "",
+            "title": "",
+            "scheme": "",
+            "arch": "",
+            "precision": "",
+            "particles": 0,
+            "steps": 0,
+            "simulated_time_s": 0.0,
+            "wall_time_s": 0.0,
+            "particle_steps_per_s": 0.0,
+            "frames": 0,
+            "runout_version": runout_version(),
+            "started_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        }
+        self.summary.update(meta)
+
+        try:
+            _atomic_write_text(self.out_dir / PROJECT_NAME, project_text)
+            self._series = open(self.out_dir / SERIES_NAME, "w", newline="", encoding="utf-8")
+            self._csv = csv.writer(self._series)
+            self._csv.writerow(SERIES_COLUMNS)
+            self._series.flush()
+            self._write_pvd()
+            self._write_summary()
+        except OSError as err:
+            raise ResultsError(f"cannot write results to {self.out_dir}: {err}") from err
+
+        self._queue: queue.Queue[Any] = queue.Queue(maxsize=max(1, queue_size))
+        self._thread = threading.Thread(
+            target=self._work, name=f"results-writer:{self.out_dir.name}", daemon=True
+        )
+        self._thread.start()
+
+    # -- caller side -----------------------------------------------------------------------
+
+    @property
+    def frames_submitted(self) -> int:
+        """Frames handed over so far (written or queued)."""
+        return self._submitted
+
+    @property
+    def frames_written(self) -> int:
+        """Frames completely on disk and listed in ``particles.pvd``."""
+        return len(self._pvd_entries)
+
+    def write_frame(self, frame: Frame) -> None:
+        """Queue one frame for writing (blocks while the queue is full).
+
+        Raises
+        ------
+        ResultsError
+            When the writer is closed or writing an earlier frame failed.
+        """
+        if self._closed:
+            raise ResultsError("the results writer is closed")
+        if self._error is not None:
+            raise ResultsError(f"writing results failed: {self._error}") from self._error
+        index = self._submitted
+        self._submitted += 1
+        self._queue.put((index, frame.diagnostics, dict(frame.fields)))
+
+    def flush(self) -> None:
+        """Wait until every queued frame is on disk."""
+        self._queue.join()
+
+    def close(
+        self,
+        status: str,
+        message: str = "",
+        *,
+        steps: int | None = None,
+        simulated_time_s: float | None = None,
+        wall_time_s: float | None = None,
+        particle_steps_per_s: float | None = None,
+        extra: Mapping[str, Any] | None = None,
+    ) -> dict[str, Any]:
+        """Write the queued frames, then the final ``summary.json``.
+
+        Parameters
+        ----------
+        status : {"completed", "stopped", "failed"}
+        message : str
+            Why the run ended (empty for a plain completion).
+        steps, simulated_time_s : optional
+            Defaults: the step and time of the last frame.
+        wall_time_s : float, optional
+            Default: seconds since the writer was created.
+        particle_steps_per_s : float, optional
+            Default: particles * steps / wall time.
+        extra : mapping, optional
+            More summary entries.
+
+        Returns
+        -------
+        dict
+            The summary as written. If a frame could not be written the status is
+            ``"failed"`` with that reason.
+        """
+        if status not in FINAL_STATUSES:
+            raise ValueError(f"status must be one of {FINAL_STATUSES}, got {status!r}")
+        if self._closed:
+            return self.summary
+        self._closed = True
+        self._queue.put(_Stop)
+        self._thread.join()
+        self._series.close()
+        if self._error is not None and status != "failed":
+            status, message = "failed", f"writing results failed: {self._error}"
+        last = self._last
+        if steps is None:
+            steps = last.step if last is not None else 0
+        if simulated_time_s is None:
+            simulated_time_s = last.time_s if last is not None else 0.0
+        if wall_time_s is None:
+            wall_time_s = time.perf_counter() - self._started
+        if particle_steps_per_s is None:
+            particles = int(self.summary.get("particles") or 0)
+            particle_steps_per_s = particles * steps / wall_time_s if wall_time_s > 0 else 0.0
+        self.summary.update(
+            status=status,
+            message=message,
+            steps=int(steps),
+            simulated_time_s=_json_float(simulated_time_s),
+            wall_time_s=_json_float(wall_time_s),
+            particle_steps_per_s=_json_float(particle_steps_per_s),
+            frames=self.frames_written,
+            finished_at=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        )
+        if extra:
+            self.summary.update(extra)
+        try:
+            self._write_summary()
+        except OSError as err:
+            logger.error("could not write %s: %s", self.out_dir / SUMMARY_NAME, err)
+        return self.summary
+
+    def __enter__(self) -> ResultsWriter:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: Any) -> None:
+        if exc_type is None:
+            self.close("completed")
+        elif issubclass(exc_type, KeyboardInterrupt):
+            self.close("stopped", "interrupted")
+        else:
+            self.close("failed", f"{exc_type.__name__}: {exc}")
+
+    # -- writer thread ---------------------------------------------------------------------
+
+    def _work(self) -> None:
+        while True:
+            item = self._queue.get()
+            try:
+                if item is _Stop:
+                    return
+                if self._error is None:
+                    self._write_one(*item)
+            except Exception as err:  # noqa: BLE001 - reported to the caller via write_frame/close
+                logger.error("writing a results frame failed: %s", err,
+                             exc_info=logger.isEnabledFor(logging.DEBUG))
+                self._error = err
+            finally:
+                self._queue.task_done()
+
+    def _write_one(self, index: int, diag: Diagnostics, fields: dict[str, np.ndarray]) -> None:
+        name = f"frame_{index:05d}.vtp"
+        data = encode_vtp(fields, diag.time_s, self._level)
+        _atomic_write_bytes(self._frames_dir / name, data)
+        self._csv.writerow(
+            [
+                index,
+                repr(float(diag.time_s)),
+                diag.stage,
+                diag.stage_index,
+                repr(float(diag.stage_time_s)),
+                diag.step,
+                repr(float(diag.dt_s)),
+                repr(float(diag.kinetic_energy_J_per_m)),
+                repr(float(diag.momentum_x)),
+                repr(float(diag.momentum_y)),
+                repr(float(diag.max_speed_m_s)),
+                diag.unstable_particles,
+                diag.lost_particles,
+                repr(float(diag.total_mass_kg_per_m)),
+                diag.yielding_particles,
+            ]
+        )
+        self._series.flush()
+        self._pvd_entries.append((float(diag.time_s), f"{FRAMES_DIR}/{name}"))
+        self._write_pvd()
+        self._last = diag
+        self.summary.update(
+            frames=len(self._pvd_entries),
+            steps=int(diag.step),
+            simulated_time_s=_json_float(diag.time_s),
+            wall_time_s=_json_float(time.perf_counter() - self._started),
+        )
+        self._write_summary()
+
+    def _write_pvd(self) -> None:
+        _atomic_write_text(self.out_dir / PVD_NAME, _pvd_text(self._pvd_entries))
+
+    def _write_summary(self) -> None:
+        text = json.dumps(self.summary, indent=2, default=_json_default) + "\n"
+        _atomic_write_text(self.out_dir / SUMMARY_NAME, text)
+
+
+# --------------------------------------------------------------------------------------------
+# loader
+
+
+def _to_number(text: str, kind: type) -> Any:
+    return kind(text) if kind is int else float(text)
+
+
+def _read_series(path: Path) -> dict[str, np.ndarray]:
+    """Columns of ``series.csv``; rows cut off by a kill (wrong length, bad numbers) are dropped."""
+    if not path.is_file():
+        return {name: np.array([]) for name in SERIES_COLUMNS}
+    with open(path, newline="", encoding="utf-8") as fh:
+        text = fh.read()
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows:
+        return {name: np.array([]) for name in SERIES_COLUMNS}
+    header, body = rows[0], rows[1:]
+    if not text.endswith("\n") and body:
+        body = body[:-1]  # the last line was being written when the run died
+    kinds = [
+        str if name in _STR_COLUMNS else int if name in _INT_COLUMNS else float for name in header
+    ]
+    parsed: list[list[Any]] = []
+    for row in body:
+        if len(row) != len(header):
+            continue
+        try:
+            parsed.append(
+                [cell if kind is str else _to_number(cell, kind) for cell, kind in zip(row, kinds)]
+            )
+        except ValueError:
+            continue
+    columns: dict[str, np.ndarray] = {}
+    for j, (name, kind) in enumerate(zip(header, kinds)):
+        values = [row[j] for row in parsed]
+        dtype = str if kind is str else np.int64 if kind is int else np.float64
+        columns[name] = np.array(values, dtype=dtype)
+    return columns
+
+
+class Results:
+    """Read a results folder, also one whose run was killed part way.
+
+    Parameters
+    ----------
+    path : path-like
+        The results folder (or its ``particles.pvd``).
+
+    Attributes
+    ----------
+    path : Path
+        The folder.
+    times : numpy.ndarray
+        (F,) float, simulated time of each complete frame, s.
+    summary : dict
+        ``summary.json`` as written (empty if missing).
+    series : dict of str to numpy.ndarray
+        Columns of ``series.csv`` (``stage`` is a string array), one entry per row.
+    project_text : str
+        The resolved project that ran ("" if missing).
+
+    Notes
+    -----
+    Frames come from ``particles.pvd``; if it is missing or damaged the ``frames/`` folder is
+    scanned instead. Frame files that are missing or were cut off are skipped.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], *, cache_frames: int = 4) -> None:
+        path = Path(path)
+        if path.is_file() and path.name == PVD_NAME:
+            path = path.parent
+        if not path.is_dir():
+            raise ResultsError(f"{path}: no such results folder")
+        if not is_results_dir(path):
+            raise ResultsError(f"{path} is not a results folder (no {SUMMARY_NAME}, {PVD_NAME} or {FRAMES_DIR}/)")
+        self.path = path
+        self.summary: dict[str, Any] = self._read_summary()
+        self.series = _read_series(path / SERIES_NAME)
+        project = path / PROJECT_NAME
+        self.project_text = project.read_text(encoding="utf-8") if project.is_file() else ""
+        entries = self._entries()
+        self._files = [path / f for _, f in entries]
+        self.times = np.array([t for t, _ in entries], dtype=np.float64)
+        self._cache: OrderedDict[int, dict[str, np.ndarray]] = OrderedDict()
+        self._cache_size = cache_frames
+
+    def _read_summary(self) -> dict[str, Any]:
+        summary_path = self.path / SUMMARY_NAME
+        if not summary_path.is_file():
+            return {}
+        try:
+            return json.loads(summary_path.read_text(encoding="utf-8"))
+        except (json.JSONDecodeError, UnicodeDecodeError) as err:
+            logger.warning("%s is damaged (%s); ignoring it", summary_path, err)
+            return {}
+
+    def _entries(self) -> list[tuple[float, str]]:
+        entries: list[tuple[float, str]] | None = None
+        pvd = self.path / PVD_NAME
+        if pvd.is_file():
+            try:
+                root = ElementTree.parse(pvd).getroot()
+                entries = [
+                    (float(ds.get("timestep", "nan")), ds.get("file", ""))
+                    for ds in root.iter("DataSet")
+                ]
+            except (ElementTree.ParseError, ValueError) as err:
+                logger.warning("%s is damaged (%s); scanning %s/ instead", pvd, err, FRAMES_DIR)
+        if entries is None:
+            entries = []
+            frames_dir = self.path / FRAMES_DIR
+            files = sorted(
+                (int(m.group(1)), p)
+                for p in (frames_dir.iterdir() if frames_dir.is_dir() else [])
+                if (m := _FRAME_RE.match(p.name))
+            )
+            for _, file in files:
+                if _is_complete(file):
+                    t = _frame_time(file)
+                    entries.append((t if t is not None else math.nan, f"{FRAMES_DIR}/{file.name}"))
+        kept = []
+        for t, f in entries:
+            if _is_complete(self.path / f):
+                kept.append((t, f))
+            else:
+                logger.warning("skipping incomplete frame file %s", self.path / f)
+        return kept
+
+    # -- public ---------------------------------------------------------------------------
+
+    @property
+    def status(self) -> str:
+        """``completed``, ``stopped`` or ``failed``; ``interrupted`` when the run never closed
+        the folder (killed, or still writing)."""
+        status = self.summary.get("status")
+        return status if status in FINAL_STATUSES else INTERRUPTED
+
+    @property
+    def message(self) -> str:
+        if self.status == INTERRUPTED:
+            return "the run ended without closing its results (killed or still running)"
+        return str(self.summary.get("message", ""))
+
+    @property
+    def material_names(self) -> list[str]:
+        """Material names by ``material_id`` (from the summary; may be empty)."""
+        return [str(m) for m in self.summary.get("materials", [])]
+
+    @property
+    def frame_files(self) -> list[Path]:
+        return list(self._files)
+
+    def __len__(self) -> int:
+        return len(self._files)
+
+    def __repr__(self) -> str:
+        return f"Results({str(self.path)!r}, frames={len(self)}, status={self.status!r})"
+
+    def _index(self, i: int) -> int:
+        n = len(self._files)
+        if n == 0:
+            raise IndexError(f"{self.path} has no complete frames")
+        j = int(i) + n if int(i) < 0 else int(i)
+        if not 0 <= j < n:
+            raise IndexError(f"frame {i} out of range: {self.path} has {n} frames")
+        return j
+
+    def frame(self, i: int = -1, fields: Iterable[str] | None = None) -> dict[str, np.ndarray]:
+        """Arrays of frame ``i`` (negative counts from the end), read-only.
+
+        Parameters
+        ----------
+        i : int
+            Frame index.
+        fields : iterable of str, optional
+            Decode only these arrays (faster when scanning many frames); all when omitted.
+            Only full reads are cached.
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            ``positions`` (N, 2) m, ``active`` (N,) bool, ``particle_id`` (N,) int32 and what the
+            run wrote of ``displacement`` (N, 2) m, ``velocity`` (N, 2) m/s, ``stress`` (N, 4) Pa
+            (xx, yy, xy, zz), ``plastic_strain`` (N,), ``material_id`` (N,) int32.
+        """
+        j = self._index(i)
+        if fields is not None:
+            wanted = set(fields)
+            if j in self._cache:
+                return {k: v for k, v in self._cache[j].items() if k in wanted}
+            return self._frame_arrays(j, wanted)
+        if j in self._cache:
+            self._cache.move_to_end(j)
+            return self._cache[j]
+        arrays = self._frame_arrays(j, None)
+        self._cache[j] = arrays
+        while len(self._cache) > self._cache_size:
+            self._cache.popitem(last=False)
+        return arrays
+
+    def _frame_arrays(self, j: int, names: set[str] | None) -> dict[str, np.ndarray]:
+        file_names = None
+        if names is not None:
+            file_names = {"Points" if n == "positions" else n for n in names}
+        raw = read_vtp(self._files[j], file_names)
+        out: dict[str, np.ndarray] = {}
+        for name, arr in raw.items():
+            if name in ("connectivity", "offsets"):
+                continue
+            if name == "Points":
+                name, arr = "positions", arr[:, :2]
+            elif name == "active":
+                arr = arr.astype(bool)
+            elif arr.ndim == 2 and arr.shape[1] == 3 and name != "stress":
+                arr = arr[:, :2]
+            arr = np.array(arr)  # own, contiguous copy (frombuffer views are read-only anyway)
+            arr.flags.writeable = False
+            out[name] = arr
+        return out
+
+    def mesh(self, i: int = -1) -> pyvista.PolyData:
+        """Frame ``i`` as a :class:`pyvista.PolyData`: every particle a point (z = 0), vertex
+        cells for active particles, the point arrays as stored (vectors with 3 components)."""
+        import pyvista as pv
+
+        j = self._index(i)
+        raw = read_vtp(self._files[j])
+        points = np.array(raw.pop("Points"), dtype=np.float32)
+        connectivity = raw.pop("connectivity")
+        raw.pop("offsets", None)
+        verts = np.column_stack([np.ones(len(connectivity), np.int64), connectivity]).ravel()
+        mesh = pv.PolyData(points, verts=verts)
+        for name, arr in raw.items():
+            mesh.point_data[name] = np.array(arr)
+        mesh.field_data["TimeValue"] = np.array([self.times[j]])
+        return mesh
+
+    def particle_history(self, particle_id: int, field: str) -> tuple[np.ndarray, np.ndarray]:
+        """One particle's value of ``field`` in every frame.
+
+        Parameters
+        ----------
+        particle_id : int
+            Index of the particle (stable for the whole run).
+        field : str
+            A key of :meth:`frame` (``positions``, ``displacement``, ``stress``, ...).
+
+        Returns
+        -------
+        times : numpy.ndarray
+            (F,) s.
+        values : numpy.ndarray
+            (F,) or (F, k), the particle's values, in the units of :meth:`frame`.
+        """
+        values = []
+        for j in range(len(self)):
+            arrays = self.frame(j, {field})
+            if field not in arrays:
+                raise KeyError(f"frame {j} has no field {field!r}; it has {sorted(arrays)}")
+            column = arrays[field]
+            if not 0 <= particle_id < len(column):
+                raise IndexError(f"particle {particle_id} out of range (0..{len(column) - 1})")
+            values.append(column[particle_id])
+        return self.times.copy(), np.array(values)
+
+
+def open_results(path: str | os.PathLike[str]) -> Results:
+    """Open a results folder; see :class:`Results`."""
+    return Results(path)

@@ -1,0 +1,99 @@
+"""Shared fixtures: synthetic results folders (no solver needed) and the tiny example project."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+EXAMPLES = REPO / "projects" / "examples"
+TINY_PROJECT = EXAMPLES / "tiny_column.toml"
+
+# headless VTK without the "bad X server connection" warning (see app.render)
+if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+    os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+
+def synthetic_frames(n_frames: int = 4, *, nx: int = 40, ny: int = 20, lose_last: int = 5):
+    """Frames of a 0.2 m x 0.1 m block (1 mm spacing scaled) that shears to the right.
+
+    Two materials (lower and upper half); the last ``lose_last`` particles become inactive
+    from the third frame on. Values are smooth functions of the initial position so that
+    each field gives a different picture.
+    """
+    from solver.config import Diagnostics, Frame
+
+    spacing = 0.2 / nx
+    x, y = np.meshgrid((np.arange(nx) + 0.5) * spacing, (np.arange(ny) + 0.5) * spacing)
+    p0 = np.column_stack([x.ravel(), y.ravel()])
+    n = len(p0)
+    material = (p0[:, 1] > 0.05).astype(np.int32)
+    frames = []
+    for i in range(n_frames):
+        s = i / max(n_frames - 1, 1)
+        shape = (p0[:, 1] / 0.1) * (p0[:, 0] / 0.2)
+        disp = np.column_stack([0.3 * s * shape, -0.05 * s * shape])
+        active = np.ones(n, bool)
+        if i >= 2 and lose_last:
+            active[-lose_last:] = False
+        depth = 0.1 - p0[:, 1]
+        sv = -2650.0 * 9.81 * depth
+        stress = np.column_stack([0.6 * sv, sv, 200.0 * np.sin(30 * p0[:, 0]), 0.5 * sv])
+        diag = Diagnostics(
+            time_s=0.05 * i, stage="collapse", stage_index=1, stage_time_s=0.05 * i, step=50 * i,
+            dt_s=1e-3, kinetic_energy_J_per_m=0.5 * i, momentum_x=0.1 * i, momentum_y=-0.01 * i,
+            max_speed_m_s=0.2 * i, unstable_particles=0, lost_particles=int((~active).sum()),
+            total_mass_kg_per_m=53.0, yielding_particles=3 * i,
+        )
+        fields = {
+            "positions": p0 + disp,
+            "active": active,
+            "displacement": disp,
+            "velocity": 4.0 * disp,
+            "stress": stress,
+            "plastic_strain": s * p0[:, 0],
+            "material_id": material,
+        }
+        frames.append(Frame(diag, fields))
+    return frames
+
+
+SYNTHETIC_META = {
+    "title": "Synthetic shear",
+    "scheme": "apic-affine",
+    "arch": "cpu",
+    "precision": "f32",
+    "particles": 800,
+    "materials": ["lower", "upper"],
+    "domain": {"origin_m": [0.0, 0.0], "size_m": [0.8, 0.15], "cell_size_m": 0.01},
+    "particle_spacing_m": 0.005,
+}
+SYNTHETIC_PROJECT = '[runout]\nschema_version = 1\ntitle = "Synthetic shear"\n'
+
+
+@pytest.fixture
+def make_results(tmp_path):
+    """Factory: write a closed synthetic results folder and return its path."""
+
+    def make(name: str = "synthetic.results", n_frames: int = 4, status: str = "completed") -> Path:
+        from projects.results import ResultsWriter
+
+        writer = ResultsWriter(tmp_path / name, SYNTHETIC_PROJECT, dict(SYNTHETIC_META))
+        for frame in synthetic_frames(n_frames):
+            writer.write_frame(frame)
+        writer.close(status, "" if status == "completed" else f"{status} on purpose")
+        return tmp_path / name
+
+    return make
+
+
+@pytest.fixture
+def tiny_project() -> Path:
+    """The tiny example scene used by the end-to-end tests."""
+    if not TINY_PROJECT.is_file():
+        pytest.skip(f"{TINY_PROJECT.relative_to(REPO)} is not there yet")
+    return TINY_PROJECT

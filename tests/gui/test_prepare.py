@@ -1,0 +1,331 @@
+"""Preparing a project in the workbench: open, edit with undo, draw, validate, save, reopen."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from PySide6.QtCore import QPoint, Qt
+
+from projects.document import load_project
+
+pytestmark = pytest.mark.gui
+
+
+def _click(qtbot, scene, xy, button=Qt.MouseButton.LeftButton):
+    pos = scene.world_to_widget(xy).toPoint()
+    qtbot.mouseClick(scene.plotter, button, pos=pos)
+
+
+def test_open_example_shows_its_model(window, tiny_file):
+    assert window.open_project(tiny_file)
+    doc = window.doc
+    assert doc.project is not None and not doc.problems
+    assert not doc.is_dirty
+    assert window.windowTitle().startswith("tiny.toml")
+    assert not window.isWindowModified()
+    # panels show the file's values with units
+    assert window.domain_panel.cell.edit.text() == "0.02"
+    assert window.domain_panel.cell.unit.text() == "m"
+    assert window.domain_panel.side_types["bottom"].currentText() == "friction"
+    assert window.domain_panel.side_angles["bottom"].edit.text() == "30"
+    assert window.materials_panel.list.count() == 1
+    assert window.materials_panel.fields["friction_angle_deg"].unit.text() == "°"
+    # the view has the grid, the four sides, the body and the seeded particles (288 in the example)
+    actors = window.scene.plotter.actors
+    for name in ("grid", "side-left", "side-bottom", "fills", "outlines"):
+        assert name in actors, name
+    qtbot_wait_until(lambda: window.scene.preview_count == 288)
+    # the estimate before running
+    window.run_panel.update_estimate()
+    assert window.run_panel.particles.text() == "about 288"
+    assert window.run_panel.grid.text().startswith("30 × 15")
+    assert "250" in window.run_panel.steps.text()
+    assert "s on cpu" in window.run_panel.runtime.text()
+
+
+def qtbot_wait_until(condition, timeout_s=3.0):
+    import time
+
+    from PySide6.QtWidgets import QApplication
+
+    end = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < end, "condition not met in time"
+        QApplication.processEvents()
+        time.sleep(0.01)
+
+
+def test_edit_a_material_and_undo_it(window, tiny_file):
+    window.open_project(tiny_file)
+    field = window.materials_panel.fields["friction_angle_deg"]
+    field.set_text("25")
+    assert window.doc.get("materials.sand.friction_angle_deg") == 25.0
+    assert window.doc.project.materials["sand"].friction_angle_deg == 25.0
+    assert window.doc.is_dirty and window.isWindowModified()
+    assert window.doc.undo_stack.undoText() == "change friction angle"
+    window.actions_["undo"].trigger()
+    assert window.doc.get("materials.sand.friction_angle_deg") == 30.0
+    assert field.edit.text() == "30"
+    assert not window.doc.is_dirty and not window.isWindowModified()
+    window.actions_["redo"].trigger()
+    assert window.doc.get("materials.sand.friction_angle_deg") == 25.0
+
+
+def test_values_are_checked_as_you_type(window, tiny_file, qtbot):
+    window.open_project(tiny_file)
+    window.panels.setCurrentWidget(window.materials_panel)
+    field = window.materials_panel.fields["poisson_ratio"]
+    field.edit.setFocus()
+    field.edit.selectAll()
+    qtbot.keyClicks(field.edit, "0.6")
+    # the schema's own message, shown while typing, before anything is committed
+    assert field.error == "must be >= 0 and < 0.5"
+    assert "must be >= 0 and < 0.5" in window.materials_panel.message.text()
+    assert "fde2e1" in field.edit.styleSheet()
+    qtbot.keyClick(field.edit, Qt.Key.Key_Return)
+    assert window.doc.get("materials.sand.poisson_ratio") == 0.3
+    assert window.doc.undo_stack.count() == 0
+    field.edit.selectAll()
+    qtbot.keyClicks(field.edit, "abc")
+    assert field.error == "must be a number"
+    field.edit.selectAll()
+    qtbot.keyClicks(field.edit, "0.25")
+    qtbot.keyClick(field.edit, Qt.Key.Key_Return)
+    assert field.error == ""
+    assert window.doc.get("materials.sand.poisson_ratio") == 0.25
+
+
+def test_problems_involving_several_keys_are_flagged(window, tiny_file):
+    window.open_project(tiny_file)
+    window.materials_panel.fields["dilatancy_angle_deg"].set_text("40")
+    assert window.doc.project is None
+    assert [p.path for p in window.doc.problems] == ["materials.sand.dilatancy_angle_deg"]
+    window.run_panel.update_estimate()
+    assert window.run_panel.problems.count() == 1
+    assert "must not exceed friction_angle_deg (30)" in window.run_panel.problems.item(0).text()
+    assert "fff1d6" in window.materials_panel.fields["dilatancy_angle_deg"].edit.styleSheet()
+    errors = []
+    window.show_error = lambda title, text: errors.append(text)
+    assert not window.start_run()
+    assert "dilatancy_angle_deg" in errors[0]
+
+
+def test_draw_a_polygon_with_the_mouse(window, qtbot):
+    scene = window.scene
+    window.doc.reset(_empty_project())
+    window.actions_["draw"].trigger()
+    assert scene.mode == "draw"
+    corners = [(2.0, 1.0), (8.0, 1.0), (8.0, 4.0), (2.0, 4.0)]
+    for xy in corners:
+        # a click a little off the grid point lands on it (snap to half cells of 0.25 m)
+        _click(qtbot, scene, (xy[0] + 0.04, xy[1] - 0.03))
+    assert np.allclose(scene.draft, corners)
+    _click(qtbot, scene, corners[0])  # clicking the first vertex closes the polygon
+    bodies = window.doc.get("bodies")
+    assert len(bodies) == 1
+    assert np.allclose(bodies[0]["polygon_m"], corners)
+    assert bodies[0]["material"] == "soil"
+    assert scene.mode == "select" and window.actions_["select"].isChecked()
+    assert window.doc.project is not None  # the new project is now complete
+    # the vertex table beside the view shows the same vertices
+    table = window.bodies_panel.table
+    assert table.rowCount() == 4
+    assert [float(table.item(2, c).text()) for c in range(2)] == [8.0, 4.0]
+    assert window.doc.selection.body == 0
+    window.doc.undo_stack.undo()
+    assert window.doc.get("bodies") == []
+
+
+def test_drag_a_vertex_is_one_undo_step_and_the_table_follows(window, tiny_file, qtbot):
+    window.open_project(tiny_file)
+    scene = window.scene
+    start = scene.world_to_widget((0.12, 0.24)).toPoint()
+    qtbot.mousePress(scene.plotter, Qt.MouseButton.LeftButton, pos=start)
+    assert window.doc.selection.body == 0 and window.doc.selection.vertex == 2
+    for x, y in ((0.13, 0.23), (0.15, 0.21), (0.16, 0.20)):
+        qtbot.mouseMove(scene.plotter, scene.world_to_widget((x, y)).toPoint())
+    qtbot.mouseRelease(scene.plotter, Qt.MouseButton.LeftButton, pos=scene.world_to_widget((0.16, 0.20)).toPoint())
+    # snapped to half cells (0.01 m)
+    assert window.doc.get("bodies.0.polygon_m.2") == [0.16, 0.2]
+    assert window.doc.undo_stack.count() == 1
+    table = window.bodies_panel.table
+    assert (table.item(2, 0).text(), table.item(2, 1).text()) == ("0.16", "0.2")
+    # typing a coordinate in the table moves the vertex in the model (and the view)
+    table.item(2, 1).setText("0.22")
+    assert window.doc.get("bodies.0.polygon_m.2") == [0.16, 0.22]
+    window.doc.undo_stack.undo()
+    window.doc.undo_stack.undo()
+    assert window.doc.get("bodies.0.polygon_m.2") == [0.12, 0.24]
+
+
+def test_invalid_shapes_are_flagged_where_they_are(window, tiny_file):
+    window.open_project(tiny_file)
+    panel = window.bodies_panel
+    window.doc.selection.set(0)
+    # swap two vertices: the outline crosses itself
+    panel.set_vertex(0, 1, 0, 0.0)
+    panel.set_vertex(0, 0, 0, 0.12)
+    assert window.doc.project is None
+    assert "not a simple polygon" in window.doc.problems[0].message
+    assert "bad-edges" in window.scene.plotter.actors
+    assert "not a simple polygon" in panel.shape_status.text()
+    window.doc.undo_stack.undo()
+    window.doc.undo_stack.undo()
+    assert "bad-edges" not in window.scene.plotter.actors
+    # a vertex outside the domain is marked in the view and in the table
+    panel.set_vertex(0, 2, 0, 0.8)
+    assert window.doc.problems[0].path == "bodies.0.polygon_m.2"
+    assert "bad-points" in window.scene.plotter.actors
+    assert panel.table.item(2, 0).background().color().name() == "#fde2e1"
+
+
+def test_save_and_reopen_is_a_round_trip(window, tiny_file, tmp_path):
+    window.open_project(tiny_file)
+    window.materials_panel.fields["cohesion_pa"].set_text("1500")
+    window.domain_panel.set_boundary("left", "fixed")
+    window.stages_panel.select(1)
+    assert window.stages_panel.set_change("sand", "friction_angle_deg", 20.0)
+    window.numerics_panel.scheme.choose("apic")
+    target = tmp_path / "copy.toml"
+    window.ask_save_path = lambda: str(target)
+    assert window.save_as()
+    assert not window.doc.is_dirty and window.windowTitle().startswith("copy.toml")
+    saved = load_project(target)
+    assert saved == window.doc.project
+    assert saved.materials["sand"].cohesion_pa == 1500.0
+    assert saved.domain.boundaries.left.type == "fixed"
+    assert saved.stages[1].material_changes["sand"].friction_angle_deg == 20.0
+    assert saved.numerics.scheme == "apic"
+    before = window.doc.data
+    window.new_project()
+    assert window.open_project(target)
+    assert window.doc.data == before
+    assert str(target) in window.settings.recent("projects")
+
+
+def test_a_bad_project_file_lists_its_problems(window, tiny_file, tmp_path):
+    text = tiny_file.read_text().replace("poisson_ratio = 0.3", "poisson_ratio = 0.7").replace(
+        "density_kg_m3 = 2000.0", "density_kg_m3 = -5.0")
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text)
+    seen = []
+
+    def show(path, error, can_open):
+        seen.append((path, [str(p) for p in error.problems], can_open))
+        return False
+
+    window.show_project_problems = show
+    assert not window.open_project(bad)
+    path, problems, can_open = seen[0]
+    assert path == bad and can_open
+    assert problems == [
+        "materials.sand.density_kg_m3 = -5.0: must be > 0",
+        "materials.sand.poisson_ratio = 0.7: must be >= 0 and < 0.5",
+    ]
+    assert window.doc.path is None  # nothing was opened
+    # "open anyway" loads it with its problems, to fix them here
+    window.show_project_problems = lambda path, error, can_open: True
+    assert window.open_project(bad)
+    assert len(window.doc.problems) == 2 and window.doc.project is None
+    window.materials_panel.fields["density_kg_m3"].set_text("2000")
+    window.materials_panel.fields["poisson_ratio"].set_text("0.3")
+    assert window.doc.project is not None
+    # broken TOML cannot be opened anyway: its syntax error is listed with line and column
+    broken = tmp_path / "broken.toml"
+    broken.write_text("[runout\nschema_version = 1\n")
+    window.ask_save_changes = lambda: "discard"
+    window.show_project_problems = show
+    assert not window.open_project(broken)
+    assert seen[-1][2] is False
+    assert seen[-1][1][0].startswith("TOML syntax error at line 1")
+
+
+def test_unsaved_changes_are_not_lost_without_asking(window, tiny_file):
+    window.open_project(tiny_file)
+    window.materials_panel.fields["cohesion_pa"].set_text("10")
+    answers = ["cancel", "discard"]
+    asked = []
+
+    def ask():
+        asked.append(True)
+        return answers.pop(0)
+
+    window.ask_save_changes = ask
+    assert not window.new_project()
+    assert window.doc.path == tiny_file and window.doc.get("materials.sand.cohesion_pa") == 10.0
+    assert window.new_project()
+    assert window.doc.path is None and len(asked) == 2
+    assert window.doc.get("bodies") == []
+
+
+def test_stages_boundaries_numerics_and_output_edit_the_model(window, tiny_file):
+    window.open_project(tiny_file)
+    doc = window.doc
+    window.domain_panel.set_boundary("right", "friction")
+    assert doc.get("domain.boundaries.right") == {"type": "friction", "friction_angle_deg": 30.0}
+    window.domain_panel.side_angles["right"].set_text("12.5")
+    assert doc.get("domain.boundaries.right.friction_angle_deg") == 12.5
+    window.domain_panel.size.set_values(0.8, 0.3)
+    assert doc.get("domain.size_m") == [0.8, 0.3]
+    window.numerics_panel.use_cfl.setChecked(True)
+    assert doc.get("numerics.cfl") == 0.5 and doc.get("numerics.time_step_s") is None
+    window.stages_panel.add_stage("gravity")
+    assert [s["type"] for s in doc.get("stages")][:1] == ["gravity"]
+    assert doc.problems and "only one k0 or gravity stage" in doc.problems[0].message
+    window.stages_panel.remove_stage()
+    window.stages_panel.select(1)
+    window.stages_panel.damping.set_text("0.2")
+    assert doc.get("stages.1.damping") == {"type": "local", "coefficient": 0.2}
+    window.output_panel.checks["stress"].setChecked(False)
+    assert "stress" not in doc.get("output.fields")
+    assert doc.project is not None
+    count = doc.undo_stack.count()
+    for _ in range(count):
+        doc.undo_stack.undo()
+    assert doc.project == load_project(window.doc.path)
+
+
+def test_slope_from_template(window):
+    from app.gui.dialogs import SlopeDialog
+
+    window.doc.reset(_empty_project())
+    window.materials_panel.add_material(name="clay")
+    dialog = SlopeDialog(window.doc.material_names, window)
+    dialog.height.setValue(6.0)
+    dialog.angle.setValue(40.0)
+    dialog.crest.setValue(4.0)
+    dialog.toe.setValue(10.0)
+    dialog.depth.setValue(2.0)
+    dialog.add_layer("weak", 2.0, "clay")
+    assert window.apply_slope(dialog)
+    dialog.deleteLater()
+    bodies = window.doc.get("bodies")
+    assert [b["name"] for b in bodies] == ["weak", "foundation"]
+    assert [b["material"] for b in bodies] == ["clay", "soil"]
+    assert window.doc.project is not None, window.doc.problems
+    assert window.doc.undo_stack.undoText() == "slope from template"
+    window.doc.undo_stack.undo()
+    assert window.doc.get("bodies") == [] and window.doc.get("domain.size_m") == [20.0, 10.0]
+
+
+def test_material_library_saves_and_inserts(window, tiny_file, tmp_path):
+    window.open_project(tiny_file)
+    window.materials_panel.save_to_library("dense sand")
+    data = json.loads((tmp_path / "config" / "materials.json").read_text())
+    assert data["materials"]["dense sand"]["friction_angle_deg"] == 30.0
+    window.doc.reset(_empty_project())
+    name = window.materials_panel.insert_from_library("dense sand")
+    assert name == "dense-sand"
+    assert window.doc.get("materials.dense-sand.density_kg_m3") == 2000.0
+    # a material in use cannot be removed; an unused one can, as one undo step
+    window.materials_panel.select("dense-sand")
+    window.materials_panel.remove_material()
+    assert "dense-sand" not in window.doc.material_names
+
+
+def _empty_project():
+    from app.gui.document import new_project_data
+
+    return new_project_data()

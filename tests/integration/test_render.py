@@ -1,0 +1,143 @@
+"""Offscreen rendering of results folders: pictures, fields, movies, no Qt."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+imageio = pytest.importorskip("imageio.v3")
+pytest.importorskip("pyvista")
+
+from app.render import FIELDS, animate, field_values, render_frame  # noqa: E402
+from projects.results import Results, ResultsWriter  # noqa: E402
+from solver.config import Frame  # noqa: E402
+from tests.conftest import REPO, SYNTHETIC_META, synthetic_frames  # noqa: E402
+
+SMALL = (480, 270)
+
+
+def _colours(img: np.ndarray) -> set[tuple[int, int, int]]:
+    return {tuple(c) for c in img[..., :3].reshape(-1, 3)}
+
+
+def _non_white(img: np.ndarray) -> np.ndarray:
+    return np.any(img[..., :3] < 250, axis=-1)
+
+
+def test_render_writes_a_non_blank_png(make_results, tmp_path):
+    path = render_frame(make_results(), -1, "displacement", tmp_path / "d.png", size=(800, 450))
+    img = imageio.imread(path)
+    assert img.shape[:2] == (450, 800)
+    assert (img[0, 0, :3] == 255).all()  # white background
+    assert _non_white(img).mean() > 0.03  # particles, axes, colour bar
+    assert len(_colours(img)) > 50  # a colour map, not a flat fill
+
+
+def test_colours_change_with_the_field(make_results, tmp_path):
+    res = Results(make_results())
+    a = imageio.imread(render_frame(res, -1, "displacement", tmp_path / "a.png", size=SMALL))
+    b = imageio.imread(render_frame(res, -1, "stress_yy", tmp_path / "b.png", size=SMALL))
+    c = imageio.imread(render_frame(res, -1, "displacement", tmp_path / "c.png", size=SMALL))
+    np.testing.assert_array_equal(a, c)  # deterministic
+    differ = np.any(a[..., :3] != b[..., :3], axis=-1)
+    assert differ.mean() > 0.02  # the particles changed colour, not just the bar title
+
+
+def test_every_field_renders(make_results, tmp_path):
+    res = Results(make_results())
+    images = {}
+    for name in FIELDS:
+        images[name] = imageio.imread(render_frame(res, 1, name, tmp_path / f"{name}.png", size=SMALL))
+        assert _non_white(images[name]).mean() > 0.02, name
+    # the categorical material picture has few colours in the body
+    assert len(_colours(images["material"])) < len(_colours(images["displacement"]))
+
+
+def test_default_output_name_is_in_the_results_folder(make_results):
+    folder = make_results()
+    path = render_frame(folder, 0, "material", size=SMALL)
+    assert path == folder / "material_00000.png"
+    assert path.stat().st_size > 1000
+
+
+def test_inactive_particles_are_not_drawn(tmp_path):
+    frame = synthetic_frames(1, lose_last=0)[0]
+    fields = dict(frame.fields)
+    n = len(fields["active"])
+    positions = np.array(fields["positions"])
+    positions[:100] += [0.5, 0.0]  # a far-away group ...
+    active = np.ones(n, bool)
+    active[:100] = False  # ... that was removed
+    with_ghosts = {**fields, "positions": positions, "active": active}
+    without = {k: v[100:] for k, v in with_ghosts.items()}
+    for name, f in (("ghosts", with_ghosts), ("clean", without)):
+        writer = ResultsWriter(tmp_path / name, "", dict(SYNTHETIC_META))
+        writer.write_frame(Frame(frame.diagnostics, f))
+        writer.close("completed")
+    a = imageio.imread(render_frame(tmp_path / "ghosts", 0, "velocity", tmp_path / "a.png", size=SMALL))
+    b = imageio.imread(render_frame(tmp_path / "clean", 0, "velocity", tmp_path / "b.png", size=SMALL))
+    np.testing.assert_array_equal(a, b)
+
+
+def test_unknown_and_unavailable_fields(make_results, tmp_path):
+    res = make_results()
+    with pytest.raises(ValueError, match="unknown field 'pressure'; allowed: displacement, "):
+        render_frame(res, -1, "pressure", tmp_path / "x.png")
+    frame = synthetic_frames(1)[0]
+    writer = ResultsWriter(tmp_path / "bare", "", {})
+    writer.write_frame(Frame(frame.diagnostics, {k: frame.fields[k] for k in ("positions", "active")}))
+    writer.close("completed")
+    with pytest.raises(ValueError, match="needs the 'stress' output"):
+        render_frame(tmp_path / "bare", -1, "mean_stress", tmp_path / "x.png")
+    with pytest.raises(ValueError, match="out of range"):
+        render_frame(res, 10, "displacement", tmp_path / "x.png")
+
+
+def test_field_values_units():
+    arrays = {
+        "displacement": np.array([[3.0, 4.0], [0.0, -1.0]]),
+        "stress": np.array([[-3000.0, -6000.0, 500.0, -3000.0], [0.0, 0.0, 0.0, 0.0]]),
+        "material_id": np.array([1, 0], np.int32),
+    }
+    np.testing.assert_allclose(field_values(arrays, "displacement"), [5.0, 1.0])
+    np.testing.assert_allclose(field_values(arrays, "displacement_y"), [4.0, -1.0])
+    np.testing.assert_allclose(field_values(arrays, "stress_yy"), [-6.0, 0.0])  # kPa
+    np.testing.assert_allclose(field_values(arrays, "stress_xy"), [0.5, 0.0])
+    np.testing.assert_allclose(field_values(arrays, "mean_stress"), [-4.0, 0.0])
+    np.testing.assert_array_equal(field_values(arrays, "material"), [1, 0])
+    assert FIELDS["stress_xx"].title == "Stress xx (kPa)"
+    assert FIELDS["velocity"].unit == "m/s"
+    assert FIELDS["material"].categorical
+
+
+def test_animate_gif_and_mp4(make_results, tmp_path):
+    res = Results(make_results(n_frames=4))
+    seen = []
+    gif = animate(res, tmp_path / "movie.gif", "displacement", fps=5, size=(240, 136),
+                  on_frame=lambda done, total: seen.append((done, total)))
+    frames = imageio.imread(gif, index=None)
+    assert frames.shape[0] == 4
+    assert seen[-1] == (4, 4)
+    assert not np.array_equal(frames[0], frames[-1])  # the body moves
+    mp4 = animate(res, tmp_path / "movie.mp4", "velocity", fps=5, size=(241, 135))  # odd sizes are evened
+    assert mp4.stat().st_size > 1000
+    with pytest.raises(ValueError, match=".mp4 or .gif"):
+        animate(res, tmp_path / "movie.avi")
+
+
+def test_rendering_does_not_import_qt(make_results, tmp_path):
+    folder = make_results()
+    code = (
+        "import sys; sys.path.insert(0, %r)\n"
+        "from app.render import render_frame\n"
+        "render_frame(%r, -1, 'displacement', %r, size=(200, 120))\n"
+        "bad = [m for m in sys.modules if m.split('.')[0] in ('PySide6', 'PyQt5', 'PyQt6', 'pyvistaqt')]\n"
+        "assert not bad, bad\n"
+    ) % (str(REPO), str(folder), str(tmp_path / "q.png"))
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "q.png").is_file()
+    assert "bad X server" not in proc.stderr
