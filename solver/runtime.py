@@ -25,10 +25,12 @@ _current: tuple[str, str] | None = None
 
 def gpu_available() -> bool:
     """Whether Taichi can see a CUDA or Vulkan device (cheap, does not initialise Taichi)."""
+    if not _probe_gpu():  # asking Taichi first makes it log a warning when there is no driver
+        return False
     try:
         from taichi._lib import core as _ti_core
 
-        return bool(_ti_core.with_cuda() or _ti_core.with_vulkan()) and _probe_gpu()
+        return bool(_ti_core.with_cuda())
     except (ImportError, AttributeError, RuntimeError):
         return False
 
