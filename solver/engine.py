@@ -195,6 +195,15 @@ class Engine:
         return v
 
     @ti.func
+    def _damped(self, f, v, damping):
+        """Cundall's local damping: each force component reduced by damping * |f| against the motion."""
+        out = f
+        if damping > 0.0:
+            for d in ti.static(range(2)):
+                out[d] -= damping * ti.abs(f[d]) * ti.math.sign(v[d])
+        return out
+
+    @ti.func
     def _friction(self, I, v, mass):
         """Coulomb friction of the mirrored wall reaction: slow the tangential speed, never reverse it."""
         loss = self.g_friction[I] / mass
@@ -344,10 +353,7 @@ class Engine:
             if mass > 0.0:
                 v = self.g_mom[I] / mass
                 if damping > 0.0:  # forces were kept apart for Cundall's local damping
-                    f = self.g_f[I]
-                    for d in ti.static(range(2)):
-                        f[d] -= damping * ti.abs(f[d]) * (1.0 if v[d] > 0.0 else (-1.0 if v[d] < 0.0 else 0.0))
-                    v += dt * f / mass
+                    v += dt * self._damped(self.g_f[I], v, damping) / mass
                 self.g_v[I] = self._boundary(I, self._friction(I, v, mass))
             else:
                 self.g_v[I] = ti.Vector.zero(float, 2)
@@ -411,10 +417,7 @@ class Engine:
             mass = self.g_mass[I]
             if mass > 0.0:
                 v = self.g_v_old[I]
-                f = self.g_f[I]
-                if damping > 0.0:
-                    for d in ti.static(range(2)):
-                        f[d] -= damping * ti.abs(f[d]) * (1.0 if v[d] > 0.0 else (-1.0 if v[d] < 0.0 else 0.0))
+                f = self._damped(self.g_f[I], v, damping)
                 self.g_v[I] = self._boundary(I, self._friction(I, v + dt * f / mass, mass))
             else:
                 self.g_v[I] = ti.Vector.zero(float, 2)
