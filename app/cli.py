@@ -383,6 +383,29 @@ def gui(
     raise typer.Exit(int(code or 0))
 
 
+@cli.command()
+def bench(
+    quick: Annotated[bool, typer.Option("--quick", help="1e3 and 2e4 particles, f32 only (about a minute).")] = False,
+    out_file: Annotated[
+        Path | None,
+        typer.Option("--out", "-o", help="Write the results as JSON here (and as markdown next to it)."),
+    ] = None,
+) -> None:
+    """Measure solver throughput against a yardstick, memory, overhead and output stall."""
+    from app.bench import BenchError, rich_tables, run_bench
+
+    try:
+        # progress and Taichi's own messages go to standard error; the tables to standard output
+        with contextlib.redirect_stdout(sys.stderr):
+            result = run_bench(quick, out_file, on_progress=lambda msg: err.print(msg, markup=False))
+    except (BenchError, OSError) as exc:
+        fail(str(exc))
+    for table in rich_tables(result):
+        out.print(table)
+    if out_file is not None:
+        out.print(f"written: {out_file} and {out_file.with_suffix('.md')}", markup=False)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point (``runout``)."""
     # Taichi prints a banner on import; keep standard output for results

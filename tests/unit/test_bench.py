@@ -102,9 +102,10 @@ def test_profile_splits_the_step_into_stages_and_overhead(bench):
     assert set(prof["variants"]) == {YARDSTICK, "apic", "apic-affine"}
     affine = prof["variants"]["apic-affine"]
     apic = prof["variants"]["apic"]
-    assert "P2G + constitutive + force (fused)" in affine["stages_s_per_step"]
-    assert {"P2G mass and momentum", "velocity gradient + constitutive + force", "G2P", "grid pass"} <= set(
-        apic["stages_s_per_step"])
+    # stage names follow app.bench.KERNEL_STAGES; a renamed engine kernel shows up as "other: NAME"
+    assert any("P2G" in stage for stage in affine["stages_s_per_step"])
+    assert any("P2G" in stage for stage in apic["stages_s_per_step"])
+    assert len(apic["stages_s_per_step"]) >= 3
     for v in prof["variants"].values():
         assert _positive(v["wall_s_per_step"]) and _positive(v["kernel_s_per_step"])
         assert v["python_s_per_step"] >= 0 and 0 <= v["python_fraction"] < 1
@@ -124,6 +125,9 @@ def test_empty_domain_and_output_stall_give_ratios(bench):
     stall = result["output_stall"]
     assert _positive(stall["ratio"])
     assert stall["frames_written"] >= 3
+    for key in ("copy_s_per_frame", "encode_s_per_frame", "estimated_ratio"):
+        assert _positive(stall[key]), key
+    assert stall["write_frame_s"] >= 0 and stall["close_s"] >= 0
     assert stall["steps_with_frames"] > 0 and stall["steps_without_frames"] > 0
 
 
@@ -138,6 +142,18 @@ def test_targets_and_reports(bench):
     assert on_disk["throughput"] == json.loads(json.dumps(result["throughput"]))
     md = out.with_suffix(".md").read_text()
     assert md == markdown_report(result)
+    assert len(result["load_average"]["start"] or [0, 0, 0]) == 3
     assert "| arch | prec | particles |" in md and "### Targets (issue 6)" in md
     titles = [title for title, _, _ in report_tables(result)]
     assert any(t.startswith("Profile") for t in titles) and any(t.startswith("Output stall") for t in titles)
+
+
+def test_profiler_task_names_map_to_stages():
+    from app.bench import _stage_of
+
+    assert _stage_of("_p2g_fused_c90_0_kernel_0_range_for", "apic-affine") == (
+        "_p2g_fused", "P2G + constitutive + force (fused)")
+    assert _stage_of("_g2p_c102_2_kernel_1_range_for", "mpm") == ("_g2p", "G2P")
+    assert _stage_of("_substep_c12_0_kernel_2_range_for", YARDSTICK) == ("_substep (loop 2)", "grid pass")
+    assert _stage_of("_step_c5_0_kernel_1_range_for", "apic") == ("_step (loop 1)", "other: _step")
+    assert _stage_of("weird", "apic") == ("weird", "other")
