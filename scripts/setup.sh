@@ -12,6 +12,7 @@ DEB_PACKAGES=(
   libxkbcommon0 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1 libxcb-shape0
   libxcb-randr0 libxcb-render-util0 libxcb-image0 libxcb-xinerama0 libxcb-xkb1 libdbus-1-3
   libfontconfig1 libfreetype6 libglib2.0-0      # Qt's xcb platform plugin
+  libgomp1                                     # gmsh (OpenMP)
 )
 
 missing=()

@@ -33,10 +33,15 @@ _BIG = 1 << 30
 
 @ti.data_oriented
 class Engine:
-    """State and step kernels of one MPM run (needs an acquired runtime)."""
+    """State and step kernels of one MPM run (needs an acquired runtime).
+
+    ``damping=False`` promises that no step will use local damping, which lets ``apic-affine``
+    fuse the forces into the momentum and skip the grid force field (less memory).
+    """
 
     def __init__(self, grid: Grid, materials: tuple[Material, ...], n_particles: int, scheme: str,
-                 np_float=np.float32, speed_bound_m_s: float = 1e30, remove_unstable: bool = False):
+                 np_float=np.float32, speed_bound_m_s: float = 1e30, remove_unstable: bool = False,
+                 damping: bool = True):
         if scheme not in ("mpm", "apic", "apic-affine"):
             raise ValueError(f"unknown scheme {scheme!r}; allowed: mpm, apic, apic-affine")
         self.scheme = scheme
@@ -64,13 +69,16 @@ class Engine:
         self.active = ti.field(ti.i8, n)
         self.yielded = ti.field(ti.i8, n)
 
+        # Grid: what every scheme needs, plus the force and old-velocity fields only where used.
+        # ``g_mom`` holds momentum after P2G and the new velocity after the grid update.
+        self.six_stage = scheme != "apic-affine"
+        self.separate_forces = self.six_stage or bool(damping)
         self.g_mass = ti.field(float, self.nodes)
         self.g_mom = ti.Vector.field(2, float, self.nodes)
-        self.g_f = ti.Vector.field(2, float, self.nodes)
-        self.g_v_old = ti.Vector.field(2, float, self.nodes)
-        self.g_v = ti.Vector.field(2, float, self.nodes)
-        # tangential momentum that Coulomb friction removes at nodes receiving a mirrored reaction
-        self.g_friction = ti.Vector.field(2, float, self.nodes)
+        self.g_f = ti.Vector.field(2, float, self.nodes if self.separate_forces else (1, 1))
+        self.g_v_old = ti.Vector.field(2, float, self.nodes if self.six_stage else (1, 1))
+        # tangential momentum Coulomb friction removes at the node one cell inside each wall
+        self.wall_friction = ti.field(float, (4, max(self.nodes)))
 
         # stencil bounding box [lo, hi) of the current positions, and the one being built in G2P
         self.lo = ti.Vector.field(2, ti.i32, ())
@@ -140,25 +148,67 @@ class Engine:
 
     # ------------------------------------------------------------------ the step recipes
     def step(self, dt: float, gravity: tuple[float, float], damping: float = 0.0) -> None:
-        """Advance one explicit step of ``dt`` seconds."""
-        g = ti.Vector([float(gravity[0]), float(gravity[1])])
-        if self.scheme == "apic-affine":
+        """Advance one explicit step of ``dt`` seconds: the whole recipe in one kernel launch."""
+        if damping > 0.0 and not self.separate_forces:
+            raise ValueError("this engine was built without damping support (damping=False)")
+        self._step(float(dt), float(gravity[0]), float(gravity[1]), float(damping), damping > 0.0)
+
+    def step_by_stage(self, dt: float, gravity: tuple[float, float], damping: float = 0.0) -> None:
+        """The same step with one launch per stage, in recipe order (for profiling stage by stage)."""
+        if damping > 0.0 and not self.separate_forces:
+            raise ValueError("this engine was built without damping support (damping=False)")
+        for stage in self.recipe:
+            self._stage_kernel(stage, float(dt), float(gravity[0]), float(gravity[1]), float(damping), damping > 0.0)
+
+    @property
+    def recipe(self) -> tuple[str, ...]:
+        """The named stages of one step, in order (paper: six stages for mpm/apic, four for apic-affine;
+        the wall folds are the mirror-image boundary treatment)."""
+        if self.six_stage:
+            return ("reset grid", "P2G momentum", "fold walls (momentum)", "grid velocity", "mirror walls (old)",
+                    "stress and force", "fold walls (force)", "grid update", "mirror walls", "G2P")
+        return ("reset grid", "P2G with stress and force", "fold walls", "grid update", "mirror walls", "G2P")
+
+    @ti.kernel
+    def _step(self, dt: float, gx: float, gy: float, damping: float, damped: ti.template()):
+        # Each stage is a ti.func whose loops become top-level loops of this kernel, so they run in
+        # parallel, in recipe order, from one launch (a launch costs 40-75 us on the CPU, as much as
+        # a whole small step).
+        for stage in ti.static(self.recipe):
+            self._run_stage(stage, dt, ti.Vector([gx, gy]), damping, damped)
+
+    @ti.kernel
+    def _stage_kernel(self, stage: ti.template(), dt: float, gx: float, gy: float, damping: float,
+                      damped: ti.template()):
+        self._run_stage(stage, dt, ti.Vector([gx, gy]), damping, damped)
+
+    @ti.func
+    def _run_stage(self, stage: ti.template(), dt, g, damping, damped: ti.template()):
+        if ti.static(stage == "reset grid"):
             self._reset_grid()
-            self._p2g_fused(dt, g, damping <= 0.0)
-            self._fold_ghosts(True, damping > 0.0, dt)
-            self._grid_update_fused(dt, damping)
-            self._mirror_ghosts(False)
-            self._g2p(dt)
-        else:
-            self._reset_grid()
+        elif ti.static(stage == "P2G momentum"):
             self._p2g_momentum()
+        elif ti.static(stage == "fold walls (momentum)"):
             self._fold_ghosts(True, False, dt)
+        elif ti.static(stage == "grid velocity"):
             self._grid_velocity()
+        elif ti.static(stage == "mirror walls (old)"):
             self._mirror_ghosts(True)
+        elif ti.static(stage == "stress and force"):
             self._stress_and_force(dt, g)
+        elif ti.static(stage == "fold walls (force)"):
             self._fold_ghosts(False, True, dt)
+        elif ti.static(stage == "grid update" and self.six_stage):
             self._grid_update(dt, damping)
+        elif ti.static(stage == "P2G with stress and force"):
+            self._p2g_fused(dt, g, not damped)
+        elif ti.static(stage == "fold walls"):
+            self._fold_ghosts(True, damped, dt)
+        elif ti.static(stage == "grid update"):
+            self._grid_update_fused(dt, damping, damped)
+        elif ti.static(stage == "mirror walls"):
             self._mirror_ghosts(False)
+        elif ti.static(stage == "G2P"):
             self._g2p(dt)
 
     # ------------------------------------------------------------------ shared pieces
@@ -206,11 +256,15 @@ class Engine:
     @ti.func
     def _friction(self, I, v, mass):
         """Coulomb friction of the mirrored wall reaction: slow the tangential speed, never reverse it."""
-        loss = self.g_friction[I] / mass
-        for d in ti.static(range(2)):
-            if loss[d] > 0.0:
-                reduced = ti.max(ti.abs(v[d]) - loss[d], 0.0)
-                v[d] = reduced if v[d] >= 0.0 else -reduced
+        for side in ti.static(range(4)):
+            axis = ti.static(side // 2)
+            low = ti.static(side % 2 == 0)
+            wall = ti.static(PAD if low else PAD + (self.cells[0] if axis == 0 else self.cells[1]))
+            if I[axis] == ti.static(wall + 1 if low else wall - 1):
+                loss = self.wall_friction[side, I[1 - axis]] / mass
+                if loss > 0.0:
+                    reduced = ti.max(ti.abs(v[1 - axis]) - loss, 0.0)
+                    v[1 - axis] = reduced if v[1 - axis] >= 0.0 else -reduced
         return v
 
     @ti.func
@@ -226,7 +280,7 @@ class Engine:
         self.rho[p] = rho
         return self.m[p] / rho
 
-    @ti.kernel
+    @ti.func
     def _reset_grid(self):
         self.lo[None] = self.next_lo[None]
         self.hi[None] = self.next_hi[None]
@@ -236,8 +290,8 @@ class Engine:
             I = lo + ti.Vector([k // width[1], k % width[1]])
             self.g_mass[I] = 0.0
             self.g_mom[I] = ti.Vector.zero(float, 2)
-            self.g_f[I] = ti.Vector.zero(float, 2)
-            self.g_friction[I] = ti.Vector.zero(float, 2)
+            if ti.static(self.separate_forces):
+                self.g_f[I] = ti.Vector.zero(float, 2)
 
     @ti.kernel
     def _compute_bounds(self):
@@ -275,50 +329,50 @@ class Engine:
         hi = self.hi[None]
         return lo[0] <= I[0] < hi[0] and lo[1] <= I[1] < hi[1]
 
-    @ti.kernel
-    def _fold_ghosts(self, momentum: ti.template(), forces: ti.template(), dt: float):
+    @ti.func
+    def _fold_ghosts(self, momentum: ti.template(), forces: ti.template(), dt):
         for side in ti.static(range(4)):
             axis = ti.static(side // 2)
             inward = ti.static(1.0 if side % 2 == 0 else -1.0)
-            kind = self.bc_kind[side]
-            if kind != 3:
-                for k in range(self.nodes[1 - axis]):
-                    ghost, mirror = self._wall_pairs(side, k)
-                    if self._in_box(ghost) and self._in_box(mirror):
-                        flip = ti.Vector([1.0, 1.0])
-                        flip[axis] = -1.0
-                        impulse = 0.0 * dt  # normal momentum the mirror turns back into the domain
-                        if ti.static(momentum):
-                            self.g_mass[mirror] += self.g_mass[ghost]
-                            self.g_mom[mirror] += flip * self.g_mom[ghost]
-                            impulse += ti.max(-inward * self.g_mom[ghost][axis], 0.0)
-                        if ti.static(forces):
-                            self.g_f[mirror] += flip * self.g_f[ghost]
-                            impulse += ti.max(-inward * self.g_f[ghost][axis], 0.0) * dt
-                        if kind == 2:  # that reaction is wall contact too: Coulomb friction acts on it
-                            self.g_friction[mirror][1 - axis] += self.bc_mu[side] * impulse
+            for k in range(self.nodes[1 - axis]):  # top-level loop: runs in parallel
+                ghost, mirror = self._wall_pairs(side, k)
+                impulse = 0.0 * dt  # normal momentum the mirror turns back into the domain
+                if self.bc_kind[side] != 3 and self._in_box(ghost) and self._in_box(mirror):
+                    flip = ti.Vector([1.0, 1.0])
+                    flip[axis] = -1.0
+                    if ti.static(momentum):
+                        self.g_mass[mirror] += self.g_mass[ghost]
+                        self.g_mom[mirror] += flip * self.g_mom[ghost]
+                        impulse += ti.max(-inward * self.g_mom[ghost][axis], 0.0)
+                    if ti.static(forces):
+                        self.g_f[mirror] += flip * self.g_f[ghost]
+                        impulse += ti.max(-inward * self.g_f[ghost][axis], 0.0) * dt
+                # that reaction is wall contact too: Coulomb friction acts on it (mu = 0 unless friction)
+                if ti.static(momentum):
+                    self.wall_friction[side, k] = self.bc_mu[side] * impulse
+                else:
+                    self.wall_friction[side, k] += self.bc_mu[side] * impulse
 
-    @ti.kernel
+    @ti.func
     def _mirror_ghosts(self, old: ti.template()):
         for side in ti.static(range(4)):
             axis = ti.static(side // 2)
-            kind = self.bc_kind[side]
-            if kind != 3:
-                for k in range(self.nodes[1 - axis]):
-                    ghost, mirror = self._wall_pairs(side, k)
-                    if self._in_box(ghost) and self._in_box(mirror):
-                        flip = ti.Vector([1.0, 1.0])
-                        flip[axis] = -1.0
-                        if kind == 0:
-                            flip = ti.Vector([-1.0, -1.0])  # no-slip: antisymmetric extension
-                        if ti.static(old):
-                            self.g_v_old[ghost] = flip * self.g_v_old[mirror]
-                        else:
-                            self.g_v[ghost] = flip * self.g_v[mirror]
+            for k in range(self.nodes[1 - axis]):
+                ghost, mirror = self._wall_pairs(side, k)
+                kind = self.bc_kind[side]
+                if kind != 3 and self._in_box(ghost) and self._in_box(mirror):
+                    flip = ti.Vector([1.0, 1.0])
+                    flip[axis] = -1.0
+                    if kind == 0:
+                        flip = ti.Vector([-1.0, -1.0])  # no-slip: antisymmetric extension
+                    if ti.static(old):
+                        self.g_v_old[ghost] = flip * self.g_v_old[mirror]
+                    else:
+                        self.g_mom[ghost] = flip * self.g_mom[mirror]
 
     # ------------------------------------------------------------------ four-stage (apic-affine)
-    @ti.kernel
-    def _p2g_fused(self, dt: float, g: ti.types.vector(2, float), fuse_force: ti.template()):
+    @ti.func
+    def _p2g_fused(self, dt, g, fuse_force: ti.template()):
         for p in range(self.n):
             if self.active[p]:
                 base, fx, w, dw = self._stencil(self.x[p])
@@ -343,8 +397,8 @@ class Engine:
                         self.g_mom[I] += weight * (mv + mC @ dpos)
                         self.g_f[I] += force
 
-    @ti.kernel
-    def _grid_update_fused(self, dt: float, damping: float):
+    @ti.func
+    def _grid_update_fused(self, dt, damping, damped: ti.template()):
         lo = self.lo[None]
         width = ti.max(self.hi[None] - lo, 0)
         for k in range(width[0] * width[1]):
@@ -352,14 +406,14 @@ class Engine:
             mass = self.g_mass[I]
             if mass > 0.0:
                 v = self.g_mom[I] / mass
-                if damping > 0.0:  # forces were kept apart for Cundall's local damping
+                if ti.static(damped):  # forces were kept apart for Cundall's local damping
                     v += dt * self._damped(self.g_f[I], v, damping) / mass
-                self.g_v[I] = self._boundary(I, self._friction(I, v, mass))
+                self.g_mom[I] = self._boundary(I, self._friction(I, v, mass))
             else:
-                self.g_v[I] = ti.Vector.zero(float, 2)
+                self.g_mom[I] = ti.Vector.zero(float, 2)
 
     # ------------------------------------------------------------------ six-stage (mpm, apic)
-    @ti.kernel
+    @ti.func
     def _p2g_momentum(self):
         for p in range(self.n):
             if self.active[p]:
@@ -378,7 +432,7 @@ class Engine:
                     else:
                         self.g_mom[I] += weight * mv
 
-    @ti.kernel
+    @ti.func
     def _grid_velocity(self):
         lo = self.lo[None]
         width = ti.max(self.hi[None] - lo, 0)
@@ -390,8 +444,8 @@ class Engine:
                 v = self._boundary(I, self.g_mom[I] / mass)
             self.g_v_old[I] = v
 
-    @ti.kernel
-    def _stress_and_force(self, dt: float, g: ti.types.vector(2, float)):
+    @ti.func
+    def _stress_and_force(self, dt, g):
         for p in range(self.n):
             if self.active[p]:
                 base, fx, w, dw = self._stencil(self.x[p])
@@ -408,8 +462,8 @@ class Engine:
                     grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
                     self.g_f[base + ti.Vector([i, j])] += -vol * (sig @ grad) + weight * m * g
 
-    @ti.kernel
-    def _grid_update(self, dt: float, damping: float):
+    @ti.func
+    def _grid_update(self, dt, damping):
         lo = self.lo[None]
         width = ti.max(self.hi[None] - lo, 0)
         for k in range(width[0] * width[1]):
@@ -418,13 +472,13 @@ class Engine:
             if mass > 0.0:
                 v = self.g_v_old[I]
                 f = self._damped(self.g_f[I], v, damping)
-                self.g_v[I] = self._boundary(I, self._friction(I, v + dt * f / mass, mass))
+                self.g_mom[I] = self._boundary(I, self._friction(I, v + dt * f / mass, mass))
             else:
-                self.g_v[I] = ti.Vector.zero(float, 2)
+                self.g_mom[I] = ti.Vector.zero(float, 2)
 
     # ------------------------------------------------------------------ G2P (all schemes)
-    @ti.kernel
-    def _g2p(self, dt: float):
+    @ti.func
+    def _g2p(self, dt):
         self.next_lo[None] = ti.Vector([_BIG, _BIG])
         self.next_hi[None] = ti.Vector([-_BIG, -_BIG])
         bound2 = self.speed_bound[None] ** 2
@@ -437,7 +491,7 @@ class Engine:
                 for i, j in ti.static(ti.ndrange(3, 3)):
                     offset = ti.Vector([i, j])
                     weight = w[i][0] * w[j][1]
-                    gv = self.g_v[base + offset]
+                    gv = self.g_mom[base + offset]  # the new grid velocity
                     new_v += weight * gv
                     if ti.static(self.scheme == "mpm"):
                         dv += weight * (gv - self.g_v_old[base + offset])
@@ -510,10 +564,10 @@ class Engine:
 
     # ------------------------------------------------------------------ test hooks
     def grid_totals(self) -> tuple[float, np.ndarray]:
-        """Total grid mass and momentum after the last P2G (for conservation tests)."""
-        mass = self.g_mass.to_numpy()
-        mom = self.g_mom.to_numpy()
-        return float(mass.sum(dtype=np.float64)), mom.reshape(-1, 2).sum(axis=0, dtype=np.float64)
+        """Total grid mass and momentum (mass x new velocity) after the last step (conservation tests)."""
+        mass = self.g_mass.to_numpy().astype(np.float64)
+        mom = self.g_mom.to_numpy().astype(np.float64) * mass[..., None]
+        return float(mass.sum()), mom.reshape(-1, 2).sum(axis=0)
 
     def transfer_only(self) -> None:
         """P2G and G2P with zero time step and no gravity: a pure transfer round trip."""
@@ -521,14 +575,14 @@ class Engine:
 
     @ti.kernel
     def _apply_boundaries_everywhere(self):
-        for I in ti.grouped(self.g_v):
-            self.g_v[I] = self._boundary(I, self.g_v[I])
+        for I in ti.grouped(self.g_mom):
+            self.g_mom[I] = self._boundary(I, self.g_mom[I])
 
     def apply_boundaries(self, node_velocity: np.ndarray) -> np.ndarray:
         """Apply the side constraints to a whole grid of node velocities, shape (nx, ny, 2)."""
-        self.g_v.from_numpy(np.asarray(node_velocity, dtype=self.np_float))
+        self.g_mom.from_numpy(np.asarray(node_velocity, dtype=self.np_float))
         self._apply_boundaries_everywhere()
-        return self.g_v.to_numpy()
+        return self.g_mom.to_numpy()
 
     def node_position(self, i: int, j: int) -> tuple[float, float]:
         return (self.origin[0] + (i - PAD) * self.dx, self.origin[1] + (j - PAD) * self.dx)

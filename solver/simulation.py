@@ -127,6 +127,7 @@ class Simulation:
         self.engine = Engine(
             config.grid, config.materials, len(particles), config.numerics.scheme, np_float,
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
+            damping=any(st.damping > 0 for st in config.stages),
         )
         self.engine.load_particles(particles.positions_m, particles.volumes_m2, particles.material_ids,
                                    particles.velocities_m_s)

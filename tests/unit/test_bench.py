@@ -102,7 +102,7 @@ def test_profile_splits_the_step_into_stages_and_overhead(bench):
     assert set(prof["variants"]) == {YARDSTICK, "apic", "apic-affine"}
     affine = prof["variants"]["apic-affine"]
     apic = prof["variants"]["apic"]
-    # stage names follow app.bench.KERNEL_STAGES; a renamed engine kernel shows up as "other: NAME"
+    # stage names are the engine's recipe (Engine.recipe), profiled one launch per stage
     assert any("P2G" in stage for stage in affine["stages_s_per_step"])
     assert any("P2G" in stage for stage in apic["stages_s_per_step"])
     assert len(apic["stages_s_per_step"]) >= 3
@@ -149,11 +149,12 @@ def test_targets_and_reports(bench):
 
 
 def test_profiler_task_names_map_to_stages():
-    from app.bench import _stage_of
+    from app.bench import _recipe_stages, _stage_of
 
-    assert _stage_of("_p2g_fused_c90_0_kernel_0_range_for", "apic-affine") == (
-        "_p2g_fused", "P2G + constitutive + force (fused)")
-    assert _stage_of("_g2p_c102_2_kernel_1_range_for", "mpm") == ("_g2p", "G2P")
+    records = [("_stage_kernel_c9_0_kernel_0_serial", 0.0), ("_stage_kernel_c9_0_kernel_1_range_for", 1.0),
+               ("_stage_kernel_c9_1_kernel_0_range_for", 2.0), ("_stage_kernel_c9_0_kernel_0_serial", 0.0)]
+    named = _recipe_stages(records, ("reset grid", "G2P"))
+    assert named == {"_stage_kernel_c9_0": ("reset grid", "reset grid"), "_stage_kernel_c9_1": ("G2P", "G2P")}
     assert _stage_of("_substep_c12_0_kernel_2_range_for", YARDSTICK) == ("_substep (loop 2)", "grid pass")
     assert _stage_of("_step_c5_0_kernel_1_range_for", "apic") == ("_step (loop 1)", "other: _step")
     assert _stage_of("weird", "apic") == ("weird", "other")
