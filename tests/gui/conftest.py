@@ -18,6 +18,14 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "projects" / "examples"
 TINY = EXAMPLES / "tiny_column.toml"
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _display():
+    """Skip (rather than abort in Qt) where there is no display: pytest-xvfb provides one when
+    the Xvfb binary is installed (Debian package ``xvfb``)."""
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        pytest.skip("no display: install Xvfb (apt-get install xvfb) so that pytest-xvfb can start one")
+
+
 def _project_file(tmp_path: Path, name: str, overrides: list[str]) -> Path:
     from projects.document import apply_overrides, load_project, save_project
 
@@ -90,6 +98,3 @@ def window(qtbot, tmp_path: Path, monkeypatch):
     assert threading.active_count() == threads_before, [t.name for t in threading.enumerate()]
     assert _alive_plotters() == plotters_before, "a VTK plotter was not closed"
 
-
-def wait_for_run(qtbot, win, timeout_s: float = 60.0) -> None:
-    qtbot.waitUntil(lambda: win.worker is None, timeout=int(timeout_s * 1000))

@@ -158,6 +158,15 @@ def test_drag_a_vertex_is_one_undo_step_and_the_table_follows(window, tiny_file,
     window.doc.undo_stack.undo()
     window.doc.undo_stack.undo()
     assert window.doc.get("bodies.0.polygon_m.2") == [0.12, 0.24]
+    # a slow drag, a pixel at a time, follows the mouse (the vertex does not stick to itself)
+    qtbot.mousePress(scene.plotter, Qt.MouseButton.LeftButton, pos=start)
+    for step in range(1, 40):
+        qtbot.mouseMove(scene.plotter, start + QPoint(step, 0))
+    end = scene.widget_to_world(start + QPoint(39, 0))
+    qtbot.mouseRelease(scene.plotter, Qt.MouseButton.LeftButton, pos=start + QPoint(39, 0))
+    x, y = window.doc.get("bodies.0.polygon_m.2")
+    assert x == pytest.approx(round(end[0] / 0.01) * 0.01) and x > 0.13 and y == 0.24
+    assert window.doc.undo_stack.count() == 1  # one step (the undone steps were dropped)
 
 
 def test_invalid_shapes_are_flagged_where_they_are(window, tiny_file):

@@ -1,0 +1,209 @@
+"""Curves against simulated time (matplotlib's Qt canvas): the run's energy, momentum and speed,
+live or from ``series.csv``, and the history of one picked particle.
+
+Redraws are throttled (a timer collects updates), so a fast run cannot flood the event loop.
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PySide6.QtCore import QTimer
+from PySide6.QtWidgets import QVBoxLayout, QWidget
+
+logger = logging.getLogger(__name__)
+
+REDRAW_MS = 700
+
+#: Curves of the run: (series.csv column, label, unit, axis).
+SERIES_CURVES: tuple[tuple[str, str, str, int], ...] = (
+    ("kinetic_energy_J_per_m", "kinetic energy", "J/m", 0),
+    ("momentum_x", "momentum x", "N·s/m", 1),
+    ("momentum_y", "momentum y", "N·s/m", 1),
+    ("max_speed_m_s", "max speed", "m/s", 2),
+)
+_DIAG_ATTR = {
+    "kinetic_energy_J_per_m": "kinetic_energy_J_per_m",
+    "momentum_x": "momentum_x",
+    "momentum_y": "momentum_y",
+    "max_speed_m_s": "max_speed_m_s",
+}
+_AXIS_LABELS = ("Kinetic energy (J/m)", "Momentum (N·s/m)", "Max speed (m/s)")
+
+
+class _Canvas(QWidget):
+    """A row of matplotlib axes in a widget, redrawn at most every :data:`REDRAW_MS`."""
+
+    def __init__(self, columns: int, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
+        from matplotlib.figure import Figure
+
+        # a fixed layout: constrained layout costs more than the drawing itself
+        self.figure = Figure(figsize=(3.2 * columns, 2.2))
+        self.figure.subplots_adjust(left=0.06 + 0.02 * columns, right=0.98, top=0.9, bottom=0.2,
+                                    wspace=0.42)
+        self.canvas = FigureCanvasQTAgg(self.figure)
+        self.canvas.setMinimumHeight(150)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(self.canvas)
+        self.axes = self.figure.subplots(1, columns, sharex=True, squeeze=False)[0, :]
+        for ax in self.axes:
+            ax.tick_params(labelsize=8)
+            ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
+            ax.yaxis.get_offset_text().set_fontsize(7)
+            ax.grid(True, color="#e0e0e0", linewidth=0.6)
+            ax.set_xlabel("time (s)", fontsize=8)
+        self._timer = QTimer(self)
+        self._timer.setSingleShot(True)
+        self._timer.setInterval(REDRAW_MS)
+        self._timer.timeout.connect(self._redraw)
+        self.draws = 0
+
+    def schedule(self) -> None:
+        if not self._timer.isActive():
+            self._timer.start()
+
+    def _redraw(self) -> None:
+        for ax in self.axes:
+            ax.relim()
+            ax.autoscale_view()
+        self.canvas.draw_idle()
+        self.draws += 1
+
+    def redraw_now(self) -> None:
+        self._timer.stop()
+        self._redraw()
+        self.canvas.draw()
+
+    def close_canvas(self) -> None:
+        self._timer.stop()
+        self.figure.clear()
+
+
+class SeriesCurves(_Canvas):
+    """Kinetic energy, momentum (x, y) and max speed against time, with a marker at the shown time."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(3, parent)
+        self.lines: dict[str, Any] = {}
+        colors = {"kinetic_energy_J_per_m": "#1a73e8", "momentum_x": "#e37400", "momentum_y": "#188038",
+                  "max_speed_m_s": "#a142f4"}
+        for key, label, _unit, column in SERIES_CURVES:
+            (line,) = self.axes[column].plot([], [], color=colors[key], linewidth=1.4, label=label)
+            self.lines[key] = line
+        for column, text in enumerate(_AXIS_LABELS):
+            self.axes[column].set_ylabel(text, fontsize=8)
+        self.axes[1].legend(fontsize=7, loc="best")
+        self.markers = [ax.axvline(0.0, color="#5f6368", linewidth=0.8, linestyle="--") for ax in self.axes]
+        for m in self.markers:
+            m.set_visible(False)
+        self.data: dict[str, list[float]] = {}
+        self.clear()
+
+    def clear(self) -> None:
+        self.data = {"time_s": [], **{key: [] for key, *_ in SERIES_CURVES}}
+        self._push()
+
+    def append(self, diagnostics: Any) -> None:
+        """Add one live point (a solver Diagnostics)."""
+        self.data["time_s"].append(float(diagnostics.time_s))
+        for key, attr in _DIAG_ATTR.items():
+            self.data[key].append(float(getattr(diagnostics, attr)))
+        self._push()
+
+    def set_series(self, series: dict[str, np.ndarray]) -> None:
+        """Show the columns of a results folder's ``series.csv``."""
+        self.data = {"time_s": [float(v) for v in series.get("time_s", [])]}
+        for key, *_ in SERIES_CURVES:
+            column = series.get(key, [])
+            self.data[key] = [float(v) for v in column] if len(column) == len(self.data["time_s"]) else []
+        self._push()
+        self.redraw_now()
+
+    def _push(self) -> None:
+        t = self.data["time_s"]
+        for key, line in self.lines.items():
+            values = self.data.get(key, [])
+            line.set_data(t[: len(values)], values)
+        self.schedule()
+
+    def set_time(self, time_s: float | None) -> None:
+        for m in self.markers:
+            m.set_visible(time_s is not None)
+            if time_s is not None:
+                m.set_xdata([time_s, time_s])
+        self.schedule()
+
+    @property
+    def points(self) -> int:
+        return len(self.data["time_s"])
+
+
+class HistoryCurve(_Canvas):
+    """The value of one field at one particle against time."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(1, parent)
+        (self.line,) = self.axes[0].plot([], [], color="#d93025", linewidth=1.4, marker=".", markersize=3)
+        self.axes[0].set_title("Pick a particle in the view (click)", fontsize=8)
+        self.times: np.ndarray = np.zeros(0)
+        self.values: np.ndarray = np.zeros(0)
+        self.label = ""
+
+    def show_history(self, particle: int, label: str, times: np.ndarray, values: np.ndarray) -> None:
+        self.times, self.values = np.asarray(times, float), np.asarray(values, float)
+        self.label = label
+        self.line.set_data(self.times, self.values)
+        self.axes[0].set_title(f"particle {particle}", fontsize=8)
+        self.axes[0].set_ylabel(label, fontsize=8)
+        self.redraw_now()
+
+    def clear_history(self) -> None:
+        self.times, self.values = np.zeros(0), np.zeros(0)
+        self.line.set_data([], [])
+        self.axes[0].set_title("Pick a particle in the view (click)", fontsize=8)
+        self.redraw_now()
+
+
+def write_curves_csv(path: str | os.PathLike[str], series: dict[str, Any],
+                     history: tuple[str, np.ndarray, np.ndarray] | None = None) -> Path:
+    """Write the run's curves (and a particle history, if given) as one CSV table.
+
+    Parameters
+    ----------
+    path : path-like
+    series : dict
+        Columns by name, ``time_s`` first (from ``series.csv`` or live), equal lengths.
+    history : (label, times, values), optional
+        A particle history; written as two more columns where its times match, else appended
+        as its own rows with empty series columns.
+
+    Returns
+    -------
+    Path
+    """
+    path = Path(path)
+    names = [n for n in series if len(series[n]) == len(series.get("time_s", []))]
+    rows = [[series[n][i] for n in names] for i in range(len(series.get("time_s", [])))]
+    header = list(names)
+    if history is not None:
+        label, times, values = history
+        header += ["history_time_s", label]
+        for i in range(max(len(rows), len(times))):
+            if i >= len(rows):
+                rows.append([""] * len(names))
+            extra = [times[i], values[i]] if i < len(times) else ["", ""]
+            rows[i] = list(rows[i]) + list(extra)
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(header)
+        for row in rows:
+            writer.writerow([repr(float(v)) if isinstance(v, (float, np.floating)) else v for v in row])
+    return path

@@ -1,0 +1,361 @@
+"""Editors bound to one key of the project: they show it, check what is typed, and commit edits.
+
+Each editor knows its dotted key path. As the user types, the text is checked with the project
+schema's own rule for that key (:func:`app.gui.document.check_value`), so the message is the one
+``runout validate`` would print; a bad value is shown in red with the message as tooltip and in
+the panel's message line, and is never written to the project. A value the schema accepts is
+committed as one undo step when editing finishes. Problems that involve several keys (found by
+validating the whole project) are shown in orange on the editor of the key they name.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from typing import Any
+
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import (
+    QComboBox,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QSizePolicy,
+    QSpinBox,
+    QWidget,
+)
+
+from app.gui.document import ProjectDocument, check_value, format_number, parse_number
+
+logger = logging.getLogger(__name__)
+
+ERROR_STYLE = "QLineEdit { background: #fde2e1; border: 1px solid #d93025; }"
+PROBLEM_STYLE = "QLineEdit { background: #fff1d6; border: 1px solid #e37400; }"
+
+
+def unit_label(unit: str) -> QLabel:
+    """A fixed-width label for a unit, so that fields line up in a form."""
+    label = QLabel(unit)
+    label.setMinimumWidth(38)
+    label.setSizePolicy(QSizePolicy.Policy.Fixed, QSizePolicy.Policy.Preferred)
+    label.setStyleSheet("color: #555;")
+    return label
+
+
+class _Bound(QWidget):
+    """Base of editors bound to a key path of a document.
+
+    Signals
+    -------
+    message(str)
+        What is wrong with the typed value ("" when nothing is).
+    """
+
+    message = Signal(str)
+
+    def __init__(self, doc: ProjectDocument, path: str | None, label: str, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.doc = doc
+        self.path = path
+        self.label = label
+        doc.changed.connect(self._on_doc_changed)
+
+    def set_path(self, path: str | None) -> None:
+        """Bind to another key (the panel's current material or stage changed)."""
+        self.path = path
+        self.setEnabled(path is not None)
+        self.refresh()
+
+    def _on_doc_changed(self, _sections: object) -> None:
+        self.refresh()
+
+    def refresh(self) -> None:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def value(self) -> Any:
+        return self.doc.get(self.path) if self.path else None
+
+    def _problem_text(self) -> str:
+        if not self.path:
+            return ""
+        return "\n".join(p.message for p in self.doc.problems if p.path == self.path)
+
+
+class NumberField(_Bound):
+    """A number with its unit; empty text means "left out" when ``optional``."""
+
+    def __init__(self, doc: ProjectDocument, path: str | None, label: str, unit: str, *,
+                 optional: bool = False, placeholder: str = "", parent: QWidget | None = None) -> None:
+        super().__init__(doc, path, label, parent)
+        self.optional = optional
+        self.edit = QLineEdit()
+        self.edit.setPlaceholderText(placeholder or ("none" if optional else ""))
+        self.edit.setAlignment(Qt.AlignmentFlag.AlignRight)
+        self.edit.setAccessibleName(label)
+        self.unit = unit_label(unit)
+        layout = QHBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(self.edit, 1)
+        layout.addWidget(self.unit)
+        self.edit.textEdited.connect(self._check)
+        self.edit.editingFinished.connect(self.commit)
+        self.error = ""
+        self.refresh()
+
+    def _parse(self, text: str) -> tuple[Any, str]:
+        if not text.strip():
+            return None, "" if self.optional else "required"
+        number = parse_number(text)
+        if number is None:
+            return None, "must be a number"
+        if self.path is None:
+            return number, ""
+        return number, check_value(self.path, number) or ""
+
+    def _check(self, text: str) -> None:
+        _, self.error = self._parse(text)
+        self._style()
+        self.message.emit(f"{self.label}: {self.error}" if self.error else "")
+
+    def _style(self) -> None:
+        problem = self._problem_text()
+        if self.error:
+            self.edit.setStyleSheet(ERROR_STYLE)
+            self.edit.setToolTip(self.error)
+        elif problem:
+            self.edit.setStyleSheet(PROBLEM_STYLE)
+            self.edit.setToolTip(problem)
+        else:
+            self.edit.setStyleSheet("")
+            self.edit.setToolTip("")
+
+    def commit(self) -> bool:
+        """Write the typed value to the project (one undo step) if the schema accepts it."""
+        if self.path is None:
+            return False
+        value, self.error = self._parse(self.edit.text())
+        self._style()
+        if self.error:
+            self.message.emit(f"{self.label}: {self.error}")
+            return False
+        current = self.value()
+        if value == current and (value is None) == (current is None):
+            return False
+        return self.doc.set_value(self.path, value, f"change {self.label.lower()}")
+
+    def set_text(self, text: str) -> None:
+        """Type ``text`` and finish editing (what a user does; used by scripts and tests)."""
+        self.edit.setText(text)
+        self._check(text)
+        self.commit()
+
+    def refresh(self) -> None:
+        if self.error and self.edit.hasFocus():
+            return  # keep what the user is typing
+        value = self.value()
+        text = format_number(value) if value is not None else ""
+        if self.edit.text() != text:
+            self.edit.setText(text)
+        self.error = ""
+        self._style()
+
+
+class PairField(_Bound):
+    """An ``[x, y]`` pair: two numbers sharing one unit."""
+
+    def __init__(self, doc: ProjectDocument, path: str | None, label: str, unit: str,
+                 names: tuple[str, str] = ("x", "y"), parent: QWidget | None = None) -> None:
+        super().__init__(doc, path, label, parent)
+        layout = QHBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        self.edits: list[QLineEdit] = []
+        for name in names:
+            edit = QLineEdit()
+            edit.setAlignment(Qt.AlignmentFlag.AlignRight)
+            edit.setPlaceholderText(name)
+            edit.setToolTip(name)
+            edit.setAccessibleName(f"{label} {name}")
+            edit.textEdited.connect(self._check)
+            edit.editingFinished.connect(self.commit)
+            layout.addWidget(QLabel(name))
+            layout.addWidget(edit, 1)
+            self.edits.append(edit)
+        layout.addWidget(unit_label(unit))
+        self.error = ""
+        self.refresh()
+
+    def _parse(self) -> tuple[list[float] | None, str]:
+        numbers = [parse_number(e.text()) for e in self.edits]
+        if any(n is None for n in numbers):
+            return None, "both components must be numbers"
+        pair = [float(n) for n in numbers]  # type: ignore[arg-type]
+        return pair, (check_value(self.path, pair) or "") if self.path else ""
+
+    def _check(self, _text: str = "") -> None:
+        _, self.error = self._parse()
+        self._style()
+        self.message.emit(f"{self.label}: {self.error}" if self.error else "")
+
+    def _style(self) -> None:
+        problem = self._problem_text()
+        style = ERROR_STYLE if self.error else PROBLEM_STYLE if problem else ""
+        for edit in self.edits:
+            edit.setStyleSheet(style)
+            edit.setToolTip(self.error or problem)
+
+    def commit(self) -> bool:
+        if self.path is None:
+            return False
+        value, self.error = self._parse()
+        self._style()
+        if self.error or value is None:
+            return False
+        if value == self.value():
+            return False
+        return self.doc.set_value(self.path, value, f"change {self.label.lower()}")
+
+    def set_values(self, x: float, y: float) -> None:
+        self.edits[0].setText(format_number(x))
+        self.edits[1].setText(format_number(y))
+        self._check()
+        self.commit()
+
+    def refresh(self) -> None:
+        if self.error and any(e.hasFocus() for e in self.edits):
+            return
+        value = self.value()
+        if isinstance(value, (list, tuple)) and len(value) == 2:
+            for edit, v in zip(self.edits, value, strict=True):
+                text = format_number(v)
+                if edit.text() != text:
+                    edit.setText(text)
+        else:
+            for edit in self.edits:
+                edit.setText("")
+        self.error = ""
+        self._style()
+
+
+class ChoiceField(_Bound):
+    """One of a fixed set of strings (scheme, precision, model, ...)."""
+
+    def __init__(self, doc: ProjectDocument, path: str | None, label: str, choices: Sequence[str],
+                 default: str | None = None, parent: QWidget | None = None) -> None:
+        super().__init__(doc, path, label, parent)
+        self.default = default
+        self.combo = QComboBox()
+        self.combo.addItems(list(choices))
+        self.combo.setAccessibleName(label)
+        layout = QHBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(self.combo, 1)
+        self.combo.activated.connect(self._chosen)
+        self.refresh()
+
+    def _chosen(self, _index: int) -> None:
+        if self.path is None:
+            return
+        choice = self.combo.currentText()
+        if choice != self.value():
+            self.doc.set_value(self.path, choice, f"change {self.label.lower()}")
+
+    def choose(self, text: str) -> None:
+        """Pick ``text`` as a user would."""
+        self.combo.setCurrentText(text)
+        self._chosen(self.combo.currentIndex())
+
+    def refresh(self) -> None:
+        value = self.value()
+        if value is None:
+            value = self.default
+        self.combo.blockSignals(True)
+        index = self.combo.findText(str(value)) if value is not None else -1
+        self.combo.setCurrentIndex(index)
+        self.combo.blockSignals(False)
+
+
+class IntField(_Bound):
+    """A bounded integer (particles per cell)."""
+
+    def __init__(self, doc: ProjectDocument, path: str | None, label: str, lo: int, hi: int,
+                 default: int, suffix: str = "", parent: QWidget | None = None) -> None:
+        super().__init__(doc, path, label, parent)
+        self.default = default
+        self.spin = QSpinBox()
+        self.spin.setRange(lo, hi)
+        self.spin.setSuffix(suffix)
+        self.spin.setAccessibleName(label)
+        layout = QHBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(self.spin, 1)
+        self.spin.editingFinished.connect(self._commit)
+        self.spin.valueChanged.connect(self._stepped)
+        self.refresh()
+
+    def _stepped(self, _value: int) -> None:
+        # arrow clicks finish an edit at once; typed digits wait for editingFinished
+        if not self.spin.lineEdit().hasFocus():
+            self._commit()
+
+    def _commit(self) -> None:
+        if self.path is not None and self.spin.value() != self.value():
+            self.doc.set_value(self.path, int(self.spin.value()), f"change {self.label.lower()}")
+
+    def refresh(self) -> None:
+        value = self.value()
+        self.spin.blockSignals(True)
+        self.spin.setValue(int(value) if isinstance(value, int) else self.default)
+        self.spin.blockSignals(False)
+
+
+class TextField(_Bound):
+    """A string key (title, body and stage names); empty text removes an optional key."""
+
+    def __init__(self, doc: ProjectDocument, path: str | None, label: str, *, optional: bool = False,
+                 parent: QWidget | None = None) -> None:
+        super().__init__(doc, path, label, parent)
+        self.optional = optional
+        self.edit = QLineEdit()
+        self.edit.setAccessibleName(label)
+        layout = QHBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(self.edit, 1)
+        self.edit.editingFinished.connect(self.commit)
+        self.edit.textEdited.connect(self._check)
+        self.error = ""
+        self.refresh()
+
+    def _check(self, text: str) -> None:
+        value: Any = text if text.strip() or not self.optional else None
+        self.error = (check_value(self.path, value) or "") if self.path else ""
+        self.edit.setStyleSheet(ERROR_STYLE if self.error else "")
+        self.edit.setToolTip(self.error)
+        self.message.emit(f"{self.label}: {self.error}" if self.error else "")
+
+    def commit(self) -> bool:
+        if self.path is None:
+            return False
+        text = self.edit.text()
+        self._check(text)
+        if self.error:
+            return False
+        value: Any = text if text.strip() or not self.optional else None
+        if value == self.value():
+            return False
+        return self.doc.set_value(self.path, value, f"change {self.label.lower()}")
+
+    def set_text(self, text: str) -> None:
+        self.edit.setText(text)
+        self.commit()
+
+    def refresh(self) -> None:
+        if self.error and self.edit.hasFocus():
+            return
+        value = self.value()
+        text = "" if value is None else str(value)
+        if self.edit.text() != text:
+            self.edit.setText(text)
+        problem = self._problem_text()
+        self.error = ""
+        self.edit.setStyleSheet(PROBLEM_STYLE if problem else "")
+        self.edit.setToolTip(problem)

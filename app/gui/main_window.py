@@ -1,0 +1,737 @@
+"""The workbench's main window: the model view, project panels, the run panel and the results.
+
+Layout: the project panels dock on the left, the run panel (estimate, progress, problems) on the
+right, and the centre holds three tabs: *Model* (the 2D scene with drawing), *Results* (live
+view of a run, then the inspector of its results folder) and *Compare* (two results side by
+side, created when first used).
+
+All questions to the user go through small methods (``ask_save_changes``, ``ask_open_path``,
+...) so that scripts and tests can answer them without a modal dialog.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from PySide6.QtCore import QSize, Qt, QTimer
+from PySide6.QtGui import QAction, QActionGroup, QCloseEvent, QKeySequence
+from PySide6.QtWidgets import (
+    QApplication,
+    QDialog,
+    QDockWidget,
+    QFileDialog,
+    QLabel,
+    QMainWindow,
+    QMessageBox,
+    QProgressDialog,
+    QTabWidget,
+)
+
+from app.gui.dialogs import ExportDialog, ProblemsDialog, SlopeDialog
+from app.gui.document import ProjectDocument, editable_data
+from app.gui.panels import (
+    BodiesPanel,
+    DomainPanel,
+    MaterialsPanel,
+    NumericsPanel,
+    OutputPanel,
+    StagesPanel,
+)
+from app.gui.results_view import CompareView, ResultsView
+from app.gui.run_panel import RunPanel
+from app.gui.run_worker import RunWorker
+from app.gui.scene_view import SceneView
+from app.gui.settings import MaterialLibrary, Settings
+from projects.schema import ProjectError
+
+logger = logging.getLogger(__name__)
+
+APP_NAME = "Runout"
+PROJECT_FILTER = "Runout project (*.toml);;All files (*)"
+#: Shortest time between two live frames drawn during a run (ms).
+LIVE_INTERVAL_MS = 200
+
+
+class MainWindow(QMainWindow):
+    """The Runout workbench.
+
+    Parameters
+    ----------
+    settings : Settings, optional
+        Recent files and measured throughput (default: the user's config folder).
+    library : MaterialLibrary, optional
+        The named-material library (default: the user's config folder).
+    """
+
+    def __init__(self, settings: Settings | None = None, library: MaterialLibrary | None = None) -> None:
+        super().__init__()
+        self.settings = settings or Settings()
+        self.library = library or MaterialLibrary(self.settings.folder)
+        self.doc = ProjectDocument(parent=self)
+        self.worker: RunWorker | None = None
+        self.last_worker: RunWorker | None = None
+        self._live_frames = 0
+        self._run_started = 0.0
+        self.last_result: Any = None
+        self.compare: CompareView | None = None
+        self._shut = False
+        self.setWindowTitle(APP_NAME)
+        self.resize(1500, 900)
+
+        self.scene = SceneView(self.doc)
+        self.results_view = ResultsView()
+        self.tabs = QTabWidget()
+        self.tabs.addTab(self.scene, "Model")
+        self.tabs.addTab(self.results_view, "Results")
+        self.setCentralWidget(self.tabs)
+
+        self.panels = QTabWidget()
+        self.domain_panel = DomainPanel(self.doc)
+        self.materials_panel = MaterialsPanel(self.doc, self.library)
+        self.bodies_panel = BodiesPanel(self.doc)
+        self.numerics_panel = NumericsPanel(self.doc)
+        self.stages_panel = StagesPanel(self.doc)
+        self.output_panel = OutputPanel(self.doc)
+        for panel, title in ((self.domain_panel, "Domain"), (self.materials_panel, "Materials"),
+                             (self.bodies_panel, "Bodies"), (self.numerics_panel, "Numerics"),
+                             (self.stages_panel, "Stages"), (self.output_panel, "Output")):
+            self.panels.addTab(panel, title)
+        self.panels.setUsesScrollButtons(True)
+        left = QDockWidget("Project", self)
+        left.setObjectName("project-dock")
+        left.setWidget(self.panels)
+        movable = QDockWidget.DockWidgetFeature.DockWidgetMovable | QDockWidget.DockWidgetFeature.DockWidgetFloatable
+        left.setFeatures(movable)
+        left.setMinimumWidth(380)
+        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, left)
+
+        self.run_panel = RunPanel(self.doc, self.settings)
+        right = QDockWidget("Run", self)
+        right.setObjectName("run-dock")
+        right.setWidget(self.run_panel)
+        right.setFeatures(movable)
+        right.setMinimumWidth(280)
+        self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, right)
+        self.run_dock = right
+
+        self.cursor_label = QLabel("")
+        self.statusBar().addPermanentWidget(self.cursor_label)
+        self._build_actions()
+        self._connect()
+        self._estimate_timer = QTimer(self)
+        self._estimate_timer.setSingleShot(True)
+        self._estimate_timer.setInterval(150)
+        self._estimate_timer.timeout.connect(self.run_panel.update_estimate)
+        self._live_timer = QTimer(self)
+        self._live_timer.setSingleShot(True)
+        self._live_timer.setInterval(LIVE_INTERVAL_MS)
+        self._live_timer.timeout.connect(self._take_frames)
+        self._update_title()
+        self.run_panel.update_estimate()
+
+    # -- construction -----------------------------------------------------------------------------
+
+    def _action(self, text: str, slot: Any, shortcut: Any = None, tip: str = "", checkable: bool = False) -> QAction:
+        action = QAction(text, self)
+        if shortcut is not None:
+            action.setShortcut(QKeySequence(shortcut))
+        if tip:
+            action.setStatusTip(tip)
+            action.setToolTip(tip)
+        action.setCheckable(checkable)
+        (action.toggled if checkable else action.triggered).connect(slot)
+        return action
+
+    def _build_actions(self) -> None:
+        style = self.style()
+        from PySide6.QtWidgets import QStyle
+
+        a = self.actions_ = {}
+        a["new"] = self._action("&New project", self.new_project, QKeySequence.StandardKey.New)
+        a["open"] = self._action("&Open project…", self.open_project_dialog, QKeySequence.StandardKey.Open)
+        a["open_results"] = self._action("Open &results…", self.open_results_dialog, "Ctrl+Shift+O",
+                                         "Open a results folder (also one written by runout run)")
+        a["save"] = self._action("&Save", self.save, QKeySequence.StandardKey.Save)
+        a["save_as"] = self._action("Save &as…", self.save_as, QKeySequence.StandardKey.SaveAs)
+        a["export_picture"] = self._action("Export &picture…", self.export_picture_dialog,
+                                           tip="Render the shown frame offscreen at a chosen size")
+        a["export_movie"] = self._action("Export &animation…", self.export_animation_dialog,
+                                         tip="Write all frames as mp4 or gif")
+        a["export_curves"] = self._action("Export &curves (CSV)…", self.export_curves_dialog)
+        a["quit"] = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
+        a["new"].setIcon(style.standardIcon(QStyle.StandardPixmap.SP_FileIcon))
+        a["open"].setIcon(style.standardIcon(QStyle.StandardPixmap.SP_DialogOpenButton))
+        a["save"].setIcon(style.standardIcon(QStyle.StandardPixmap.SP_DialogSaveButton))
+        undo = self.doc.undo_stack.createUndoAction(self, "&Undo")
+        undo.setShortcut(QKeySequence.StandardKey.Undo)
+        undo.setIcon(style.standardIcon(QStyle.StandardPixmap.SP_ArrowBack))
+        redo = self.doc.undo_stack.createRedoAction(self, "&Redo")
+        redo.setShortcut(QKeySequence.StandardKey.Redo)
+        redo.setIcon(style.standardIcon(QStyle.StandardPixmap.SP_ArrowForward))
+        a["undo"], a["redo"] = undo, redo
+        a["select"] = self._action("&Select / edit", lambda on: on and self.scene.set_mode("select"), "S",
+                                   "Select bodies, drag vertices, pan", checkable=True)
+        a["draw"] = self._action("&Draw body", lambda on: on and self._start_drawing(), "D",
+                                 "Click vertices of a new body in the view", checkable=True)
+        group = QActionGroup(self)
+        group.addAction(a["select"])
+        group.addAction(a["draw"])
+        a["select"].setChecked(True)
+        a["snap"] = self._action("S&nap to grid", self.scene.set_snap, None, "Snap vertices to half cells",
+                                 checkable=True)
+        a["snap"].setChecked(True)
+        a["particles"] = self._action("Show &particles", self.scene.set_show_particles, None,
+                                      "Preview the seeded particles", checkable=True)
+        a["particles"].setChecked(True)
+        a["fit"] = self._action("&Fit view", self.scene.fit, "F")
+        a["slope"] = self._action("Slope from &template…", self.slope_dialog)
+        a["delete_vertex"] = self._action("Delete &vertex", self.scene.delete_selected_vertex)
+        a["run"] = self._action("&Run", self.start_run, "F5", "Run the project in the background")
+        a["run"].setIcon(style.standardIcon(QStyle.StandardPixmap.SP_MediaPlay))
+        a["cancel"] = self._action("&Cancel run", self.cancel_run, "Shift+F5")
+        a["cancel"].setIcon(style.standardIcon(QStyle.StandardPixmap.SP_MediaStop))
+        a["cancel"].setEnabled(False)
+        a["compare"] = self._action("&Compare results…", self.show_compare)
+
+        bar = self.menuBar()
+        file_menu = bar.addMenu("&File")
+        file_menu.addActions([a["new"], a["open"]])
+        self.recent_menu = file_menu.addMenu("Open &recent")
+        self.recent_menu.aboutToShow.connect(self._fill_recent)
+        file_menu.addAction(a["open_results"])
+        self.recent_results_menu = file_menu.addMenu("Recent r&esults")
+        self.recent_results_menu.aboutToShow.connect(self._fill_recent_results)
+        file_menu.addSeparator()
+        file_menu.addActions([a["save"], a["save_as"]])
+        file_menu.addSeparator()
+        file_menu.addActions([a["export_picture"], a["export_movie"], a["export_curves"]])
+        file_menu.addSeparator()
+        file_menu.addAction(a["quit"])
+        edit = bar.addMenu("&Edit")
+        edit.addActions([undo, redo])
+        edit.addSeparator()
+        edit.addAction(a["delete_vertex"])
+        model = bar.addMenu("&Model")
+        model.addActions([a["select"], a["draw"], a["snap"], a["particles"], a["fit"]])
+        model.addSeparator()
+        model.addAction(a["slope"])
+        run = bar.addMenu("&Run")
+        run.addActions([a["run"], a["cancel"]])
+        view = bar.addMenu("&View")
+        view.addAction(a["compare"])
+        help_menu = bar.addMenu("&Help")
+        help_menu.addAction(self._action("&About Runout", self._about))
+
+        tools = self.addToolBar("Main")
+        tools.setObjectName("main-toolbar")
+        tools.setIconSize(QSize(18, 18))
+        tools.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
+        tools.addActions([a["new"], a["open"], a["save"]])
+        tools.addSeparator()
+        tools.addActions([undo, redo])
+        tools.addSeparator()
+        tools.addActions([a["select"], a["draw"], a["snap"], a["particles"], a["fit"]])
+        tools.addSeparator()
+        tools.addActions([a["run"], a["cancel"]])
+
+    def _connect(self) -> None:
+        doc = self.doc
+        doc.cleanChanged.connect(lambda _c: self._update_title())
+        doc.pathChanged.connect(self._update_title)
+        doc.changed.connect(lambda _s: self._estimate_timer.start())
+        self.scene.cursorMoved.connect(lambda x, y: self.cursor_label.setText(f"x = {x:.3f} m   y = {y:.3f} m"))
+        self.scene.message.connect(lambda text: self.statusBar().showMessage(text, 6000))
+        self.scene.modeChanged.connect(self._mode_changed)
+        self.results_view.message.connect(lambda text: text and self.statusBar().showMessage(text, 6000))
+        self.bodies_panel.drawRequested.connect(lambda: self.actions_["draw"].setChecked(True))
+        self.bodies_panel.templateRequested.connect(self.slope_dialog)
+        self.run_panel.runRequested.connect(self.start_run)
+        self.run_panel.cancelRequested.connect(self.cancel_run)
+        self.run_panel.problemActivated.connect(self.go_to_problem)
+
+    def _mode_changed(self, mode: str) -> None:
+        self.actions_["draw" if mode == "draw" else "select"].setChecked(True)
+
+    def _start_drawing(self) -> None:
+        self.tabs.setCurrentWidget(self.scene)
+        self.scene.set_mode("draw")
+
+    def _update_title(self) -> None:
+        self.setWindowTitle(f"{self.doc.display_name}[*] — {APP_NAME}")
+        self.setWindowModified(self.doc.is_dirty)
+        default = self._default_out_dir()
+        self.run_panel.out_dir.setPlaceholderText(str(default))
+
+    def _about(self) -> None:
+        QMessageBox.about(self, "About Runout", "Runout: landslide run-out analysis with the material point method.")
+
+    # -- questions (replaceable in scripts and tests) -----------------------------------------------
+
+    def ask_save_changes(self) -> str:
+        """"save", "discard" or "cancel" for unsaved changes."""
+        answer = QMessageBox.question(
+            self, APP_NAME, f"{self.doc.display_name} has unsaved changes. Save them?",
+            QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Discard | QMessageBox.StandardButton.Cancel,
+            QMessageBox.StandardButton.Save,
+        )
+        return {QMessageBox.StandardButton.Save: "save", QMessageBox.StandardButton.Discard: "discard"}.get(
+            answer, "cancel")
+
+    def ask_open_path(self) -> str | None:
+        start = str(self.doc.path.parent) if self.doc.path else str(Path.cwd())
+        path, _ = QFileDialog.getOpenFileName(self, "Open project", start, PROJECT_FILTER)
+        return path or None
+
+    def ask_save_path(self) -> str | None:
+        start = str(self.doc.path) if self.doc.path else str(Path.cwd() / "untitled.toml")
+        path, _ = QFileDialog.getSaveFileName(self, "Save project as", start, PROJECT_FILTER)
+        if path and not path.endswith(".toml"):
+            path += ".toml"
+        return path or None
+
+    def ask_results_path(self) -> str | None:
+        start = str(self._default_out_dir().parent)
+        return QFileDialog.getExistingDirectory(self, "Open results folder", start) or None
+
+    def ask_stop_run(self) -> bool:
+        answer = QMessageBox.question(self, APP_NAME, "A run is in progress. Stop it and quit?")
+        return answer == QMessageBox.StandardButton.Yes
+
+    def ask_save_invalid(self) -> bool:
+        answer = QMessageBox.question(
+            self, APP_NAME,
+            f"The project has {len(self.doc.problems)} problem(s) and will not run until they are fixed. "
+            "Save it anyway?")
+        return answer == QMessageBox.StandardButton.Yes
+
+    def show_error(self, title: str, text: str) -> None:
+        QMessageBox.warning(self, title, text)
+
+    def show_project_problems(self, path: Path, error: ProjectError, can_open: bool) -> bool:
+        """List what is wrong with a project file; True when the user wants to open it anyway."""
+        dialog = ProblemsDialog(
+            f"Cannot open {path.name}",
+            f"{path} has {len(error.problems)} problem(s):" if len(error.problems) != 1 else f"{path}:",
+            [str(p) for p in error.problems], can_open, self)
+        dialog.exec()
+        return dialog.open_anyway
+
+    # -- files ----------------------------------------------------------------------------------------
+
+    def maybe_save(self) -> bool:
+        """True when it is fine to replace the document (saved, discarded, or nothing to lose)."""
+        if not self.doc.is_dirty:
+            return True
+        answer = self.ask_save_changes()
+        if answer == "save":
+            return self.save()
+        return answer == "discard"
+
+    def new_project(self) -> bool:
+        if not self.maybe_save():
+            return False
+        from app.gui.document import new_project_data
+
+        self.doc.reset(new_project_data())
+        self.statusBar().showMessage("New project: draw a body (Model ▸ Draw body) or use Slope from template", 8000)
+        self.tabs.setCurrentWidget(self.scene)
+        return True
+
+    def open_project_dialog(self) -> bool:
+        if not self.maybe_save():
+            return False
+        path = self.ask_open_path()
+        return self.open_project(path, ask=False) if path else False
+
+    def open_project(self, path: str | os.PathLike[str], ask: bool = True) -> bool:
+        """Open a project file; its problems are listed (and may be fixed here) instead of a traceback."""
+        if ask and not self.maybe_save():
+            return False
+        path = Path(path)
+        try:
+            self.doc.open(path)
+        except ProjectError as err:
+            can_open = self._editable(path)
+            if self.show_project_problems(path, err, can_open):
+                try:
+                    self.doc.open(path, allow_problems=True)
+                except ProjectError as again:
+                    self.show_error(f"Cannot open {path.name}", str(again))
+                    return False
+            else:
+                return False
+        self.settings.add_recent(path, "projects")
+        self.run_panel.out_dir.clear()
+        self.tabs.setCurrentWidget(self.scene)
+        self.scene.fit()
+        self.statusBar().showMessage(f"Opened {path}", 5000)
+        return True
+
+    def _editable(self, path: Path) -> bool:
+        from projects.document import parse_toml
+
+        try:
+            return editable_data(parse_toml(path.read_text(encoding="utf-8"))) is not None
+        except (ProjectError, OSError, UnicodeDecodeError):
+            return False
+
+    def save(self) -> bool:
+        if self.doc.path is None:
+            return self.save_as()
+        return self._save_to(self.doc.path)
+
+    def save_as(self) -> bool:
+        path = self.ask_save_path()
+        return self._save_to(Path(path)) if path else False
+
+    def _save_to(self, path: Path) -> bool:
+        force = False
+        if self.doc.project is None:
+            if not self.ask_save_invalid():
+                return False
+            force = True
+        try:
+            self.doc.save(path, force=force)
+        except OSError as err:
+            self.show_error("Cannot save", f"{path}: {err.strerror or err}")
+            return False
+        self.settings.add_recent(path, "projects")
+        self.statusBar().showMessage(f"Saved {path}", 5000)
+        return True
+
+    def _fill_recent(self) -> None:
+        self.recent_menu.clear()
+        items = self.settings.recent("projects")
+        if not items:
+            self.recent_menu.addAction("(none)").setEnabled(False)
+        for path in items:
+            self.recent_menu.addAction(path).triggered.connect(lambda _c=False, p=path: self.open_project(p))
+
+    def _fill_recent_results(self) -> None:
+        self.recent_results_menu.clear()
+        items = self.settings.recent("results")
+        if not items:
+            self.recent_results_menu.addAction("(none)").setEnabled(False)
+        for path in items:
+            self.recent_results_menu.addAction(path).triggered.connect(lambda _c=False, p=path: self.open_results(p))
+
+    # -- results ---------------------------------------------------------------------------------------
+
+    def open_results_dialog(self) -> bool:
+        path = self.ask_results_path()
+        return self.open_results(path) if path else False
+
+    def open_results(self, path: str | os.PathLike[str]) -> bool:
+        from projects.results import ResultsError
+
+        if self.worker is not None:
+            self.show_error("Run in progress", "Wait for the run to end (or cancel it) before opening results.")
+            return False
+        try:
+            self.results_view.open_results(path)
+        except (ResultsError, OSError) as err:
+            self.show_error("Cannot open results", str(err))
+            return False
+        self.settings.add_recent(path, "results")
+        self.tabs.setCurrentWidget(self.results_view)
+        return True
+
+    def show_compare(self) -> CompareView:
+        if self.compare is None:
+            self.compare = CompareView()
+            for side, button in enumerate(self.compare.open_buttons):
+                button.clicked.connect(lambda _c=False, s=side: self._compare_open(s))
+            self.tabs.addTab(self.compare, "Compare")
+        self.tabs.setCurrentWidget(self.compare)
+        return self.compare
+
+    def _compare_open(self, side: int) -> None:
+        from projects.results import ResultsError
+
+        path = self.ask_results_path()
+        if not path or self.compare is None:
+            return
+        try:
+            self.compare.open_results(side, path)
+        except (ResultsError, OSError) as err:
+            self.show_error("Cannot open results", str(err))
+
+    def _export_path(self, suffix: str) -> Path:
+        results = self.results_view.results
+        base = results.path if results is not None else Path.cwd()
+        field = self.results_view.controls.field_name
+        return base / f"{field}_{self.results_view.frame_index:05d}{suffix}"
+
+    def export_picture_dialog(self) -> None:
+        if self.results_view.results is None:
+            self.show_error("Nothing to export", "Open a results folder (or run the project) first.")
+            return
+        dialog = ExportDialog("picture", self._export_path(".png"), self)
+        if dialog.exec() != QDialog.DialogCode.Accepted:
+            return
+        QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
+        try:
+            path = self.results_view.export_screenshot(dialog.path.text(), dialog.size_px)
+        except (ValueError, OSError) as err:
+            self.show_error("Export failed", str(err))
+            return
+        finally:
+            QApplication.restoreOverrideCursor()
+        self.statusBar().showMessage(f"Wrote {path}", 6000)
+
+    def export_animation_dialog(self) -> None:
+        if self.results_view.results is None:
+            self.show_error("Nothing to export", "Open a results folder (or run the project) first.")
+            return
+        dialog = ExportDialog("movie", self._export_path(".mp4").with_name(
+            f"{self.results_view.controls.field_name}.mp4"), self)
+        if dialog.exec() != QDialog.DialogCode.Accepted:
+            return
+        progress = QProgressDialog("Rendering frames…", "", 0, len(self.results_view.results), self)
+        progress.setCancelButton(None)
+        progress.setWindowModality(Qt.WindowModality.WindowModal)
+        progress.show()
+
+        def step(done: int, total: int) -> None:
+            progress.setMaximum(total)
+            progress.setValue(done)
+            QApplication.processEvents()
+
+        try:
+            path = self.results_view.export_animation(dialog.path.text(), dialog.fps.value(), dialog.size_px, step)
+        except (ValueError, OSError) as err:
+            self.show_error("Export failed", str(err))
+            return
+        finally:
+            progress.close()
+        self.statusBar().showMessage(f"Wrote {path}", 6000)
+
+    def export_curves_dialog(self) -> None:
+        start = str(self._export_path(".csv").with_name("curves.csv"))
+        path, _ = QFileDialog.getSaveFileName(self, "Export curves", start, "CSV (*.csv)")
+        if not path:
+            return
+        try:
+            written = self.results_view.export_curves(path)
+        except (ValueError, OSError) as err:
+            self.show_error("Export failed", str(err))
+            return
+        self.statusBar().showMessage(f"Wrote {written}", 6000)
+
+    # -- model tools ----------------------------------------------------------------------------------
+
+    def slope_dialog(self) -> bool:
+        dialog = SlopeDialog(self.doc.material_names, self)
+        if dialog.exec() != QDialog.DialogCode.Accepted:
+            return False
+        return self.apply_slope(dialog)
+
+    def apply_slope(self, dialog: SlopeDialog) -> bool:
+        """Put the dialog's slope into the project (one undo step, with the domain if asked)."""
+        try:
+            bodies = dialog.bodies()
+        except ValueError as err:
+            self.show_error("Slope from template", str(err))
+            return False
+        cell = self.doc.get("domain.cell_size_m")
+        cell = float(cell) if isinstance(cell, (int, float)) and cell > 0 else 0.25
+        replace, fit = dialog.replace.isChecked(), dialog.fit_domain.isChecked()
+        origin, size = dialog.domain(bodies, cell)
+
+        def mutate(d: dict[str, Any]) -> None:
+            existing = [] if replace else list(d.get("bodies", []))
+            names = {b.get("name") for b in existing}
+            for body in bodies:
+                while body["name"] in names:
+                    body["name"] += "-2"
+                names.add(body["name"])
+            d["bodies"] = existing + bodies
+            if fit:
+                d["domain"]["origin_m"] = origin
+                d["domain"]["size_m"] = size
+
+        self.doc.edit("slope from template", mutate)
+        self.doc.selection.set(None)
+        self.scene.fit()
+        return True
+
+    def go_to_problem(self, path: str) -> None:
+        """Show the panel (and item) a problem's key path names."""
+        parts = path.split(".")
+        section = parts[0] if parts else ""
+        target = {"runout": self.domain_panel, "domain": self.domain_panel, "materials": self.materials_panel,
+                  "bodies": self.bodies_panel, "particles": self.numerics_panel, "numerics": self.numerics_panel,
+                  "stages": self.stages_panel, "output": self.output_panel}.get(section)
+        if target is None:
+            return
+        self.panels.setCurrentWidget(target)
+        if section == "materials" and len(parts) > 1:
+            self.materials_panel.select(parts[1])
+        elif section == "bodies" and len(parts) > 1 and parts[1].isdigit():
+            vertex = int(parts[3]) if len(parts) > 3 and parts[3].isdigit() else None
+            self.doc.selection.set(int(parts[1]), vertex)
+        elif section == "stages" and len(parts) > 1 and parts[1].isdigit():
+            self.stages_panel.select(int(parts[1]))
+
+    # -- runs -------------------------------------------------------------------------------------------
+
+    def _default_out_dir(self) -> Path:
+        from projects.runner import default_results_dir
+
+        if self.doc.path is not None:
+            return default_results_dir(self.doc.path)
+        return Path(tempfile.gettempdir()) / f"runout-untitled-{os.getpid()}.results"
+
+    def out_dir(self) -> Path:
+        text = self.run_panel.out_dir.text().strip()
+        return Path(text).expanduser() if text else self._default_out_dir()
+
+    @property
+    def running(self) -> bool:
+        return self.worker is not None
+
+    def start_run(self) -> bool:
+        """Run the current project in a worker thread; the Results tab shows it live."""
+        if self.worker is not None:
+            return False
+        project = self.doc.project
+        if project is None:
+            self.run_dock.show()
+            self.show_error("Cannot run", "The project has problems:\n" + "\n".join(str(p) for p in self.doc.problems))
+            return False
+        if self.scene.mode == "draw":
+            self.scene.set_mode("select")
+        out_dir = self.out_dir()
+        worker = RunWorker(project, out_dir, self.doc.path, parent=self)
+        worker.progressed.connect(self._on_progress)
+        worker.frameReady.connect(self._frame_waiting)
+        worker.finishedRun.connect(self._on_finished)
+        worker.failedToStart.connect(self._on_failed)
+        self.worker = worker
+        d = project.domain
+        box = (d.origin_m[0], d.origin_m[0] + d.size_m[0], d.origin_m[1], d.origin_m[1] + d.size_m[1])
+        spacing = d.cell_size_m / project.particles.per_cell
+        self.results_view.begin_live(project.runout.title or self.doc.display_name, box, spacing,
+                                     list(project.material_names))
+        self.run_panel.set_running(True)
+        self.actions_["run"].setEnabled(False)
+        self.actions_["cancel"].setEnabled(True)
+        self.tabs.setCurrentWidget(self.results_view)
+        self.statusBar().showMessage(f"Running… results go to {out_dir}")
+        self._run_started = time.perf_counter()
+        self._live_frames = 0
+        worker.start()
+        return True
+
+    def cancel_run(self) -> None:
+        if self.worker is not None:
+            self.worker.cancel()
+            self.run_panel.progress.setFormat("stopping…")
+            self.statusBar().showMessage("Stopping the run after the current steps…")
+
+    def _on_progress(self, progress: Any) -> None:
+        if self._shut:
+            return
+        self.run_panel.show_progress(progress, time.perf_counter() - self._run_started)
+
+    def _frame_waiting(self) -> None:
+        # the first frame at once, then at most every LIVE_INTERVAL_MS: the view shows the
+        # newest frame, the curves get all
+        if self._live_frames == 0:
+            self._take_frames()
+        elif not self._live_timer.isActive():
+            self._live_timer.start()
+
+    def _take_frames(self) -> None:
+        if self.worker is None or self._shut:
+            return
+        frame, diagnostics = self.worker.take()
+        self.results_view.add_live_points(diagnostics)
+        if frame is not None:
+            self.results_view.show_live(frame)
+            self._live_frames += 1
+
+    def _end_worker(self) -> None:
+        self._live_timer.stop()
+        worker, self.worker = self.worker, None
+        if self.last_worker is not None:
+            self.last_worker.deleteLater()
+        self.last_worker = worker  # kept for its timings until the next run ends
+        if worker is not None:
+            worker.wait()
+        self.actions_["run"].setEnabled(True)
+        self.actions_["cancel"].setEnabled(False)
+        self.results_view.end_live()
+
+    def _on_finished(self, result: Any) -> None:
+        if self._shut:
+            return
+        self._end_worker()
+        self.last_result = result
+        self.run_panel.show_result(result.status, result.message, result.summary)
+        summary = result.summary or {}
+        arch = summary.get("arch")
+        if result.status == "completed" and arch in ("cpu", "gpu"):
+            self.settings.record_throughput(arch, float(summary.get("particle_steps_per_s") or 0.0))
+            self.settings.set("last_arch", arch)
+            self.run_panel.update_estimate()
+        from projects.results import ResultsError
+
+        try:
+            self.results_view.open_results(result.out_dir)
+            self.settings.add_recent(result.out_dir, "results")
+        except (ResultsError, OSError, ValueError) as err:
+            logger.warning("cannot show the results: %s", err)
+        self.statusBar().showMessage(f"Run {result.status}: {result.message}", 10000)
+        if result.status == "failed":
+            self.show_error("The run failed", f"{result.message}\n\nFrames written until then are in {result.out_dir}.")
+
+    def _on_failed(self, message: str) -> None:
+        if self._shut:
+            return
+        self._end_worker()
+        self.last_result = None
+        self.run_panel.show_result("failed", message)
+        self.show_error("The run could not start", message)
+
+    def wait_for_run(self, timeout_s: float = 60.0) -> bool:
+        """Process events until the running worker has finished (for scripts and tests)."""
+        end = time.perf_counter() + timeout_s
+        while self.worker is not None and time.perf_counter() < end:
+            QApplication.processEvents()
+            time.sleep(0.01)
+        return self.worker is None
+
+    # -- closing ---------------------------------------------------------------------------------------
+
+    def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt's name
+        if not self._shut:
+            if self.worker is not None and not self.ask_stop_run():
+                event.ignore()
+                return
+            if not self.maybe_save():
+                event.ignore()
+                return
+        self.shutdown()
+        event.accept()
+
+    def shutdown(self) -> None:
+        """Stop a run, release every VTK view and timer (idempotent)."""
+        if self._shut:
+            return
+        self._shut = True
+        self._estimate_timer.stop()
+        self._live_timer.stop()
+        if self.worker is not None:
+            self.worker.cancel()
+            self.worker.wait(30_000)
+            self.worker = None
+        self.scene.close_view()
+        self.results_view.close_view()
+        if self.compare is not None:
+            self.compare.close_view()

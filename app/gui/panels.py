@@ -1,0 +1,1086 @@
+"""The project panels: domain, materials, bodies, numerics, stages and output.
+
+Each panel is a form of bound editors (:mod:`app.gui.fields`) plus lists for the named or
+numbered parts of the project. Panels only read the document and push edits to it; they rebuild
+what they show when the document's ``changed`` signal names their section.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from typing import Any
+
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtGui import QBrush, QColor, QIcon, QPixmap
+from PySide6.QtWidgets import (
+    QAbstractItemView,
+    QCheckBox,
+    QComboBox,
+    QFormLayout,
+    QGridLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QHeaderView,
+    QInputDialog,
+    QLabel,
+    QLineEdit,
+    QListWidget,
+    QListWidgetItem,
+    QMenu,
+    QPushButton,
+    QRadioButton,
+    QScrollArea,
+    QStyledItemDelegate,
+    QTableWidget,
+    QTableWidgetItem,
+    QToolButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app.gui.document import (
+    FIELD_INFO,
+    MATERIAL_KEYS,
+    PLASTIC_KEYS,
+    ProjectDocument,
+    check_value,
+    format_number,
+    parse_number,
+)
+from app.gui.fields import ChoiceField, IntField, NumberField, PairField, TextField
+from app.gui.settings import MaterialLibrary
+from projects.schema import (
+    ARCHS,
+    BOUNDARY_TYPES,
+    MATERIAL_MODELS,
+    OUTPUT_FIELDS,
+    PRECISIONS,
+    SCHEMES,
+    SEEDINGS,
+    SIDES,
+    STAGE_TYPES,
+)
+
+logger = logging.getLogger(__name__)
+
+#: Material colours by material id; the same palette (matplotlib's tab10) as the results' "material" field.
+MATERIAL_COLORS: tuple[str, ...] = (
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
+    "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf",
+)
+_NAME = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+def material_color(index: int) -> str:
+    return MATERIAL_COLORS[index % len(MATERIAL_COLORS)] if index >= 0 else "#b0b0b0"
+
+
+def swatch(color: str, size: int = 12) -> QIcon:
+    pixmap = QPixmap(size, size)
+    pixmap.fill(QColor(color))
+    return QIcon(pixmap)
+
+
+def _small_button(text: str, tip: str) -> QToolButton:
+    button = QToolButton()
+    button.setText(text)
+    button.setToolTip(tip)
+    button.setAutoRaise(False)
+    return button
+
+
+class Panel(QScrollArea):
+    """A scrollable form with a message line for what is wrong with the last typed value."""
+
+    def __init__(self, doc: ProjectDocument, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.doc = doc
+        self.setWidgetResizable(True)
+        self.setFrameShape(QScrollArea.Shape.NoFrame)
+        body = QWidget()
+        self.layout_ = QVBoxLayout(body)
+        self.layout_.setContentsMargins(6, 6, 6, 6)
+        self.setWidget(body)
+        self.message = QLabel("")
+        self.message.setWordWrap(True)
+        self.message.setStyleSheet("color: #b3261e;")
+        doc.changed.connect(self._on_changed)
+
+    def finish(self) -> None:
+        self.layout_.addWidget(self.message)
+        self.layout_.addStretch(1)
+
+    def watch(self, *fields: Any) -> None:
+        for field in fields:
+            field.message.connect(self.show_message)
+
+    def show_message(self, text: str) -> None:
+        self.message.setText(text)
+
+    def _on_changed(self, sections: frozenset) -> None:
+        """Rebuild lists; bound fields refresh themselves."""
+
+
+def _form(title: str) -> tuple[QGroupBox, QFormLayout]:
+    box = QGroupBox(title)
+    form = QFormLayout(box)
+    form.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.AllNonFixedFieldsGrow)
+    return box, form
+
+
+# --------------------------------------------------------------------------------------------
+# domain
+
+
+class DomainPanel(Panel):
+    """Title, grid box, cell size, gravity and the four boundaries."""
+
+    def __init__(self, doc: ProjectDocument, parent: QWidget | None = None) -> None:
+        super().__init__(doc, parent)
+        box, form = _form("Project")
+        self.title = TextField(doc, "runout.title", "Title")
+        form.addRow("Title", self.title)
+        self.layout_.addWidget(box)
+
+        box, form = _form("Background grid")
+        self.origin = PairField(doc, "domain.origin_m", "Origin", "m")
+        self.size = PairField(doc, "domain.size_m", "Size", "m", names=("w", "h"))
+        self.cell = NumberField(doc, "domain.cell_size_m", "Cell size", "m")
+        self.grid_info = QLabel("")
+        self.grid_info.setStyleSheet("color: #555;")
+        form.addRow("Origin", self.origin)
+        form.addRow("Size", self.size)
+        form.addRow("Cell size", self.cell)
+        form.addRow("", self.grid_info)
+        self.layout_.addWidget(box)
+
+        box, form = _form("Gravity")
+        self.gravity = PairField(doc, "domain.gravity_m_s2", "Gravity", "m/s²", names=("gx", "gy"))
+        form.addRow("Acceleration", self.gravity)
+        self.layout_.addWidget(box)
+
+        box = QGroupBox("Boundaries")
+        grid = QGridLayout(box)
+        grid.addWidget(QLabel("Side"), 0, 0)
+        grid.addWidget(QLabel("Condition"), 0, 1)
+        grid.addWidget(QLabel("Friction angle"), 0, 2)
+        self.side_types: dict[str, QComboBox] = {}
+        self.side_angles: dict[str, NumberField] = {}
+        for row, side in enumerate(SIDES, start=1):
+            combo = QComboBox()
+            combo.addItems(list(BOUNDARY_TYPES))
+            combo.setAccessibleName(f"{side} boundary")
+            combo.activated.connect(lambda _i, s=side: self._type_chosen(s))
+            angle = NumberField(doc, None, f"{side} friction angle", "°")
+            grid.addWidget(QLabel(side), row, 0)
+            grid.addWidget(combo, row, 1)
+            grid.addWidget(angle, row, 2)
+            self.side_types[side] = combo
+            self.side_angles[side] = angle
+        self.layout_.addWidget(box)
+        self.watch(self.title, self.origin, self.size, self.cell, self.gravity, *self.side_angles.values())
+        self.finish()
+        self._on_changed(frozenset({"domain"}))
+
+    def _boundary(self, side: str) -> Any:
+        return self.doc.get(f"domain.boundaries.{side}", "slip")
+
+    def _type_chosen(self, side: str) -> None:
+        kind = self.side_types[side].currentText()
+        old = self._boundary(side)
+        old_kind = old.get("type") if isinstance(old, dict) else old
+        if kind == old_kind:
+            return
+        if kind == "friction":
+            # start from the friction angle of the first frictional material, else 20 degrees
+            materials = self.doc.get("materials") or {}
+            start = next((m.get("friction_angle_deg") for m in materials.values()
+                          if isinstance(m, dict) and m.get("friction_angle_deg") is not None), 20.0)
+            value: Any = {"type": "friction", "friction_angle_deg": start}
+        else:
+            value = kind
+        self.doc.set_value(f"domain.boundaries.{side}", value, f"set {side} boundary to {kind}")
+
+    def set_boundary(self, side: str, kind: str) -> None:
+        """Choose a boundary type as a user would."""
+        self.side_types[side].setCurrentText(kind)
+        self._type_chosen(side)
+
+    def _on_changed(self, sections: frozenset) -> None:
+        if "domain" not in sections:
+            return
+        for side in SIDES:
+            boundary = self._boundary(side)
+            kind = boundary.get("type", "slip") if isinstance(boundary, dict) else str(boundary)
+            self.side_types[side].setCurrentText(kind)
+            friction = kind == "friction"
+            self.side_angles[side].set_path(f"domain.boundaries.{side}.friction_angle_deg" if friction else None)
+        size = self.doc.get("domain.size_m")
+        cell = self.doc.get("domain.cell_size_m")
+        try:
+            nx, ny = (max(1, round(float(s) / float(cell))) for s in size)
+            self.grid_info.setText(f"{nx} × {ny} = {nx * ny:,} cells")
+        except (TypeError, ValueError, ZeroDivisionError):
+            self.grid_info.setText("")
+
+
+# --------------------------------------------------------------------------------------------
+# materials
+
+
+class MaterialsPanel(Panel):
+    """The materials (their order is their id), one form for the selected one, and the library."""
+
+    def __init__(self, doc: ProjectDocument, library: MaterialLibrary, parent: QWidget | None = None) -> None:
+        super().__init__(doc, parent)
+        self.library = library
+        self.list = QListWidget()
+        self.list.setMaximumHeight(120)
+        self.list.currentRowChanged.connect(self._select)
+        self.layout_.addWidget(self.list)
+
+        buttons = QHBoxLayout()
+        self.add_button = QPushButton("Add")
+        self.add_button.clicked.connect(self.add_material)
+        self.copy_button = QPushButton("Duplicate")
+        self.copy_button.clicked.connect(self.duplicate_material)
+        self.remove_button = QPushButton("Remove")
+        self.remove_button.clicked.connect(self.remove_material)
+        self.library_button = QPushButton("Library")
+        self.library_menu = QMenu(self.library_button)
+        self.library_menu.aboutToShow.connect(self._fill_library_menu)
+        self.library_button.setMenu(self.library_menu)
+        for b in (self.add_button, self.copy_button, self.remove_button, self.library_button):
+            buttons.addWidget(b)
+        self.layout_.addLayout(buttons)
+
+        box, form = _form("Selected material")
+        self.name = QLineEdit()
+        self.name.setAccessibleName("Material name")
+        self.name.editingFinished.connect(self._rename)
+        self.model = ChoiceField(doc, None, "Model", MATERIAL_MODELS)
+        self.model.combo.activated.disconnect()
+        self.model.combo.activated.connect(self._model_chosen)
+        form.addRow("Name", self.name)
+        form.addRow("Model", self.model)
+        self.fields: dict[str, NumberField] = {}
+        for key in MATERIAL_KEYS:
+            label, unit = FIELD_INFO[key]
+            optional = key == "tensile_strength_pa"
+            field = NumberField(doc, None, label, unit, optional=optional,
+                                placeholder="no cut-off" if optional else "")
+            self.fields[key] = field
+            form.addRow(label, field)
+            self.watch(field)
+        self.layout_.addWidget(box)
+        self.used_by = QLabel("")
+        self.used_by.setWordWrap(True)
+        self.used_by.setStyleSheet("color: #555;")
+        self.layout_.addWidget(self.used_by)
+        self.finish()
+        self._current: str | None = None
+        self._on_changed(frozenset({"materials"}))
+
+    # -- list ---------------------------------------------------------------------------------
+
+    @property
+    def current(self) -> str | None:
+        return self._current
+
+    def select(self, name: str) -> None:
+        names = self.doc.material_names
+        if name in names:
+            self.list.setCurrentRow(names.index(name))
+
+    def _select(self, row: int) -> None:
+        names = self.doc.material_names
+        self._current = names[row] if 0 <= row < len(names) else None
+        self._bind()
+
+    def _bind(self) -> None:
+        name = self._current
+        base = f"materials.{name}" if name is not None else None
+        self.name.setText(name or "")
+        self.name.setEnabled(name is not None)
+        self.model.set_path(f"{base}.model" if base else None)
+        plastic = base is not None and self.doc.get(f"{base}.model") == "drucker-prager"
+        for key, field in self.fields.items():
+            enabled = base is not None and (plastic or key not in PLASTIC_KEYS)
+            field.set_path(f"{base}.{key}" if enabled else None)
+            if not enabled:
+                field.edit.setText("")
+                field.edit.setPlaceholderText("—" if base else "")
+        if name is not None:
+            users = [b.get("name", "?") for b in self.doc.get("bodies", []) if b.get("material") == name]
+            self.used_by.setText("Used by: " + (", ".join(users) if users else "no body"))
+        else:
+            self.used_by.setText("")
+
+    def _on_changed(self, sections: frozenset) -> None:
+        if not sections & {"materials", "bodies"}:
+            return
+        names = self.doc.material_names
+        self.list.blockSignals(True)
+        self.list.clear()
+        for i, name in enumerate(names):
+            model = self.doc.get(f"materials.{name}.model", "?")
+            item = QListWidgetItem(swatch(material_color(i)), f"{name}   ({model})")
+            self.list.addItem(item)
+        if self._current not in names:
+            self._current = names[0] if names else None
+        if self._current is not None:
+            self.list.setCurrentRow(names.index(self._current))
+        self.list.blockSignals(False)
+        self._bind()
+
+    # -- edits --------------------------------------------------------------------------------
+
+    def _free_name(self, base: str) -> str:
+        names = set(self.doc.material_names)
+        if base not in names:
+            return base
+        i = 2
+        while f"{base}-{i}" in names:
+            i += 1
+        return f"{base}-{i}"
+
+    def add_material(self, material: dict[str, Any] | None = None, name: str = "material") -> str:
+        """Append a material (a copy of the selected one's model defaults) and select it."""
+        name = self._free_name(name)
+        table = dict(material) if material else {
+            "model": "drucker-prager", "density_kg_m3": 2000.0, "youngs_modulus_pa": 1.0e7,
+            "poisson_ratio": 0.3, "cohesion_pa": 0.0, "friction_angle_deg": 30.0, "dilatancy_angle_deg": 0.0,
+        }
+        self.doc.edit(f"add material {name}", lambda d: d.setdefault("materials", {}).__setitem__(name, table))
+        self._current = name
+        self._on_changed(frozenset({"materials"}))
+        return name
+
+    def duplicate_material(self) -> None:
+        if self._current is not None:
+            self.add_material(dict(self.doc.get(f"materials.{self._current}")), self._current)
+
+    def remove_material(self) -> None:
+        name = self._current
+        if name is None:
+            return
+        users = [b.get("name", "?") for b in self.doc.get("bodies", []) if b.get("material") == name]
+        if users:
+            self.show_message(f"{name} is used by {', '.join(users)}: give them another material first")
+            return
+
+        def mutate(d: dict[str, Any]) -> None:
+            d["materials"].pop(name, None)
+            for stage in d.get("stages", []):
+                changes = stage.get("material_changes")
+                if isinstance(changes, dict):
+                    changes.pop(name, None)
+                    if not changes:
+                        stage.pop("material_changes")
+
+        self.doc.edit(f"remove material {name}", mutate)
+
+    def _rename(self) -> None:
+        old, new = self._current, self.name.text().strip()
+        if old is None or new == old:
+            return
+        if not _NAME.match(new):
+            self.show_message("Material names may only use letters, digits, _ and -")
+            self.name.setText(old)
+            return
+        if new in self.doc.material_names:
+            self.show_message(f"There is already a material named {new}")
+            self.name.setText(old)
+            return
+        self._current = new
+        self.doc.rename_material(old, new)
+
+    def rename(self, new: str) -> None:
+        self.name.setText(new)
+        self._rename()
+
+    def _model_chosen(self, _index: int) -> None:
+        self.set_model(self.model.combo.currentText())
+
+    def set_model(self, model: str) -> None:
+        """Change the selected material's model; Drucker-Prager gets default strength values."""
+        name = self._current
+        if name is None or self.doc.get(f"materials.{name}.model") == model:
+            return
+
+        def mutate(d: dict[str, Any]) -> None:
+            table = d["materials"][name]
+            table["model"] = model
+            if model == "linear-elastic":
+                for key in PLASTIC_KEYS:
+                    table.pop(key, None)
+                for stage in d.get("stages", []):
+                    change = stage.get("material_changes", {}).get(name)
+                    if isinstance(change, dict):
+                        for key in PLASTIC_KEYS:
+                            change.pop(key, None)
+            else:
+                table.setdefault("cohesion_pa", 0.0)
+                table.setdefault("friction_angle_deg", 30.0)
+                table.setdefault("dilatancy_angle_deg", 0.0)
+
+        self.doc.edit(f"make {name} {model}", mutate)
+
+    # -- library ------------------------------------------------------------------------------
+
+    def _fill_library_menu(self) -> None:
+        menu = self.library_menu
+        menu.clear()
+        save = menu.addAction("Save selected to library…")
+        save.setEnabled(self._current is not None)
+        save.triggered.connect(self.save_to_library)
+        menu.addSeparator()
+        names = self.library.names()
+        if not names:
+            empty = menu.addAction("(library is empty)")
+            empty.setEnabled(False)
+        for name in names:
+            action = menu.addAction(f"Insert {name}")
+            action.triggered.connect(lambda _c=False, n=name: self.insert_from_library(n))
+        if names:
+            menu.addSeparator()
+            forget = menu.addMenu("Remove from library")
+            for name in names:
+                action = forget.addAction(name)
+                action.triggered.connect(lambda _c=False, n=name: self.library.remove(n))
+
+    def save_to_library(self, name: str | None = None) -> None:
+        if self._current is None:
+            return
+        if name is None:
+            name, ok = QInputDialog.getText(self, "Save to library", "Library name:", text=self._current)
+            if not ok or not name.strip():
+                return
+        self.library.put(name.strip(), dict(self.doc.get(f"materials.{self._current}")))
+        self.show_message(f"Saved {self._current} to the library as {name.strip()} ({self.library.path})")
+
+    def insert_from_library(self, name: str) -> str:
+        """Add the library material ``name`` to the project (renamed if the name is taken)."""
+        safe = re.sub(r"[^A-Za-z0-9_-]+", "-", name).strip("-") or "material"
+        return self.add_material(self.library.get(name), safe)
+
+
+# --------------------------------------------------------------------------------------------
+# bodies
+
+
+class _NumberDelegate(QStyledItemDelegate):
+    """Cell editor that shows typed text in red until it is a number."""
+
+    def createEditor(self, parent: QWidget, option: Any, index: Any) -> QWidget:  # noqa: N802
+        editor = QLineEdit(parent)
+        editor.setAlignment(Qt.AlignmentFlag.AlignRight)
+        editor.textEdited.connect(
+            lambda text, e=editor: e.setStyleSheet("" if parse_number(text) is not None else "background: #fde2e1;")
+        )
+        return editor
+
+
+class BodiesPanel(Panel):
+    """Bodies in painting order (overlaps go to the later body), the selected body's form and vertices.
+
+    Signals
+    -------
+    drawRequested()
+        The user wants to draw a new body in the scene view.
+    templateRequested()
+        The user wants the slope-from-template dialog.
+    """
+
+    drawRequested = Signal()
+    templateRequested = Signal()
+
+    def __init__(self, doc: ProjectDocument, parent: QWidget | None = None) -> None:
+        super().__init__(doc, parent)
+        self.list = QListWidget()
+        self.list.setMaximumHeight(130)
+        self.list.currentRowChanged.connect(self._row_chosen)
+        self.layout_.addWidget(self.list)
+
+        buttons = QHBoxLayout()
+        self.draw_button = QPushButton("Draw…")
+        self.draw_button.setToolTip(
+            "Draw a new body in the view: click vertices, click the first one (or Enter) to close")
+        self.draw_button.clicked.connect(self.drawRequested)
+        self.template_button = QPushButton("Slope…")
+        self.template_button.setToolTip("Bodies of a slope from a template (height, angle, layers)")
+        self.template_button.clicked.connect(self.templateRequested)
+        self.delete_button = QPushButton("Delete")
+        self.delete_button.clicked.connect(self.delete_body)
+        self.up_button = _small_button("▲", "Paint earlier (overlaps go to the later body)")
+        self.up_button.clicked.connect(lambda: self.move_body(-1))
+        self.down_button = _small_button("▼", "Paint later")
+        self.down_button.clicked.connect(lambda: self.move_body(1))
+        for b in (self.draw_button, self.template_button, self.delete_button, self.up_button, self.down_button):
+            buttons.addWidget(b)
+        self.layout_.addLayout(buttons)
+
+        box, form = _form("Selected body")
+        self.name = TextField(doc, None, "Body name")
+        self.material = QComboBox()
+        self.material.setAccessibleName("Body material")
+        self.material.activated.connect(self._material_chosen)
+        self.velocity = PairField(doc, None, "Initial velocity", "m/s", names=("vx", "vy"))
+        form.addRow("Name", self.name)
+        form.addRow("Material", self.material)
+        form.addRow("Initial velocity", self.velocity)
+        self.layout_.addWidget(box)
+
+        box = QGroupBox("Vertices")
+        vbox = QVBoxLayout(box)
+        self.table = QTableWidget(0, 2)
+        self.table.setHorizontalHeaderLabels(["x (m)", "y (m)"])
+        self.table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.Stretch)
+        self.table.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
+        self.table.setSelectionMode(QAbstractItemView.SelectionMode.SingleSelection)
+        self.table.setItemDelegate(_NumberDelegate(self.table))
+        self.table.setMinimumHeight(160)
+        self.table.itemChanged.connect(self._cell_edited)
+        self.table.currentCellChanged.connect(self._vertex_chosen)
+        vbox.addWidget(self.table)
+        row = QHBoxLayout()
+        self.insert_button = QPushButton("Insert vertex")
+        self.insert_button.setToolTip("Split the edge after the selected vertex at its midpoint")
+        self.insert_button.clicked.connect(self.insert_vertex)
+        self.remove_vertex_button = QPushButton("Delete vertex")
+        self.remove_vertex_button.clicked.connect(self.delete_vertex)
+        row.addWidget(self.insert_button)
+        row.addWidget(self.remove_vertex_button)
+        vbox.addLayout(row)
+        self.layout_.addWidget(box)
+        self.shape_status = QLabel("")
+        self.shape_status.setWordWrap(True)
+        self.layout_.addWidget(self.shape_status)
+        self.watch(self.name, self.velocity)
+        self.finish()
+        doc.selection.changed.connect(self._selection_changed)
+        self._filling = False
+        self._on_changed(frozenset({"bodies"}))
+
+    # -- sync ---------------------------------------------------------------------------------
+
+    def _bodies(self) -> list[dict[str, Any]]:
+        return self.doc.get("bodies", [])
+
+    def _row_chosen(self, row: int) -> None:
+        if not self._filling:
+            self.doc.selection.set(row if row >= 0 else None)
+
+    def _vertex_chosen(self, row: int, _col: int, _prow: int, _pcol: int) -> None:
+        if not self._filling and self.doc.selection.body is not None:
+            self.doc.selection.set(self.doc.selection.body, row if row >= 0 else None)
+
+    def _selection_changed(self) -> None:
+        self._fill()
+
+    def _on_changed(self, sections: frozenset) -> None:
+        if sections & {"bodies", "materials", "domain"}:
+            self._fill()
+
+    def _fill(self) -> None:
+        self._filling = True
+        try:
+            bodies = self._bodies()
+            names = self.doc.material_names
+            self.list.clear()
+            for body in bodies:
+                mat = body.get("material", "?")
+                index = names.index(mat) if mat in names else -1
+                item = QListWidgetItem(swatch(material_color(index)), f"{body.get('name', '?')}   ({mat})")
+                self.list.addItem(item)
+            sel = self.doc.selection.body
+            self.list.setCurrentRow(sel if sel is not None else -1)
+            base = f"bodies.{sel}" if sel is not None else None
+            self.name.set_path(f"{base}.name" if base else None)
+            self.velocity.set_path(f"{base}.initial_velocity_m_s" if base else None)
+            if base is not None and self.doc.get(f"{base}.initial_velocity_m_s") is None:
+                for edit in self.velocity.edits:
+                    edit.setText("0")
+            self.material.clear()
+            self.material.addItems(names)
+            self.material.setEnabled(base is not None)
+            if base is not None:
+                self.material.setCurrentText(str(self.doc.get(f"{base}.material", "")))
+            polygon = self.doc.get(f"{base}.polygon_m", []) if base else []
+            self.table.setRowCount(len(polygon))
+            for i, point in enumerate(polygon):
+                for j in range(2):
+                    item = QTableWidgetItem(format_number(point[j]))
+                    item.setTextAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+                    self.table.setItem(i, j, item)
+            self._flag_vertices(sel)
+            vertex = self.doc.selection.vertex
+            if vertex is not None and vertex < len(polygon):
+                self.table.setCurrentCell(vertex, 0)
+            else:
+                self.table.clearSelection()
+            for b in (self.delete_button, self.up_button, self.down_button, self.insert_button,
+                      self.remove_vertex_button):
+                b.setEnabled(sel is not None)
+        finally:
+            self._filling = False
+
+    def _flag_vertices(self, sel: int | None) -> None:
+        """Colour the rows of vertices that a problem names; say what is wrong with the shape."""
+        if sel is None:
+            self.shape_status.setText("")
+            return
+        problems = self.doc.problems_at(f"bodies.{sel}")
+        bad_rows = set()
+        for p in problems:
+            parts = p.path.split(".")
+            if len(parts) >= 4 and parts[2] == "polygon_m" and parts[3].isdigit():
+                bad_rows.add(int(parts[3]))
+        for row in bad_rows:
+            for j in range(2):
+                item = self.table.item(row, j)
+                if item is not None:
+                    item.setBackground(QBrush(QColor("#fde2e1")))
+        self.shape_status.setText("\n".join(str(p) for p in problems))
+        self.shape_status.setStyleSheet("color: #b3261e;" if problems else "")
+
+    def _cell_edited(self, item: QTableWidgetItem) -> None:
+        if self._filling or self.doc.selection.body is None:
+            return
+        value = parse_number(item.text())
+        body, row, col = self.doc.selection.body, item.row(), item.column()
+        if value is None:
+            self.show_message(f"vertex {row}: {'x' if col == 0 else 'y'} must be a number")
+            self._fill()
+            return
+        self.set_vertex(body, row, col, value)
+
+    # -- edits --------------------------------------------------------------------------------
+
+    def set_vertex(self, body: int, row: int, col: int, value: float) -> None:
+        def mutate(d: dict[str, Any]) -> None:
+            d["bodies"][body]["polygon_m"][row][col] = float(value)
+
+        self.doc.edit(f"move vertex {row} of {self._bodies()[body].get('name', body)}", mutate)
+
+    def _material_chosen(self, _index: int) -> None:
+        sel = self.doc.selection.body
+        if sel is not None:
+            self.doc.set_value(f"bodies.{sel}.material", self.material.currentText(), "change body material")
+
+    def set_material(self, name: str) -> None:
+        self.material.setCurrentText(name)
+        self._material_chosen(self.material.currentIndex())
+
+    def delete_body(self) -> None:
+        sel = self.doc.selection.body
+        if sel is None:
+            return
+        name = self._bodies()[sel].get("name", sel)
+        self.doc.edit(f"delete body {name}", lambda d: d["bodies"].pop(sel))
+        bodies = self._bodies()
+        self.doc.selection.set(min(sel, len(bodies) - 1) if bodies else None)
+
+    def move_body(self, step: int) -> None:
+        sel = self.doc.selection.body
+        bodies = self._bodies()
+        if sel is None or not 0 <= sel + step < len(bodies):
+            return
+
+        def mutate(d: dict[str, Any]) -> None:
+            items = d["bodies"]
+            items[sel], items[sel + step] = items[sel + step], items[sel]
+
+        self.doc.edit("reorder bodies", mutate)
+        self.doc.selection.set(sel + step)
+
+    def insert_vertex(self) -> None:
+        sel, vertex = self.doc.selection.body, self.doc.selection.vertex
+        if sel is None:
+            return
+        polygon = self._bodies()[sel].get("polygon_m", [])
+        if len(polygon) < 2:
+            return
+        i = vertex if vertex is not None else len(polygon) - 1
+        a, b = polygon[i], polygon[(i + 1) % len(polygon)]
+        mid = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0]
+        self.doc.edit("insert vertex", lambda d: d["bodies"][sel]["polygon_m"].insert(i + 1, mid))
+        self.doc.selection.set(sel, i + 1)
+
+    def delete_vertex(self) -> None:
+        sel, vertex = self.doc.selection.body, self.doc.selection.vertex
+        if sel is None or vertex is None:
+            return
+        self.doc.edit("delete vertex", lambda d: d["bodies"][sel]["polygon_m"].pop(vertex))
+
+
+# --------------------------------------------------------------------------------------------
+# numerics (with particles)
+
+
+class NumericsPanel(Panel):
+    """Particles per cell and seeding; scheme, time step or CFL, precision and device."""
+
+    def __init__(self, doc: ProjectDocument, parent: QWidget | None = None) -> None:
+        super().__init__(doc, parent)
+        box, form = _form("Particles")
+        self.per_cell = IntField(doc, "particles.per_cell", "Particles per cell", 1, 8, 2, " per direction")
+        self.per_cell_info = QLabel("")
+        self.per_cell_info.setStyleSheet("color: #555;")
+        self.seeding = ChoiceField(doc, "particles.seeding", "Seeding", SEEDINGS, default="lattice")
+        form.addRow("Per cell", self.per_cell)
+        form.addRow("", self.per_cell_info)
+        form.addRow("Seeding", self.seeding)
+        self.layout_.addWidget(box)
+
+        box, form = _form("Time integration")
+        self.scheme = ChoiceField(doc, "numerics.scheme", "Scheme", SCHEMES, default="apic-affine")
+        form.addRow("Scheme", self.scheme)
+        self.use_cfl = QRadioButton("CFL number (fraction of the critical step)")
+        self.use_dt = QRadioButton("Fixed time step")
+        self.use_cfl.toggled.connect(self._mode_chosen)
+        form.addRow(self.use_cfl)
+        self.cfl = NumberField(doc, "numerics.cfl", "CFL number", "–")
+        form.addRow("CFL", self.cfl)
+        form.addRow(self.use_dt)
+        self.dt = NumberField(doc, "numerics.time_step_s", "Time step", "s")
+        form.addRow("Time step", self.dt)
+        self.layout_.addWidget(box)
+
+        box, form = _form("Computation")
+        self.precision = ChoiceField(doc, "numerics.precision", "Precision", PRECISIONS, default="f32")
+        self.arch = ChoiceField(doc, "numerics.arch", "Device", ARCHS, default="auto")
+        form.addRow("Precision", self.precision)
+        form.addRow("Device", self.arch)
+        self.layout_.addWidget(box)
+        self.watch(self.cfl, self.dt)
+        self.finish()
+        self._on_changed(frozenset({"numerics", "particles"}))
+
+    def _mode_chosen(self, cfl: bool) -> None:
+        has_dt = self.doc.get("numerics.time_step_s") is not None
+        if cfl and has_dt:
+            self.doc.edit("use a CFL number", lambda d: (d["numerics"].pop("time_step_s", None),
+                                                        d["numerics"].__setitem__("cfl", 0.5)))
+        elif not cfl and not has_dt:
+            # start from the step the CFL number gives now, so the switch changes nothing at first
+            dt = self._current_dt() or 1.0e-4
+            self.doc.edit("use a fixed time step", lambda d: (d["numerics"].pop("cfl", None),
+                                                             d["numerics"].__setitem__("time_step_s", dt)))
+
+    def _current_dt(self) -> float | None:
+        if self.doc.project is None:
+            return None
+        from projects.build import estimate
+
+        try:
+            return float(f"{estimate(self.doc.project)['time_step_s']:.3g}")
+        except (ValueError, ZeroDivisionError):
+            return None
+
+    def _on_changed(self, sections: frozenset) -> None:
+        if not sections & {"numerics", "particles"}:
+            return
+        has_dt = self.doc.get("numerics.time_step_s") is not None
+        for w in (self.use_cfl, self.use_dt):
+            w.blockSignals(True)
+        self.use_dt.setChecked(has_dt)
+        self.use_cfl.setChecked(not has_dt)
+        for w in (self.use_cfl, self.use_dt):
+            w.blockSignals(False)
+        self.cfl.set_path(None if has_dt else "numerics.cfl")
+        self.dt.set_path("numerics.time_step_s" if has_dt else None)
+        n = self.doc.get("particles.per_cell", 2)
+        if isinstance(n, int):
+            self.per_cell_info.setText(f"{n * n} particles in a full cell")
+
+
+# --------------------------------------------------------------------------------------------
+# stages
+
+
+class StagesPanel(Panel):
+    """The stages in order, the selected stage's settings and its material changes."""
+
+    def __init__(self, doc: ProjectDocument, parent: QWidget | None = None) -> None:
+        super().__init__(doc, parent)
+        self.list = QListWidget()
+        self.list.setMaximumHeight(110)
+        self.list.currentRowChanged.connect(self._select)
+        self.layout_.addWidget(self.list)
+        buttons = QHBoxLayout()
+        self.add_button = QPushButton("Add")
+        add_menu = QMenu(self.add_button)
+        for kind in STAGE_TYPES:
+            add_menu.addAction(kind).triggered.connect(lambda _c=False, k=kind: self.add_stage(k))
+        self.add_button.setMenu(add_menu)
+        self.remove_button = QPushButton("Remove")
+        self.remove_button.clicked.connect(self.remove_stage)
+        self.up_button = _small_button("▲", "Earlier")
+        self.up_button.clicked.connect(lambda: self.move_stage(-1))
+        self.down_button = _small_button("▼", "Later")
+        self.down_button.clicked.connect(lambda: self.move_stage(1))
+        for b in (self.add_button, self.remove_button, self.up_button, self.down_button):
+            buttons.addWidget(b)
+        self.layout_.addLayout(buttons)
+
+        box, form = _form("Selected stage")
+        self.name = TextField(doc, None, "Stage name", optional=True)
+        self.kind = ChoiceField(doc, None, "Stage type", STAGE_TYPES)
+        self.duration = NumberField(doc, None, "Duration", "s")
+        self.k0 = NumberField(doc, None, "K0", "–", optional=True, placeholder="1 − sin φ per material")
+        self.damping = NumberField(doc, None, "Local damping", "–", optional=True, placeholder="none")
+        self.damping.commit = self._commit_damping  # type: ignore[method-assign]
+        self.stop_ke = NumberField(doc, None, "Stop when kinetic energy below", "× peak", optional=True,
+                                   placeholder="run the full duration")
+        self.min_duration = NumberField(doc, None, "Minimum duration", "s", optional=True)
+        form.addRow("Name", self.name)
+        form.addRow("Type", self.kind)
+        form.addRow("Duration", self.duration)
+        form.addRow("K0", self.k0)
+        form.addRow("Damping", self.damping)
+        form.addRow("Stop at KE below", self.stop_ke)
+        form.addRow("Min. duration", self.min_duration)
+        self.layout_.addWidget(box)
+
+        box = QGroupBox("Material changes at the start of this stage")
+        vbox = QVBoxLayout(box)
+        self.changes = QTableWidget(0, 3)
+        self.changes.setHorizontalHeaderLabels(["Material", "Property", "New value"])
+        self.changes.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.Stretch)
+        self.changes.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
+        self.changes.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
+        self.changes.setMaximumHeight(120)
+        vbox.addWidget(self.changes)
+        row = QHBoxLayout()
+        self.change_material = QComboBox()
+        self.change_material.setAccessibleName("Changed material")
+        self.change_material.setMinimumWidth(80)
+        self.change_material.setSizeAdjustPolicy(QComboBox.SizeAdjustPolicy.AdjustToContents)
+        self.change_key = QComboBox()
+        self.change_key.setAccessibleName("Changed property")
+        for key in MATERIAL_KEYS:
+            self.change_key.addItem(f"{FIELD_INFO[key][0]} ({FIELD_INFO[key][1]})", key)
+        self.change_value = QLineEdit()
+        self.change_value.setPlaceholderText("value")
+        self.change_value.setAccessibleName("New value")
+        self.change_set = QPushButton("Set")
+        self.change_set.clicked.connect(self._set_change)
+        self.change_remove = QPushButton("Remove")
+        self.change_remove.clicked.connect(self._remove_change)
+        for w in (self.change_material, self.change_key, self.change_value, self.change_set, self.change_remove):
+            row.addWidget(w)
+        vbox.addLayout(row)
+        self.layout_.addWidget(box)
+        self.watch(self.name, self.duration, self.k0, self.damping, self.stop_ke, self.min_duration)
+        self.finish()
+        self._current: int | None = None
+        self._on_changed(frozenset({"stages"}))
+
+    @property
+    def current(self) -> int | None:
+        return self._current
+
+    def select(self, index: int) -> None:
+        self.list.setCurrentRow(index)
+
+    def _stages(self) -> list[dict[str, Any]]:
+        return self.doc.get("stages", [])
+
+    def _select(self, row: int) -> None:
+        stages = self._stages()
+        self._current = row if 0 <= row < len(stages) else None
+        self._bind()
+
+    def _bind(self) -> None:
+        i = self._current
+        base = f"stages.{i}" if i is not None else None
+        kind = self.doc.get(f"{base}.type") if base else None
+        self.name.set_path(f"{base}.name" if base else None)
+        self.kind.set_path(f"{base}.type" if base else None)
+        self.duration.set_path(f"{base}.duration_s" if base and kind != "k0" else None)
+        self.k0.set_path(f"{base}.k0" if base and kind == "k0" else None)
+        self.damping.set_path(f"{base}.damping.coefficient" if base and kind != "k0" else None)
+        if base and kind == "gravity" and self.doc.get(f"{base}.damping") is None:
+            self.damping.edit.setPlaceholderText("0.7 (default for gravity)")
+        else:
+            self.damping.edit.setPlaceholderText("none")
+        dynamic = base is not None and kind == "dynamic"
+        self.stop_ke.set_path(f"{base}.stop_when_kinetic_energy_below" if dynamic else None)
+        self.min_duration.set_path(f"{base}.min_duration_s" if dynamic else None)
+        for f in (self.duration, self.k0, self.damping, self.stop_ke, self.min_duration):
+            if f.path is None:
+                f.edit.setText("")
+        self.change_material.clear()
+        self.change_material.addItems(self.doc.material_names)
+        changes = self.doc.get(f"{base}.material_changes", {}) if base else {}
+        rows = [(m, k, v) for m, table in (changes or {}).items() if isinstance(table, dict) for k, v in table.items()]
+        self.changes.setRowCount(len(rows))
+        for r, (m, k, v) in enumerate(rows):
+            label, unit = FIELD_INFO.get(k, (k, ""))
+            for c, text in enumerate((m, label, f"{format_number(v)} {unit}")):
+                item = QTableWidgetItem(text)
+                item.setData(Qt.ItemDataRole.UserRole, (m, k))
+                self.changes.setItem(r, c, item)
+        for w in (self.change_material, self.change_key, self.change_value, self.change_set, self.change_remove,
+                  self.remove_button, self.up_button, self.down_button):
+            w.setEnabled(base is not None)
+
+    def _commit_damping(self) -> bool:
+        """Damping is a table ``{type = "local", coefficient = ..}``: write or remove it whole."""
+        field = self.damping
+        if field.path is None:
+            return False
+        text = field.edit.text()
+        base = field.path.rsplit(".", 1)[0]
+        if not text.strip():
+            return self.doc.set_value(base, None, "remove damping")
+        value = parse_number(text)
+        error = "must be a number" if value is None else check_value(field.path, value)
+        field.error = error or ""
+        field._style()
+        if error:
+            self.show_message(f"Local damping: {error}")
+            return False
+        return self.doc.set_value(base, {"type": "local", "coefficient": value}, "change damping")
+
+    def _on_changed(self, sections: frozenset) -> None:
+        if not sections & {"stages", "materials"}:
+            return
+        stages = self._stages()
+        self.list.blockSignals(True)
+        self.list.clear()
+        for i, stage in enumerate(stages):
+            name = stage.get("name") or stage.get("type", "?")
+            extra = f", {format_number(stage['duration_s'])} s" if "duration_s" in stage else ""
+            changes = " + material changes" if stage.get("material_changes") else ""
+            self.list.addItem(f"{i + 1}. {name}  ({stage.get('type', '?')}{extra}){changes}")
+        if self._current is None or self._current >= len(stages):
+            self._current = (len(stages) - 1) if stages else None
+        if self._current is not None:
+            self.list.setCurrentRow(self._current)
+        self.list.blockSignals(False)
+        self._bind()
+
+    def add_stage(self, kind: str) -> None:
+        stage: dict[str, Any] = {"name": kind if kind != "k0" else "initial stress", "type": kind}
+        if kind != "k0":
+            stage["duration_s"] = 1.0
+        # initial-stress stages go first, dynamic ones last
+        stages = self._stages()
+        index = 0 if kind in ("k0", "gravity") else len(stages)
+        self.doc.edit(f"add {kind} stage", lambda d: d.setdefault("stages", []).insert(index, stage))
+        self._current = index
+        self._on_changed(frozenset({"stages"}))
+
+    def remove_stage(self) -> None:
+        i = self._current
+        if i is not None:
+            self.doc.edit("remove stage", lambda d: d["stages"].pop(i))
+
+    def move_stage(self, step: int) -> None:
+        i = self._current
+        stages = self._stages()
+        if i is None or not 0 <= i + step < len(stages):
+            return
+
+        def mutate(d: dict[str, Any]) -> None:
+            items = d["stages"]
+            items[i], items[i + step] = items[i + step], items[i]
+
+        self.doc.edit("reorder stages", mutate)
+        self._current = i + step
+        self._on_changed(frozenset({"stages"}))
+
+    def set_change(self, material: str, key: str, value: float) -> bool:
+        """Set ``key`` of ``material`` from the selected stage on."""
+        i = self._current
+        if i is None:
+            return False
+        path = f"stages.{i}.material_changes.{material}.{key}"
+        error = check_value(path, value)
+        if error:
+            self.show_message(f"{FIELD_INFO.get(key, (key,))[0]}: {error}")
+            return False
+        return self.doc.set_value(path, value, f"change {material} {key} in stage {i + 1}")
+
+    def _set_change(self) -> None:
+        value = parse_number(self.change_value.text())
+        if value is None:
+            self.show_message("New value: must be a number")
+            return
+        self.set_change(self.change_material.currentText(), self.change_key.currentData(), value)
+
+    def _remove_change(self) -> None:
+        i = self._current
+        rows = {index.row() for index in self.changes.selectedIndexes()}
+        if i is None or not rows:
+            return
+        pairs = [self.changes.item(r, 0).data(Qt.ItemDataRole.UserRole) for r in rows]
+
+        def mutate(d: dict[str, Any]) -> None:
+            changes = d["stages"][i].get("material_changes", {})
+            for m, k in pairs:
+                changes.get(m, {}).pop(k, None)
+                if not changes.get(m, True):
+                    changes.pop(m)
+            if not changes:
+                d["stages"][i].pop("material_changes", None)
+
+        self.doc.edit("remove material change", mutate)
+
+
+# --------------------------------------------------------------------------------------------
+# output
+
+
+class OutputPanel(Panel):
+    """Output interval and the fields written to the results."""
+
+    def __init__(self, doc: ProjectDocument, parent: QWidget | None = None) -> None:
+        super().__init__(doc, parent)
+        box, form = _form("Frames")
+        self.interval = NumberField(doc, "output.interval_s", "Output interval", "s")
+        form.addRow("Every", self.interval)
+        self.frames_info = QLabel("")
+        self.frames_info.setStyleSheet("color: #555;")
+        form.addRow("", self.frames_info)
+        self.layout_.addWidget(box)
+        box = QGroupBox("Fields written (positions always)")
+        vbox = QVBoxLayout(box)
+        self.checks: dict[str, QCheckBox] = {}
+        units = {"displacement": "m", "velocity": "m/s", "stress": "Pa", "plastic_strain": "–", "material": "id"}
+        for name in OUTPUT_FIELDS:
+            check = QCheckBox(f"{name.replace('_', ' ')} ({units[name]})")
+            check.toggled.connect(lambda on, n=name: self._toggled(n, on))
+            vbox.addWidget(check)
+            self.checks[name] = check
+        self.layout_.addWidget(box)
+        self.watch(self.interval)
+        self.finish()
+        self._on_changed(frozenset({"output"}))
+
+    def _toggled(self, name: str, on: bool) -> None:
+        fields = list(self.doc.get("output.fields", list(OUTPUT_FIELDS)))
+        if on and name not in fields:
+            fields = [f for f in OUTPUT_FIELDS if f in fields or f == name]
+        elif not on and name in fields:
+            fields.remove(name)
+        else:
+            return
+        self.doc.set_value("output.fields", fields, f"{'write' if on else 'skip'} {name}")
+
+    def _on_changed(self, sections: frozenset) -> None:
+        if not sections & {"output", "stages"}:
+            return
+        fields = self.doc.get("output.fields", list(OUTPUT_FIELDS))
+        for name, check in self.checks.items():
+            check.blockSignals(True)
+            check.setChecked(name in fields)
+            check.blockSignals(False)
+        total = sum(float(s.get("duration_s") or 0.0) for s in self.doc.get("stages", [])
+                    if isinstance(s.get("duration_s", 0.0), (int, float)))
+        interval = self.doc.get("output.interval_s", 0.01)
+        if isinstance(interval, (int, float)) and interval > 0:
+            self.frames_info.setText(f"about {int(total / interval) + 1} frames over {total:g} s")

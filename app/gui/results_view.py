@@ -1,0 +1,816 @@
+"""Results: the live view of a run, the inspector of a results folder, and side-by-side comparison.
+
+:class:`ParticleScene` draws one frame (particles coloured by a field of :data:`app.render.FIELDS`,
+with its colour bar in engineering units, the domain outline and the time) in an embedded
+:class:`pyvistaqt.QtInteractor`. :class:`ResultsView` adds a time slider, play/pause, field,
+colour map and range controls, particle picking with the picked particle's history, the run's
+curves, and exports. Exported pictures and movies are rendered offscreen by :mod:`app.render`
+(the same code as ``runout render``), not grabbed from the widget. :class:`CompareView` shows
+two results folders side by side with one camera.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PySide6.QtCore import QEvent, QObject, QPointF, Qt, QTimer, Signal
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QPushButton,
+    QSlider,
+    QSplitter,
+    QStyle,
+    QTabWidget,
+    QToolButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app.gui.curves import HistoryCurve, SeriesCurves, write_curves_csv
+from app.gui.document import parse_number
+from app.render import FIELDS, field_info, field_values
+
+logger = logging.getLogger(__name__)
+
+COLORMAPS: tuple[str, ...] = ("viridis", "plasma", "magma_r", "turbo", "coolwarm", "cividis", "Greys")
+PLAY_INTERVAL_MS = 120
+CLICK_PIXELS = 4
+
+
+def _left(event: QEvent) -> bool:
+    return event.button() == Qt.MouseButton.LeftButton  # type: ignore[attr-defined]
+
+
+def _field_label(name: str) -> str:
+    info = FIELDS[name]
+    return info.label if info.categorical else f"{info.label} ({info.unit})"
+
+
+def _range(values: np.ndarray) -> tuple[float, float]:
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        return 0.0, 1.0
+    lo, hi = float(finite.min()), float(finite.max())
+    if hi - lo <= 1e-12 * max(1.0, abs(hi)):
+        pad = max(abs(hi) * 1e-3, 1e-9)
+        lo, hi = lo - pad, hi + pad
+    return lo, hi
+
+
+class ParticleScene(QWidget):
+    """One embedded view of particles coloured by a field.
+
+    Signals
+    -------
+    picked(int)
+        The id of the particle clicked (a click is a press and release within a few pixels).
+    """
+
+    picked = Signal(int)
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        from pyvistaqt import QtInteractor
+
+        self.plotter = QtInteractor(self, auto_update=False)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(self.plotter)
+        self.plotter.set_background("white")
+        self.plotter.enable_parallel_projection()
+        self.plotter.enable_custom_trackball_style(
+            left="pan", shift_left="pan", control_left="pan", middle="pan", shift_middle="pan",
+            control_middle="pan", right="dolly", shift_right="dolly", control_right="dolly",
+        )
+        self.plotter.installEventFilter(self)
+        self.cloud: Any = None
+        self.actor: Any = None
+        self.domain: tuple[float, float, float, float] | None = None
+        self.spacing_m = 0.0
+        self.positions = np.zeros((0, 2))
+        self.ids = np.zeros(0, dtype=int)
+        self.values = np.zeros(0)
+        self.field = "displacement"
+        self.cmap = "viridis"
+        self.clim: tuple[float, float] | None = None
+        self.shown_clim: tuple[float, float] = (0.0, 1.0)
+        self.material_names: list[str] = []
+        self.message = ""
+        self._style_key: Any = None
+        self._text: Any = None
+        self._press: QPointF | None = None
+        self._closed = False
+        self._fitted = False
+        self._auto_fit = True
+        self.picked_id: int | None = None
+
+    def close_view(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        self.plotter.removeEventFilter(self)
+        self.plotter.close()
+
+    # -- content ----------------------------------------------------------------------------
+
+    def clear(self) -> None:
+        self.plotter.clear_actors()
+        for title in list(self.plotter.scalar_bars.keys()):
+            self.plotter.remove_scalar_bar(title, render=False)
+        self.cloud = self.actor = self._text = None
+        self._style_key = None
+        self.picked_id = None
+        self._fitted = False
+        self.positions = np.zeros((0, 2))
+        self.plotter.render()
+
+    def set_domain(self, box: tuple[float, float, float, float] | None, spacing_m: float,
+                   material_names: list[str]) -> None:
+        """The grid box (for the outline and the camera), particle spacing and material names."""
+        import pyvista as pv
+
+        self.domain = box
+        self.spacing_m = spacing_m
+        self.material_names = list(material_names)
+        self.plotter.remove_actor("domain", render=False)
+        if box is not None:
+            x0, x1, y0, y1 = box
+            outline = np.array([[x0, y0, 0], [x1, y0, 0], [x1, y1, 0], [x0, y1, 0], [x0, y0, 0]], float)
+            self.plotter.add_mesh(pv.MultipleLines(outline), color="#9aa0a6", line_width=1, name="domain",
+                                  render=False, reset_camera=False, pickable=False)
+
+    def show_arrays(self, arrays: dict[str, np.ndarray], time_s: float, caption: str = "") -> None:
+        """Draw one frame (``positions``, ``active`` and the field's source array)."""
+        import pyvista as pv
+
+        active = np.asarray(arrays["active"], dtype=bool)
+        positions = np.asarray(arrays["positions"])[active]
+        self.positions = positions
+        self.ids = np.flatnonzero(active)
+        info = field_info(self.field)
+        try:
+            values = np.asarray(field_values(arrays, self.field), dtype=float)[active]
+            self.message = ""
+        except ValueError as err:  # the run did not write this field
+            values = np.zeros(len(positions))
+            self.message = str(err)
+        self.values = values
+        points = np.zeros((len(positions), 3), np.float32)
+        points[:, :2] = positions
+        cloud = pv.PolyData(points)
+        cloud.point_data["values"] = values
+        if info.categorical:
+            count = max(len(self.material_names), int(values.max(initial=0)) + 1, 1)
+            clim = (-0.5, count - 0.5)
+        else:
+            clim = self.clim or _range(values)
+        self.shown_clim = clim
+        key = (self.field, self.cmap, info.categorical, len(self.material_names))
+        if self.actor is None or key != self._style_key:
+            self._restyle(cloud, clim)
+            self._style_key = key
+        else:
+            self.cloud.copy_from(cloud)
+            self.actor.mapper.scalar_range = clim
+        self._set_caption(f"t = {time_s:.4g} s{('   ' + caption) if caption else ''}")
+        self._draw_pick()
+        if not self._fitted:
+            self.fit()
+        else:
+            self._update_point_size()
+            self.plotter.render()
+
+    def _restyle(self, cloud: Any, clim: tuple[float, float]) -> None:
+        info = field_info(self.field)
+        self.plotter.remove_actor("particles", render=False)
+        for title in list(self.plotter.scalar_bars.keys()):
+            self.plotter.remove_scalar_bar(title, render=False)
+        self.cloud = cloud
+        bar = dict(title=info.title, color="black", vertical=True, position_x=0.87, position_y=0.15,
+                   height=0.7, width=0.04, title_font_size=12, label_font_size=11,
+                   unconstrained_font_size=True)
+        kwargs: dict[str, Any] = dict(scalars="values", style="points", point_size=3.0, lighting=False,
+                                      render_points_as_spheres=False, name="particles", render=False,
+                                      reset_camera=False)
+        if info.categorical:
+            count = int(round(clim[1] + 0.5))
+            names = self.material_names
+            annotations = {i: (names[i] if i < len(names) else f"material {i}") for i in range(count)}
+            bar.update(n_labels=0)
+            self.actor = self.plotter.add_mesh(cloud, cmap="tab10", clim=clim, n_colors=count, categories=True,
+                                               annotations=annotations, scalar_bar_args=bar, **kwargs)
+        else:
+            bar.update(fmt="%.3g", n_labels=5)
+            self.actor = self.plotter.add_mesh(cloud, cmap=self.cmap, clim=clim, scalar_bar_args=bar, **kwargs)
+
+    def _set_caption(self, text: str) -> None:
+        if self._text is None:
+            self._text = self.plotter.add_text(text, position="upper_left", font_size=11, color="black",
+                                               name="caption")
+        else:
+            self._text.SetText(2, text)
+
+    def fit(self) -> None:
+        box = self.domain
+        if box is None and len(self.positions):
+            lo, hi = self.positions.min(axis=0), self.positions.max(axis=0)
+            box = (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
+        if box is None:
+            return
+        x0, x1, y0, y1 = box
+        cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+        # the colour bar takes the right eighth of the view
+        w, h = (x1 - x0) * 1.3, (y1 - y0) * 1.3
+        aspect = max(1, self.plotter.width()) / max(1, self.plotter.height())
+        cam = self.plotter.camera
+        shift = 0.06 * w
+        cam.focal_point = (cx + shift, cy, 0.0)
+        cam.position = (cx + shift, cy, 10.0 * max(w, h, 1e-6))
+        cam.up = (0.0, 1.0, 0.0)
+        cam.parallel_scale = max(h / 2.0, w / 2.0 / aspect, 1e-6)
+        self.plotter.renderer.ResetCameraClippingRange()
+        self._fitted = True
+        self._auto_fit = True
+        self._update_point_size()
+        self.plotter.render()
+
+    def _update_point_size(self) -> None:
+        if self.actor is None or self.spacing_m <= 0:
+            return
+        scale = self.plotter.camera.parallel_scale
+        pixels = self.spacing_m * max(1, self.plotter.height()) / (2.0 * max(scale, 1e-12))
+        self.actor.prop.point_size = float(min(40.0, max(2.0, math.ceil(pixels))))
+
+    def resizeEvent(self, event: Any) -> None:  # noqa: N802 - Qt's name
+        super().resizeEvent(event)
+        # follow the window's size until the user pans or zooms; then keep their view
+        if not self._closed and self._fitted and self._auto_fit:
+            self.fit()
+
+    # -- picking --------------------------------------------------------------------------------
+
+    def world_at(self, pos: QPointF) -> np.ndarray:
+        s = float(self.plotter.devicePixelRatioF())
+        r = self.plotter.renderer
+        r.SetDisplayPoint(pos.x() * s, (self.plotter.height() - pos.y() - 1) * s, 0.0)
+        r.DisplayToWorld()
+        wx, wy, _wz, w = r.GetWorldPoint()
+        return np.array([wx / (w or 1.0), wy / (w or 1.0)])
+
+    def widget_at(self, xy: Any) -> QPointF:
+        r = self.plotter.renderer
+        r.SetWorldPoint(float(xy[0]), float(xy[1]), 0.0, 1.0)
+        r.WorldToDisplay()
+        dx, dy, _ = r.GetDisplayPoint()
+        s = float(self.plotter.devicePixelRatioF())
+        return QPointF(dx / s, self.plotter.height() - 1 - dy / s)
+
+    def pick(self, xy: Any) -> int | None:
+        """The id of the active particle nearest to ``xy`` (metres), if one is close enough."""
+        if not len(self.positions):
+            return None
+        d = np.hypot(*(self.positions - np.asarray(xy, float)).T)
+        k = int(np.argmin(d))
+        pixel = 2.0 * self.plotter.camera.parallel_scale / max(1, self.plotter.height())
+        if d[k] > max(3 * pixel, self.spacing_m):
+            return None
+        return int(self.ids[k])
+
+    def set_picked(self, particle: int | None) -> None:
+        self.picked_id = particle
+        self._draw_pick()
+        self.plotter.render()
+
+    def _draw_pick(self) -> None:
+        import pyvista as pv
+
+        self.plotter.remove_actor("pick", render=False)
+        if self.picked_id is None:
+            return
+        where = np.flatnonzero(self.ids == self.picked_id)
+        if not len(where):
+            return
+        p = np.zeros((1, 3))
+        p[0, :2] = self.positions[where[0]]
+        p[0, 2] = 0.05
+        self.plotter.add_mesh(pv.PolyData(p), color="#d93025", point_size=14, render_points_as_spheres=True,
+                              name="pick", render=False, reset_camera=False, pickable=False)
+
+    def eventFilter(self, obj: QObject, event: QEvent) -> bool:  # noqa: N802 - Qt's name
+        if obj is not self.plotter or self._closed:
+            return False
+        kind = event.type()
+        if kind == QEvent.Type.MouseButtonPress and _left(event):
+            self._press = event.position()  # type: ignore[attr-defined]
+        elif kind == QEvent.Type.MouseButtonRelease and _left(event):
+            pos = event.position()  # type: ignore[attr-defined]
+            if self._press is not None and (pos - self._press).manhattanLength() <= CLICK_PIXELS:
+                particle = self.pick(self.world_at(pos))
+                if particle is not None:
+                    self.picked.emit(particle)
+            else:
+                self._auto_fit = False
+            self._press = None
+            QTimer.singleShot(0, self._after_interaction)
+        elif kind == QEvent.Type.Wheel:
+            self._auto_fit = False
+            QTimer.singleShot(0, self._after_interaction)
+        elif kind == QEvent.Type.KeyPress:
+            return True  # pyvista's keys (q closes, ...) make no sense in an embedded view
+        return False
+
+    def _after_interaction(self) -> None:
+        if not self._closed:
+            self._update_point_size()
+            self.plotter.render()
+
+
+def _domain_of(summary: dict[str, Any]) -> tuple[float, float, float, float] | None:
+    domain = summary.get("domain") or {}
+    try:
+        (x0, y0), (w, h) = domain["origin_m"], domain["size_m"]
+        return float(x0), float(x0) + float(w), float(y0), float(y0) + float(h)
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+class _Controls(QWidget):
+    """Play, time slider, field, colour map and range: shared by the inspector and the comparison."""
+
+    frameChosen = Signal(int)
+    styleChanged = Signal()
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        row1 = QHBoxLayout()
+        self.play = QToolButton()
+        self.play.setCheckable(True)
+        self.play.setIcon(self.style().standardIcon(QStyle.StandardPixmap.SP_MediaPlay))
+        self.play.setToolTip("Play / pause")
+        self.play.toggled.connect(self._play_toggled)
+        self.slider = QSlider(Qt.Orientation.Horizontal)
+        self.slider.setRange(0, 0)
+        self.slider.valueChanged.connect(self.frameChosen)
+        self.time_label = QLabel("no results")
+        self.time_label.setMinimumWidth(190)
+        row1.addWidget(self.play)
+        row1.addWidget(self.slider, 1)
+        row1.addWidget(self.time_label)
+        row2 = QHBoxLayout()
+        self.field = QComboBox()
+        self.field.setAccessibleName("Field")
+        for name in FIELDS:
+            self.field.addItem(_field_label(name), name)
+        self.field.activated.connect(lambda _i: self.styleChanged.emit())
+        self.cmap = QComboBox()
+        self.cmap.setAccessibleName("Colour map")
+        self.cmap.addItems(list(COLORMAPS))
+        self.cmap.activated.connect(lambda _i: self.styleChanged.emit())
+        self.auto = QCheckBox("auto range")
+        self.auto.setChecked(True)
+        self.auto.toggled.connect(self._auto_toggled)
+        self.lo = QLineEdit()
+        self.hi = QLineEdit()
+        for edit, tip in ((self.lo, "colour range minimum"), (self.hi, "colour range maximum")):
+            edit.setMaximumWidth(90)
+            edit.setToolTip(tip)
+            edit.setAccessibleName(tip)
+            edit.setEnabled(False)
+            edit.editingFinished.connect(self.styleChanged)
+        self.unit = QLabel("")
+        self.unit.setMinimumWidth(30)
+        row2.addWidget(QLabel("Field"))
+        row2.addWidget(self.field, 1)
+        row2.addWidget(QLabel("Colours"))
+        row2.addWidget(self.cmap)
+        row2.addWidget(self.auto)
+        row2.addWidget(self.lo)
+        row2.addWidget(QLabel("to"))
+        row2.addWidget(self.hi)
+        row2.addWidget(self.unit)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(4, 2, 4, 2)
+        layout.addLayout(row1)
+        layout.addLayout(row2)
+        self.timer = QTimer(self)
+        self.timer.setInterval(PLAY_INTERVAL_MS)
+        self.timer.timeout.connect(self._tick)
+        self._sync_unit()
+
+    @property
+    def field_name(self) -> str:
+        return str(self.field.currentData())
+
+    def set_field(self, name: str) -> None:
+        index = self.field.findData(name)
+        if index < 0:
+            raise ValueError(f"unknown field {name!r}")
+        self.field.setCurrentIndex(index)
+        info = FIELDS[name]
+        self.cmap.setCurrentText(info.cmap if info.cmap in COLORMAPS else self.cmap.currentText())
+        self._sync_unit()
+        self.styleChanged.emit()
+
+    def _sync_unit(self) -> None:
+        info = FIELDS[self.field_name]
+        self.unit.setText("" if info.categorical else info.unit)
+        self.cmap.setEnabled(not info.categorical)
+        self.auto.setEnabled(not info.categorical)
+
+    def clim(self) -> tuple[float, float] | None:
+        if self.auto.isChecked() or FIELDS[self.field_name].categorical:
+            return None
+        lo, hi = parse_number(self.lo.text()), parse_number(self.hi.text())
+        if lo is None or hi is None or not hi > lo:
+            return None
+        return lo, hi
+
+    def show_range(self, clim: tuple[float, float]) -> None:
+        if self.auto.isChecked():
+            self.lo.setText(f"{clim[0]:.4g}")
+            self.hi.setText(f"{clim[1]:.4g}")
+
+    def _auto_toggled(self, on: bool) -> None:
+        self.lo.setEnabled(not on)
+        self.hi.setEnabled(not on)
+        self.styleChanged.emit()
+
+    def _play_toggled(self, on: bool) -> None:
+        icon = QStyle.StandardPixmap.SP_MediaPause if on else QStyle.StandardPixmap.SP_MediaPlay
+        self.play.setIcon(self.style().standardIcon(icon))
+        if on:
+            if self.slider.value() >= self.slider.maximum():
+                self.slider.setValue(0)
+            self.timer.start()
+        else:
+            self.timer.stop()
+
+    def _tick(self) -> None:
+        if self.slider.value() >= self.slider.maximum():
+            self.play.setChecked(False)
+        else:
+            self.slider.setValue(self.slider.value() + 1)
+
+    def stop(self) -> None:
+        self.play.setChecked(False)
+        self.timer.stop()
+
+
+class ResultsView(QWidget):
+    """The run's live view and the inspector of a results folder.
+
+    Signals
+    -------
+    message(str)
+        Status-bar text.
+    """
+
+    message = Signal(str)
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.results: Any = None
+        self.live = False
+        self.frame_index = 0
+        self.live_time = 0.0
+        self.history: tuple[str, np.ndarray, np.ndarray] | None = None
+        self.header = QLabel("Open a results folder (File ▸ Open results) or run the project.")
+        self.header.setWordWrap(True)
+        self.header.setStyleSheet("padding: 3px; color: #3c4043;")
+        self.controls = _Controls()
+        self.controls.frameChosen.connect(self.show_frame)
+        self.controls.styleChanged.connect(self._restyle)
+        self.controls.field.activated.connect(lambda _i: self._field_picked())
+        self.scene = ParticleScene()
+        self.scene.picked.connect(self.pick_particle)
+        self.curves = SeriesCurves()
+        self.history_plot = HistoryCurve()
+        self.side = QTabWidget()
+        self.side.addTab(self.curves, "Run curves")
+        self.side.addTab(self.history_plot, "Particle history")
+        # landslide domains are wide: the curves go below the view, in a row
+        split = QSplitter(Qt.Orientation.Vertical)
+        split.addWidget(self.scene)
+        split.addWidget(self.side)
+        split.setStretchFactor(0, 3)
+        split.setStretchFactor(1, 1)
+        split.setSizes([600, 260])
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(self.header)
+        layout.addWidget(self.controls)
+        layout.addWidget(split, 1)
+        self._set_enabled(False)
+
+    def close_view(self) -> None:
+        self.controls.stop()
+        self.scene.close_view()
+        self.curves.close_canvas()
+        self.history_plot.close_canvas()
+
+    def _set_enabled(self, on: bool) -> None:
+        self.controls.play.setEnabled(on)
+        self.controls.slider.setEnabled(on)
+
+    # -- live runs --------------------------------------------------------------------------------
+
+    def begin_live(self, title: str, box: tuple[float, float, float, float] | None, spacing_m: float,
+                   material_names: list[str]) -> None:
+        """Prepare to show the frames of a run as they arrive."""
+        self.controls.stop()
+        self.results = None
+        self.live = True
+        self.history = None
+        self.history_plot.clear_history()
+        self.scene.clear()
+        self.scene.set_domain(box, spacing_m, material_names)
+        self.curves.clear()
+        self.curves.set_time(None)
+        self.controls.slider.blockSignals(True)
+        self.controls.slider.setRange(0, 0)
+        self.controls.slider.blockSignals(False)
+        self._set_enabled(False)
+        self.header.setText(f"Running: {title}")
+        self.controls.time_label.setText("starting…")
+
+    def show_live(self, frame: Any) -> None:
+        """Draw a frame of the running solver (the newest; the view may skip some)."""
+        diag = frame.diagnostics
+        self.live_time = float(diag.time_s)
+        self._apply_style()
+        self.scene.show_arrays(frame.fields, diag.time_s, f"{diag.stage}   (live)")
+        self.controls.show_range(self.scene.shown_clim)
+        self.controls.time_label.setText(f"t = {diag.time_s:.4g} s   step {diag.step:,}")
+        if self.scene.message:
+            self.message.emit(self.scene.message)
+
+    def add_live_points(self, diagnostics: list[Any]) -> None:
+        """Add the diagnostics of frames of the running solver to the curves (all of them, in order)."""
+        for d in diagnostics:
+            self.curves.append(d)
+
+    def end_live(self) -> None:
+        self.live = False
+
+    # -- results folders ----------------------------------------------------------------------------
+
+    def open_results(self, path: str | Path) -> None:
+        """Show a results folder (also one a killed run left), from its last frame.
+
+        Raises
+        ------
+        projects.results.ResultsError
+            When ``path`` is not a results folder or has no complete frame.
+        """
+        from projects.results import ResultsError, open_results
+
+        results = open_results(path)
+        if len(results) == 0:
+            raise ResultsError(f"{results.path} has no complete frames to show")
+        self.controls.stop()
+        self.results = results
+        self.live = False
+        self.history = None
+        self.history_plot.clear_history()
+        spacing = results.summary.get("particle_spacing_m") or 0.0
+        self.scene.clear()
+        self.scene.set_domain(_domain_of(results.summary), float(spacing), results.material_names)
+        self.curves.set_series(results.series)
+        status = results.status
+        title = results.summary.get("title") or results.path.name
+        info = (f"{title} — {results.path}   [{status}"
+                f"{': ' + results.message if results.message and status != 'completed' else ''}]   "
+                f"{results.summary.get('particles', '?')} particles, {results.summary.get('scheme', '?')}, "
+                f"{results.summary.get('arch', '?')} {results.summary.get('precision', '')}")
+        self.header.setText(info)
+        self._set_enabled(True)
+        slider = self.controls.slider
+        slider.blockSignals(True)
+        slider.setRange(0, len(results) - 1)
+        slider.setValue(len(results) - 1)
+        slider.blockSignals(False)
+        self.show_frame(len(results) - 1)
+
+    def show_frame(self, index: int) -> None:
+        """Show frame ``index`` of the open results folder."""
+        if self.results is None or self.live:
+            return
+        n = len(self.results)
+        index = max(0, min(int(index), n - 1))
+        self.frame_index = index
+        if self.controls.slider.value() != index:
+            self.controls.slider.blockSignals(True)
+            self.controls.slider.setValue(index)
+            self.controls.slider.blockSignals(False)
+        time_s = float(self.results.times[index])
+        self._apply_style()
+        self.scene.show_arrays(self.results.frame(index), time_s, f"frame {index + 1}/{n}")
+        self.controls.show_range(self.scene.shown_clim)
+        stage = self._stage_at(index)
+        self.controls.time_label.setText(f"t = {time_s:.4g} s   frame {index + 1}/{n}{stage}")
+        self.curves.set_time(time_s)
+        self.message.emit(self.scene.message)
+
+    def _stage_at(self, index: int) -> str:
+        stages = self.results.series.get("stage") if self.results is not None else None
+        if stages is not None and index < len(stages):
+            return f"   {stages[index]}"
+        return ""
+
+    def _apply_style(self) -> None:
+        self.scene.field = self.controls.field_name
+        self.scene.cmap = self.controls.cmap.currentText()
+        self.scene.clim = self.controls.clim()
+
+    def _field_picked(self) -> None:
+        self.controls.set_field(self.controls.field_name)
+
+    def _restyle(self) -> None:
+        self.controls._sync_unit()
+        if self.results is not None and not self.live:
+            self.show_frame(self.frame_index)
+            if self.history is not None and self.scene.picked_id is not None:
+                self.pick_particle(self.scene.picked_id)
+
+    def set_field(self, name: str) -> None:
+        """Colour by ``name`` (a key of :data:`app.render.FIELDS`)."""
+        self.controls.set_field(name)
+
+    # -- particle history ---------------------------------------------------------------------------
+
+    def pick_particle(self, particle: int) -> None:
+        """Plot the history of ``particle`` (for the shown field) and mark it in the view."""
+        self.scene.set_picked(particle)
+        if self.results is None:
+            return
+        field = self.controls.field_name
+        info = field_info(field)
+        try:
+            times, raw = self.results.particle_history(particle, info.source)
+            values = field_values({info.source: raw}, field)
+        except (KeyError, IndexError, ValueError) as err:
+            self.message.emit(str(err))
+            return
+        label = _field_label(field)
+        self.history = (f"particle_{particle}_{field}", times, np.asarray(values, float))
+        self.history_plot.show_history(particle, label, times, values)
+        self.side.setCurrentWidget(self.history_plot)
+        self.message.emit(f"particle {particle}: {label} from {values[0]:.4g} to {values[-1]:.4g}")
+
+    # -- exports ----------------------------------------------------------------------------------
+
+    def export_screenshot(self, path: str | Path, size: tuple[int, int]) -> Path:
+        """Render the shown frame offscreen at ``size`` pixels (as ``runout render``) to a PNG."""
+        from app.render import render_frame
+
+        if self.results is None:
+            raise ValueError("open a results folder first")
+        field = self.controls.field_name
+        cmap = None if FIELDS[field].categorical else self.controls.cmap.currentText()
+        return render_frame(self.results, self.frame_index, field, path, size=size, cmap=cmap,
+                            clim=self.controls.clim())
+
+    def export_animation(self, path: str | Path, fps: float, size: tuple[int, int],
+                         on_frame: Any = None) -> Path:
+        """Write every frame as an mp4 or gif movie (offscreen, as ``runout animate``)."""
+        from app.render import animate
+
+        if self.results is None:
+            raise ValueError("open a results folder first")
+        field = self.controls.field_name
+        cmap = None if FIELDS[field].categorical else self.controls.cmap.currentText()
+        return animate(self.results, path, field, fps, size=size, cmap=cmap, clim=self.controls.clim(),
+                       on_frame=on_frame)
+
+    def export_curves(self, path: str | Path) -> Path:
+        """Write the run's curves (and the picked particle's history) as CSV."""
+        if self.results is not None:
+            series = {k: v for k, v in self.results.series.items() if k != "stage"}
+        else:
+            series = {k: np.asarray(v) for k, v in self.curves.data.items()}
+        if not len(series.get("time_s", [])):
+            raise ValueError("there are no curves to export yet")
+        return write_curves_csv(path, series, self.history)
+
+
+class CompareView(QWidget):
+    """Two results folders side by side: one camera, one time, one field and colour range."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.results: list[Any] = [None, None]
+        self.controls = _Controls()
+        self.controls.frameChosen.connect(self.show_frame)
+        self.controls.styleChanged.connect(lambda: self.show_frame(self.controls.slider.value()))
+        self.controls.field.activated.connect(lambda _i: self.controls.set_field(self.controls.field_name))
+        self.labels = [QLabel("A: choose a results folder"), QLabel("B: choose a results folder")]
+        self.scenes = [ParticleScene(), ParticleScene()]
+        self.open_buttons = [QPushButton("Open A…"), QPushButton("Open B…")]
+        panes = QSplitter(Qt.Orientation.Horizontal)
+        for label, scene, button in zip(self.labels, self.scenes, self.open_buttons, strict=True):
+            pane = QWidget()
+            v = QVBoxLayout(pane)
+            v.setContentsMargins(0, 0, 0, 0)
+            h = QHBoxLayout()
+            label.setWordWrap(True)
+            h.addWidget(label, 1)
+            h.addWidget(button)
+            v.addLayout(h)
+            v.addWidget(scene, 1)
+            panes.addWidget(pane)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(self.controls)
+        layout.addWidget(panes, 1)
+        # one camera object for both renderers: panning or zooming either moves both
+        a, b = self.scenes
+        b.plotter.renderer.camera = a.plotter.renderer.camera
+        self._pending = False
+        self._camera_tag = a.plotter.renderer.GetActiveCamera().AddObserver("ModifiedEvent", self._camera_moved)
+
+    def close_view(self) -> None:
+        self.controls.stop()
+        camera = self.scenes[0].plotter.renderer.GetActiveCamera() if not self.scenes[0]._closed else None
+        if camera is not None:
+            camera.RemoveObserver(self._camera_tag)
+        for scene in self.scenes:
+            scene.close_view()
+
+    def _camera_moved(self, *_args: Any) -> None:
+        if not self._pending:
+            self._pending = True
+            QTimer.singleShot(0, self._render_both)
+
+    def _render_both(self) -> None:
+        self._pending = False
+        for scene in self.scenes:
+            if not scene._closed:
+                scene._update_point_size()
+                scene.plotter.render()
+
+    def open_results(self, side: int, path: str | Path) -> None:
+        """Show a results folder on side 0 (A) or 1 (B)."""
+        from projects.results import ResultsError, open_results
+
+        results = open_results(path)
+        if len(results) == 0:
+            raise ResultsError(f"{results.path} has no complete frames to show")
+        self.results[side] = results
+        scene = self.scenes[side]
+        scene.clear()
+        scene.set_domain(_domain_of(results.summary), float(results.summary.get("particle_spacing_m") or 0.0),
+                         results.material_names)
+        s = results.summary
+        self.labels[side].setText(f"{'AB'[side]}: {s.get('title') or results.path.name} — {results.path.name} "
+                                  f"({s.get('scheme', '?')}, {s.get('particles', '?')} particles, {results.status})")
+        longest = max(len(r) for r in self.results if r is not None)
+        self.controls.slider.setRange(0, longest - 1)
+        self.show_frame(self.controls.slider.value())
+        self.scenes[0].fit()
+
+    def _index_at(self, results: Any, time_s: float) -> int:
+        return int(np.argmin(np.abs(results.times - time_s)))
+
+    def show_frame(self, index: int) -> None:
+        """Show both sides at the time of frame ``index`` of the longer run (nearest frame each)."""
+        present = [r for r in self.results if r is not None]
+        if not present:
+            return
+        ref = max(present, key=len)
+        index = max(0, min(int(index), len(ref) - 1))
+        time_s = float(ref.times[index])
+        field = self.controls.field_name
+        arrays = [None, None]
+        for side, results in enumerate(self.results):
+            if results is not None:
+                arrays[side] = results.frame(self._index_at(results, time_s))
+        clim = self.controls.clim()
+        if clim is None and not FIELDS[field].categorical:
+            # one range for both sides, so equal colours mean equal values
+            ranges = []
+            for a in arrays:
+                if a is not None:
+                    try:
+                        ranges.append(_range(np.asarray(field_values(a, field), float)[np.asarray(a["active"], bool)]))
+                    except ValueError:
+                        continue
+            if ranges:
+                clim = (min(r[0] for r in ranges), max(r[1] for r in ranges))
+        for side, results in enumerate(self.results):
+            if results is None:
+                continue
+            scene = self.scenes[side]
+            scene.field, scene.cmap, scene.clim = field, self.controls.cmap.currentText(), clim
+            j = self._index_at(results, time_s)
+            scene.show_arrays(arrays[side], float(results.times[j]), f"frame {j + 1}/{len(results)}")
+        if clim is not None:
+            self.controls.show_range(clim)
+        self.controls.time_label.setText(f"t = {time_s:.4g} s")

@@ -1,0 +1,234 @@
+"""The run panel: what the run will cost, where its results go, progress, and the project's problems."""
+
+from __future__ import annotations
+
+import logging
+import math
+from pathlib import Path
+from typing import Any
+
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import (
+    QFileDialog,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QListWidget,
+    QProgressBar,
+    QPushButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app.gui.document import ProjectDocument
+from app.gui.settings import Settings
+
+logger = logging.getLogger(__name__)
+
+#: Seconds a run spends before its first step (Taichi compiles the kernels), added to estimates.
+SETUP_S = 3.0
+
+
+def format_duration(seconds: float) -> str:
+    """``42 s``, ``3 min 20 s``, ``2 h 05 min``."""
+    if not math.isfinite(seconds):
+        return "?"
+    seconds = max(0.0, seconds)
+    if seconds < 60:
+        return f"{seconds:.0f} s" if seconds >= 10 else f"{seconds:.1f} s"
+    if seconds < 3600:
+        return f"{int(seconds // 60)} min {int(seconds % 60):02d} s"
+    return f"{int(seconds // 3600)} h {int(seconds % 3600 // 60):02d} min"
+
+
+class RunPanel(QWidget):
+    """Estimate, results folder, Run/Cancel, progress and problems.
+
+    Signals
+    -------
+    runRequested()
+    cancelRequested()
+    problemActivated(str)
+        The key path of a problem the user double-clicked.
+    """
+
+    runRequested = Signal()
+    cancelRequested = Signal()
+    problemActivated = Signal(str)
+
+    def __init__(self, doc: ProjectDocument, settings: Settings, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.doc = doc
+        self.settings = settings
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(6, 6, 6, 6)
+
+        box = QGroupBox("Before running")
+        form = QFormLayout(box)
+        self.particles = QLabel("–")
+        self.grid = QLabel("–")
+        self.steps = QLabel("–")
+        self.runtime = QLabel("–")
+        self.runtime.setWordWrap(True)
+        form.addRow("Particles", self.particles)
+        form.addRow("Grid", self.grid)
+        form.addRow("Time steps", self.steps)
+        form.addRow("Run time", self.runtime)
+        layout.addWidget(box)
+
+        box = QGroupBox("Run")
+        vbox = QVBoxLayout(box)
+        row = QHBoxLayout()
+        row.addWidget(QLabel("Results"))
+        self.out_dir = QLineEdit()
+        self.out_dir.setPlaceholderText("NAME.results next to the project file")
+        self.out_dir.setToolTip("Results folder; an existing results folder there is replaced")
+        browse = QPushButton("…")
+        browse.setMaximumWidth(30)
+        browse.clicked.connect(self._browse)
+        row.addWidget(self.out_dir, 1)
+        row.addWidget(browse)
+        vbox.addLayout(row)
+        row = QHBoxLayout()
+        self.run_button = QPushButton("Run")
+        self.run_button.setToolTip("Run the project (F5)")
+        self.run_button.clicked.connect(self.runRequested)
+        self.cancel_button = QPushButton("Cancel")
+        self.cancel_button.setEnabled(False)
+        self.cancel_button.clicked.connect(self.cancelRequested)
+        row.addWidget(self.run_button)
+        row.addWidget(self.cancel_button)
+        vbox.addLayout(row)
+        self.progress = QProgressBar()
+        self.progress.setRange(0, 1000)
+        self.progress.setValue(0)
+        self.progress.setFormat("")
+        self.progress.setTextVisible(True)
+        vbox.addWidget(self.progress)
+        self.stage = QLabel("")
+        self.clock = QLabel("")
+        self.rate = QLabel("")
+        self.eta = QLabel("")
+        for w in (self.stage, self.clock, self.rate, self.eta):
+            vbox.addWidget(w)
+        self.status = QLabel("")
+        self.status.setWordWrap(True)
+        self.status.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        vbox.addWidget(self.status)
+        layout.addWidget(box)
+
+        self.problems_box = QGroupBox("Problems")
+        vbox = QVBoxLayout(self.problems_box)
+        self.problems = QListWidget()
+        self.problems.setWordWrap(True)
+        self.problems.itemDoubleClicked.connect(
+            lambda item: self.problemActivated.emit(item.data(Qt.ItemDataRole.UserRole) or ""))
+        vbox.addWidget(self.problems)
+        self.problems.setMaximumHeight(220)
+        layout.addWidget(self.problems_box)
+        layout.addStretch(1)
+        self._t0: tuple[float, float] | None = None
+
+    # -- estimate ---------------------------------------------------------------------------------
+
+    def arch(self) -> str:
+        """The device the run will most likely use: as set, or for "auto" the last one used."""
+        project = self.doc.project
+        arch = project.numerics.arch if project is not None else "auto"
+        if arch == "auto":
+            arch = str(self.settings.get("last_arch", "cpu"))
+        return arch
+
+    def update_estimate(self) -> dict[str, Any] | None:
+        """Particles, grid, steps and run time of the current project (from the measured throughput)."""
+        project = self.doc.project
+        self.problems.clear()
+        for p in self.doc.problems:
+            self.problems.addItem(str(p))
+            self.problems.item(self.problems.count() - 1).setData(Qt.ItemDataRole.UserRole, p.path)
+        n = len(self.doc.problems)
+        self.problems_box.setTitle(f"Problems ({n})" if n else "Problems (none)")
+        self.problems.setMaximumHeight(260 if n else 48)
+        if project is None:
+            for w in (self.particles, self.grid, self.steps):
+                w.setText("–")
+            self.runtime.setText("fix the problems below first")
+            return None
+        from projects.build import estimate
+
+        try:
+            e = estimate(project)
+        except (ValueError, ZeroDivisionError) as err:
+            self.runtime.setText(str(err))
+            return None
+        nx, ny = e["grid_shape"]
+        self.particles.setText(f"about {e['particles']:,}")
+        self.grid.setText(f"{nx} × {ny} = {e['grid_cells']:,} cells")
+        self.steps.setText(f"{e['steps']:,} of {e['time_step_s']:.3g} s ({e['time_step_source']}), "
+                           f"{e['frames']} frames")
+        arch = self.arch()
+        rate, measured = self.settings.throughput(arch)
+        seconds = SETUP_S + e["particles"] * e["steps"] / rate
+        source = "measured on this machine" if measured else "assumed; the first run measures it"
+        self.runtime.setText(f"about {format_duration(seconds)} on {arch} "
+                             f"({rate / 1e6:.3g} M particle-steps/s, {source})")
+        e["run_time_s"] = seconds
+        return e
+
+    # -- progress ---------------------------------------------------------------------------------
+
+    def _browse(self) -> None:
+        path = QFileDialog.getExistingDirectory(self, "Results folder", self.out_dir.text() or str(Path.cwd()))
+        if path:
+            self.out_dir.setText(path)
+
+    def set_running(self, running: bool) -> None:
+        self.run_button.setEnabled(not running)
+        self.cancel_button.setEnabled(running)
+        self.out_dir.setEnabled(not running)
+        if running:
+            self.progress.setValue(0)
+            self.progress.setFormat("starting (compiling the solver)…")
+            self.status.setText("")
+            for w in (self.stage, self.clock, self.rate, self.eta):
+                w.setText("")
+            self._t0 = None
+
+    def show_progress(self, progress: Any, wall_s: float) -> None:
+        """Show a solver Progress; ``wall_s`` is the time since the run started."""
+        total = progress.total_time_s
+        fraction = progress.time_s / total if total > 0 else 0.0
+        self.progress.setValue(int(round(1000 * min(1.0, fraction))))
+        self.progress.setFormat(f"{100 * fraction:.0f} %")
+        self.stage.setText(f"Stage: {progress.stage}")
+        self.clock.setText(f"Simulated: {progress.time_s:.4g} of {total:.4g} s (step {progress.step:,})")
+        self.rate.setText(f"Speed: {progress.steps_per_s:,.0f} steps/s "
+                          f"({progress.particle_steps_per_s / 1e6:.3g} M particle-steps/s)")
+        # simulated seconds per wall second since the first report (compilation excluded)
+        if self._t0 is None:
+            self._t0 = (wall_s, progress.time_s)
+            self.eta.setText("Remaining: estimating…")
+            return
+        dt_wall, dt_sim = wall_s - self._t0[0], progress.time_s - self._t0[1]
+        if dt_wall > 0 and dt_sim > 0:
+            self.eta.setText(f"Remaining: about {format_duration((total - progress.time_s) * dt_wall / dt_sim)}")
+
+    def show_result(self, status: str, message: str, summary: dict[str, Any] | None = None) -> None:
+        self.set_running(False)
+        summary = summary or {}
+        if summary.get("simulated_time_s") is not None:
+            self.clock.setText(f"Simulated: {summary['simulated_time_s']:.4g} s in {summary.get('steps', 0):,} steps, "
+                               f"{format_duration(summary.get('wall_time_s') or 0.0)} of wall time")
+            rate = summary.get("particle_steps_per_s") or 0.0
+            self.rate.setText(f"Speed: {rate / 1e6:.3g} M particle-steps/s on {summary.get('arch', '?')}")
+        color = {"completed": "#188038", "stopped": "#e37400"}.get(status, "#b3261e")
+        self.status.setStyleSheet(f"color: {color};")
+        self.status.setText(f"{status}: {message}")
+        if status == "completed":
+            self.progress.setValue(1000)
+            self.progress.setFormat("completed")
+        else:
+            self.progress.setFormat(status)
+        self.eta.setText("")

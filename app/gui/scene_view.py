@@ -1,0 +1,699 @@
+"""The 2D model view: background grid, domain box with its boundary conditions, bodies coloured
+by material, a preview of the seeded particles, and drawing and editing of body polygons.
+
+Mouse, in the *select* mode: click a body to select it, drag one of its vertices (snapped to the
+grid when snapping is on), drag empty space to pan, wheel or right-drag to zoom. In the *draw*
+mode every click adds a vertex; clicking the first vertex again, double-clicking or Enter closes
+the polygon into a new body; Backspace removes the last vertex and Escape cancels. Delete
+removes the selected vertex. Problems of a shape (crossing edges, vertices outside the domain)
+are drawn in red where they are.
+
+Everything here runs on the GUI thread; the only VTK objects are those of the embedded
+:class:`pyvistaqt.QtInteractor`, released by :meth:`SceneView.close_view`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Any
+
+import numpy as np
+from PySide6.QtCore import QEvent, QObject, QPointF, Qt, QTimer, Signal
+from PySide6.QtGui import QKeyEvent, QMouseEvent
+from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
+
+from app.gui.document import ProjectDocument
+from app.gui.panels import material_color
+
+logger = logging.getLogger(__name__)
+
+PICK_PIXELS = 9.0
+MAX_GRID_LINES = 100
+MAX_PREVIEW_PARTICLES = 400_000
+BOUNDARY_STYLE = {
+    "fixed": ("#202124", 5),
+    "slip": ("#1a73e8", 4),
+    "friction": ("#e37400", 4),
+    "open": ("#9aa0a6", 1),
+}
+PROBLEM_COLOR = "#d93025"
+
+
+def _as_points(polygon: Any) -> np.ndarray | None:
+    """A polygon as an (K, 2) float array, or None when it is not one."""
+    try:
+        arr = np.asarray(polygon, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    if arr.ndim != 2 or arr.shape[1] != 2 or not np.all(np.isfinite(arr)):
+        return None
+    return arr
+
+
+def _lines(segments: list[tuple[np.ndarray, np.ndarray]]) -> Any:
+    import pyvista as pv
+
+    points = np.zeros((2 * len(segments), 3))
+    for i, (a, b) in enumerate(segments):
+        points[2 * i, :2] = a
+        points[2 * i + 1, :2] = b
+    cells = np.column_stack([np.full(len(segments), 2), np.arange(0, 2 * len(segments), 2),
+                             np.arange(1, 2 * len(segments), 2)]).ravel()
+    return pv.PolyData(points, lines=cells)
+
+
+def _points3(xy: np.ndarray, z: float = 0.0) -> np.ndarray:
+    out = np.zeros((len(xy), 3))
+    out[:, :2] = xy
+    out[:, 2] = z
+    return out
+
+
+def _left(event: QEvent) -> bool:
+    return event.button() == Qt.MouseButton.LeftButton  # type: ignore[attr-defined]
+
+
+def _rgb(color: str) -> tuple[float, float, float]:
+    color = color.lstrip("#")
+    return tuple(int(color[i:i + 2], 16) / 255.0 for i in (0, 2, 4))  # type: ignore[return-value]
+
+
+class SceneView(QWidget):
+    """The model view of a :class:`ProjectDocument`.
+
+    Signals
+    -------
+    cursorMoved(float, float)
+        Mouse position in metres (for the status bar).
+    modeChanged(str)
+        "select" or "draw".
+    message(str)
+        A short hint for the status bar.
+    """
+
+    cursorMoved = Signal(float, float)
+    modeChanged = Signal(str)
+    message = Signal(str)
+
+    def __init__(self, doc: ProjectDocument, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        from pyvistaqt import QtInteractor
+
+        self.doc = doc
+        self.plotter = QtInteractor(self, auto_update=False)
+        self.legend = QLabel("")
+        self.legend.setStyleSheet("padding: 3px 6px; background: white; color: #3c4043;")
+        self.legend.setTextFormat(Qt.TextFormat.RichText)
+        self.legend.setWordWrap(True)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.setSpacing(0)
+        layout.addWidget(self.legend)
+        layout.addWidget(self.plotter, 1)
+        self.plotter.set_background("white")
+        self.plotter.enable_parallel_projection()
+        self.plotter.enable_custom_trackball_style(
+            left="pan", shift_left="pan", control_left="pan", middle="pan", shift_middle="pan",
+            control_middle="pan", right="dolly", shift_right="dolly", control_right="dolly",
+        )
+        self.plotter.installEventFilter(self)
+        self.mode = "select"
+        self.snap = True
+        self.show_particles = True
+        self.draft: list[list[float]] = []
+        self._cursor: np.ndarray | None = None
+        self._drag: tuple[int, int] | None = None
+        self._drag_count = 0
+        self._fitted_domain: Any = None
+        self._auto_fit = True
+        self.grid_step = 1
+        self.preview_count = 0
+        self._closed = False
+        self._preview_timer = QTimer(self)
+        self._preview_timer.setSingleShot(True)
+        self._preview_timer.setInterval(120)
+        self._preview_timer.timeout.connect(self._draw_particles)
+        doc.changed.connect(self._on_changed)
+        doc.selection.changed.connect(self._on_selection)
+        self.redraw()
+
+    # -- lifetime -----------------------------------------------------------------------------
+
+    def close_view(self) -> None:
+        """Release the VTK window and interactor (before the widget goes away)."""
+        if self._closed:
+            return
+        self._closed = True
+        self._preview_timer.stop()
+        self.plotter.removeEventFilter(self)
+        try:
+            self.doc.changed.disconnect(self._on_changed)
+            self.doc.selection.changed.disconnect(self._on_selection)
+        except (RuntimeError, TypeError):  # already disconnected with the document
+            pass
+        self.plotter.close()
+
+    # -- coordinates ----------------------------------------------------------------------------
+
+    def _scale(self) -> float:
+        return float(self.plotter.devicePixelRatioF())
+
+    def widget_to_world(self, pos: QPointF) -> np.ndarray:
+        """Metres under a widget position (logical pixels)."""
+        s = self._scale()
+        x = pos.x() * s
+        y = (self.plotter.height() - pos.y() - 1) * s
+        r = self.plotter.renderer
+        r.SetDisplayPoint(x, y, 0.0)
+        r.DisplayToWorld()
+        wx, wy, _wz, w = r.GetWorldPoint()
+        if w == 0:
+            w = 1.0
+        return np.array([wx / w, wy / w])
+
+    def world_to_widget(self, xy: Any) -> QPointF:
+        """Widget position (logical pixels) of a point in metres."""
+        r = self.plotter.renderer
+        r.SetWorldPoint(float(xy[0]), float(xy[1]), 0.0, 1.0)
+        r.WorldToDisplay()
+        dx, dy, _ = r.GetDisplayPoint()
+        s = self._scale()
+        return QPointF(dx / s, self.plotter.height() - 1 - dy / s)
+
+    def pixel_size_m(self) -> float:
+        """Metres per logical pixel at the current zoom."""
+        scale = self.plotter.camera.parallel_scale
+        return 2.0 * scale / max(1, self.plotter.height())
+
+    # -- camera -------------------------------------------------------------------------------
+
+    def _domain_box(self) -> tuple[float, float, float, float] | None:
+        origin = _as_points([self.doc.get("domain.origin_m", [0.0, 0.0])])
+        size = _as_points([self.doc.get("domain.size_m")])
+        if origin is None or size is None or np.any(size <= 0):
+            return None
+        x0, y0 = origin[0]
+        w, h = size[0]
+        return float(x0), float(x0 + w), float(y0), float(y0 + h)
+
+    def fit(self) -> None:
+        """Show the whole domain with a margin for the boundary labels."""
+        box = self._domain_box() or (0.0, 1.0, 0.0, 1.0)
+        x0, x1, y0, y1 = box
+        cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+        w, h = (x1 - x0) * 1.12, (y1 - y0) * 1.25
+        aspect = max(1, self.plotter.width()) / max(1, self.plotter.height())
+        cam = self.plotter.camera
+        cam.focal_point = (cx, cy, 0.0)
+        cam.position = (cx, cy, 10.0 * max(w, h))
+        cam.up = (0.0, 1.0, 0.0)
+        cam.parallel_scale = max(h / 2.0, w / 2.0 / aspect)
+        self.plotter.renderer.ResetCameraClippingRange()
+        self._fitted_domain = box
+        self._auto_fit = True
+        self.plotter.render()
+
+    def resizeEvent(self, event: Any) -> None:  # noqa: N802 - Qt's name
+        super().resizeEvent(event)
+        # follow the window's size until the user pans or zooms; then keep their view
+        if not self._closed and self._fitted_domain is not None and self._auto_fit:
+            self.fit()
+
+    # -- drawing the scene ----------------------------------------------------------------------
+
+    def _add(self, mesh: Any, **kwargs: Any) -> Any:
+        kwargs.setdefault("render", False)
+        kwargs.setdefault("reset_camera", False)
+        return self.plotter.add_mesh(mesh, **kwargs)
+
+    def _on_changed(self, sections: frozenset) -> None:
+        self.redraw(sections)
+
+    def _on_selection(self) -> None:
+        if not self._closed:
+            self._draw_bodies()
+            self.plotter.render()
+
+    def redraw(self, sections: frozenset | None = None) -> None:
+        """Draw what changed (everything when ``sections`` is None)."""
+        if self._closed:
+            return
+        every = sections is None
+        if every or "domain" in sections:
+            self._draw_domain()
+        if every or sections & {"domain", "bodies", "materials"}:
+            self._draw_bodies()
+        if every or sections & {"domain", "bodies", "particles", "materials"}:
+            self._preview_timer.start()
+        box = self._domain_box()
+        if box is not None and box != self._fitted_domain:
+            self.fit()
+        else:
+            self.plotter.render()
+
+    def _draw_domain(self) -> None:
+        pl = self.plotter
+        for name in ("grid", "labels", "side-left", "side-right", "side-bottom", "side-top"):
+            pl.remove_actor(name, render=False)
+        box = self._domain_box()
+        cell = self.doc.get("domain.cell_size_m")
+        if box is None:
+            return
+        x0, x1, y0, y1 = box
+        if isinstance(cell, (int, float)) and cell > 0:
+            nx, ny = max(1, round((x1 - x0) / cell)), max(1, round((y1 - y0) / cell))
+            step = max(1, math.ceil(max(nx, ny) / MAX_GRID_LINES))
+            self.grid_step = step
+            segs = [(np.array([x0 + i * cell, y0]), np.array([x0 + i * cell, y1])) for i in range(0, nx + 1, step)]
+            segs += [(np.array([x0, y0 + j * cell]), np.array([x1, y0 + j * cell])) for j in range(0, ny + 1, step)]
+            self._add(_lines(segs), color="#e3e6ea", line_width=1, name="grid", pickable=False,
+                        render=False, lighting=False)
+        corners = {
+            "bottom": (np.array([x0, y0]), np.array([x1, y0])),
+            "right": (np.array([x1, y0]), np.array([x1, y1])),
+            "top": (np.array([x1, y1]), np.array([x0, y1])),
+            "left": (np.array([x0, y1]), np.array([x0, y0])),
+        }
+        labels, points = [], []
+        pad = 0.035 * max(x1 - x0, y1 - y0)
+        offsets = {"bottom": (0, -pad), "top": (0, pad * 0.6), "left": (-pad, 0), "right": (pad, 0)}
+        for side, (a, b) in corners.items():
+            boundary = self.doc.get(f"domain.boundaries.{side}", "slip")
+            kind = boundary.get("type", "?") if isinstance(boundary, dict) else str(boundary)
+            color, width = BOUNDARY_STYLE.get(kind, ("#9aa0a6", 1))
+            self._add(_lines([(a, b)]), color=color, line_width=width, name=f"side-{side}",
+                        pickable=False, render=False, lighting=False)
+            text = kind
+            if kind == "friction" and isinstance(boundary, dict):
+                text = f"friction {boundary.get('friction_angle_deg', '?')}°"
+            mid = (a + b) / 2 + np.array(offsets[side])
+            labels.append(text)
+            points.append([mid[0], mid[1], 0.01])
+        pl.add_point_labels(np.array(points), labels, name="labels", font_size=11, text_color="#3c4043",
+                            shape=None, show_points=False, always_visible=True, render=False,
+                            justification_horizontal="center", reset_camera=False)
+
+    def _material_index(self, name: Any) -> int:
+        names = self.doc.material_names
+        return names.index(name) if name in names else -1
+
+    def _draw_bodies(self) -> None:
+        import pyvista as pv
+
+        from geometry.polygons import self_intersections
+
+        pl = self.plotter
+        for name in ("fills", "outlines", "bad-edges", "bad-points", "vertices", "vertex", "draft",
+                     "draft-points", "legend"):
+            pl.remove_actor(name, render=False)
+        bodies = self.doc.get("bodies", [])
+        fills, outlines, bad_segments, bad_points = [], [], [], []
+        box = self._domain_box()
+        for i, body in enumerate(bodies):
+            poly = _as_points(body.get("polygon_m"))
+            if poly is None or len(poly) < 2:
+                continue
+            color = _rgb(material_color(self._material_index(body.get("material"))))
+            if len(poly) >= 3:
+                try:
+                    crossings = self_intersections(poly)
+                except ValueError:
+                    crossings = []
+                for a, b in crossings:
+                    for e in (a, b):
+                        bad_segments.append((poly[e], poly[(e + 1) % len(poly)]))
+                face = pv.PolyData(_points3(poly, -0.01), faces=np.r_[len(poly), np.arange(len(poly))])
+                if not crossings:
+                    try:
+                        face = face.triangulate()
+                    except (RuntimeError, ValueError):
+                        logger.debug("could not triangulate body %d", i)
+                face.cell_data["rgb"] = np.tile(np.array(color) * 255, (face.n_cells, 1)).astype(np.uint8)
+                fills.append(face)
+            ring = np.vstack([poly, poly[:1]])
+            outlines.extend((ring[k], ring[k + 1]) for k in range(len(poly)))
+            if box is not None:
+                outside = (poly[:, 0] < box[0] - 1e-9) | (poly[:, 0] > box[1] + 1e-9) | \
+                          (poly[:, 1] < box[2] - 1e-9) | (poly[:, 1] > box[3] + 1e-9)
+                bad_points.extend(poly[outside])
+        if fills:
+            merged = fills[0].merge(fills[1:]) if len(fills) > 1 else fills[0]
+            self._add(merged, scalars="rgb", rgb=True, opacity=0.3, name="fills", show_scalar_bar=False,
+                        render=False, lighting=False)
+        if outlines:
+            self._add(_lines(outlines), color="#3c4043", line_width=1.5, name="outlines", render=False,
+                        lighting=False)
+        if bad_segments:
+            self._add(_lines(bad_segments), color=PROBLEM_COLOR, line_width=4, name="bad-edges", render=False,
+                        lighting=False)
+        if bad_points:
+            self._add(pv.PolyData(_points3(np.array(bad_points), 0.02)), color=PROBLEM_COLOR, point_size=14,
+                        render_points_as_spheres=True, name="bad-points", render=False)
+        sel = self.doc.selection.body
+        if sel is not None and sel < len(bodies):
+            poly = _as_points(bodies[sel].get("polygon_m"))
+            if poly is not None and len(poly):
+                ring = np.vstack([poly, poly[:1]])
+                seg = [(ring[k], ring[k + 1]) for k in range(len(poly))]
+                self._add(_lines(seg), color="#202124", line_width=3, name="draft", render=False, lighting=False)
+                self._add(pv.PolyData(_points3(poly, 0.03)), color="white", point_size=10,
+                            render_points_as_spheres=True, name="vertices", render=False)
+                v = self.doc.selection.vertex
+                if v is not None and v < len(poly):
+                    self._add(pv.PolyData(_points3(poly[v:v + 1], 0.04)), color="#fbbc04", point_size=15,
+                                render_points_as_spheres=True, name="vertex", render=False)
+        self._update_legend()
+        self._draw_draft()
+
+    def _update_legend(self) -> None:
+        names = self.doc.material_names
+        parts = [f'<span style="color:{material_color(i)}; font-size:14px">■</span>&nbsp;{n}'
+                 for i, n in enumerate(names)]
+        sides = "".join(
+            f'&nbsp;&nbsp;<span style="color:{c}">━</span>&nbsp;{k}' for k, (c, _w) in BOUNDARY_STYLE.items())
+        count = len(self.doc.get("bodies", []))
+        grid = f"&nbsp;&nbsp;&nbsp;&nbsp;grid lines every {self.grid_step} cells" if self.grid_step > 1 else ""
+        self.legend.setText(f"<b>Materials</b>&nbsp; {'&nbsp;&nbsp;'.join(parts) or 'none'}"
+                            f"&nbsp;&nbsp;&nbsp;&nbsp;<b>Boundaries</b>{sides}"
+                            f"&nbsp;&nbsp;&nbsp;&nbsp;{count} bod{'y' if count == 1 else 'ies'}"
+                            + (f", {self.preview_count:,} particles" if self.show_particles and self.preview_count
+                               else "")
+                            + grid)
+
+    def _draw_draft(self) -> None:
+        import pyvista as pv
+
+        pl = self.plotter
+        pl.remove_actor("draft-line", render=False)
+        pl.remove_actor("draft-points", render=False)
+        if self.mode != "draw" or not self.draft:
+            return
+        pts = np.array(self.draft, dtype=float)
+        chain = list(pts)
+        if self._cursor is not None:
+            chain.append(self._cursor)
+        if len(chain) >= 2:
+            seg = [(chain[k], chain[k + 1]) for k in range(len(chain) - 1)]
+            self._add(_lines(seg), color="#d93025" if self._draft_crosses() else "#1a73e8", line_width=2.5,
+                        name="draft-line", render=False, lighting=False)
+        self._add(pv.PolyData(_points3(pts, 0.03)), color="#1a73e8", point_size=10,
+                    render_points_as_spheres=True, name="draft-points", render=False)
+
+    def _draft_crosses(self) -> bool:
+        from geometry.polygons import self_intersections
+
+        if len(self.draft) < 3:
+            return False
+        try:
+            return bool(self_intersections(np.array(self.draft, dtype=float)))
+        except ValueError:
+            return False
+
+    def _draw_particles(self) -> None:
+        """Seed the bodies as a run would and show the points (skipped for huge counts)."""
+        import pyvista as pv
+
+        if self._closed:
+            return
+        pl = self.plotter
+        pl.remove_actor("particles", render=False)
+        self.preview_count = 0
+        if self.show_particles:
+            positions, material = self._seed()
+            if positions is not None and len(positions):
+                self.preview_count = len(positions)
+                cloud = pv.PolyData(_points3(positions, 0.01))
+                colors = np.array([_rgb(material_color(m)) for m in range(max(1, int(material.max()) + 1))])
+                cloud.point_data["rgb"] = (colors[material] * 0.85 * 255).astype(np.uint8)
+                size = max(1.0, min(6.0, self._spacing_pixels() * 0.5))
+                self._add(cloud, scalars="rgb", rgb=True, point_size=size, name="particles",
+                          show_scalar_bar=False, lighting=False, pickable=False)
+        self._update_legend()
+        pl.render()
+
+    def _spacing_pixels(self) -> float:
+        cell = self.doc.get("domain.cell_size_m")
+        per = self.doc.get("particles.per_cell", 2)
+        if not isinstance(cell, (int, float)) or not isinstance(per, int) or per < 1:
+            return 2.0
+        return float(cell) / per / max(self.pixel_size_m(), 1e-12)
+
+    def _seed(self) -> tuple[np.ndarray | None, np.ndarray]:
+        from geometry.polygons import is_simple, polygon_area
+        from geometry.seeding import seed_lattice
+
+        empty = np.zeros(0, dtype=int)
+        doc = self.doc
+        cell, per = doc.get("domain.cell_size_m"), doc.get("particles.per_cell", 2)
+        origin = _as_points([doc.get("domain.origin_m", [0.0, 0.0])])
+        if not isinstance(cell, (int, float)) or cell <= 0 or not isinstance(per, int) or per < 1 or origin is None:
+            return None, empty
+        polys, mats = [], []
+        for body in doc.get("bodies", []):
+            poly = _as_points(body.get("polygon_m"))
+            if poly is not None and len(poly) >= 3 and is_simple(poly):
+                polys.append(poly)
+                mats.append(self._material_index(body.get("material")))
+        if not polys:
+            return None, empty
+        area = sum(polygon_area(p) for p in polys)
+        if area * (per / cell) ** 2 > MAX_PREVIEW_PARTICLES:
+            self.message.emit(f"particle preview skipped: about {area * (per / cell) ** 2:,.0f} particles")
+            return None, empty
+        if doc.project is not None and doc.get("particles.seeding") == "gauss":
+            from projects.build import seed_bodies
+
+            seeds = seed_bodies(doc.project)
+        else:
+            seeds = seed_lattice(polys, tuple(origin[0]), float(cell), per)
+        body_material = np.array(mats, dtype=int)
+        material = np.maximum(body_material[np.asarray(seeds.body_index, dtype=int)], 0)
+        return np.asarray(seeds.positions_m), material
+
+    def set_show_particles(self, on: bool) -> None:
+        self.show_particles = bool(on)
+        self._draw_particles()
+
+    # -- modes --------------------------------------------------------------------------------
+
+    def set_mode(self, mode: str) -> None:
+        """``"select"`` (pick, drag vertices, pan) or ``"draw"`` (click vertices of a new body)."""
+        if mode == self.mode:
+            return
+        self.mode = mode
+        self.draft = []
+        self._cursor = None
+        self.plotter.setCursor(Qt.CursorShape.CrossCursor if mode == "draw" else Qt.CursorShape.ArrowCursor)
+        if mode == "draw":
+            self.message.emit("Click to add vertices; click the first vertex, double-click or Enter to close; "
+                              "Backspace removes the last, Esc cancels")
+        self._draw_draft()
+        self.plotter.render()
+        self.modeChanged.emit(mode)
+
+    def set_snap(self, on: bool) -> None:
+        self.snap = bool(on)
+
+    def snapped(self, xy: np.ndarray, moving: tuple[int, int] | None = None) -> np.ndarray:
+        """Snap to a nearby vertex of a body (shared edges), else to the grid when snapping is on.
+
+        ``moving`` (body, vertex) is the vertex being dragged, which must not snap to itself.
+        """
+        tol = PICK_PIXELS * self.pixel_size_m()
+        for i, body in enumerate(self.doc.get("bodies", [])):
+            poly = _as_points(body.get("polygon_m"))
+            if poly is None or not len(poly):
+                continue
+            d = np.hypot(*(poly - xy).T)
+            if moving is not None and moving[0] == i:
+                # its own neighbours are not targets either: snapping onto them collapses an edge
+                count = len(poly)
+                for k in (moving[1] - 1, moving[1], moving[1] + 1):
+                    d[k % count] = np.inf
+            k = int(np.argmin(d))
+            if d[k] <= tol:
+                return poly[k].copy()
+        if not self.snap:
+            return xy
+        cell = self.doc.get("domain.cell_size_m")
+        origin = _as_points([self.doc.get("domain.origin_m", [0.0, 0.0])])
+        if not isinstance(cell, (int, float)) or cell <= 0 or origin is None:
+            return xy
+        # snap to half cells: fine enough for slopes, still on the particle lattice lines
+        step = float(cell) / 2.0
+        o = origin[0]
+        snapped = o + np.round((xy - o) / step) * step
+        return np.round(snapped, 12)
+
+    # -- edits from the mouse -------------------------------------------------------------------
+
+    def add_draft_point(self, xy: Any) -> None:
+        """Add a vertex to the polygon being drawn (closes it when ``xy`` is its first vertex)."""
+        p = np.asarray(xy, dtype=float)
+        if len(self.draft) >= 3:
+            first = np.asarray(self.draft[0])
+            if np.hypot(*(p - first)) <= PICK_PIXELS * self.pixel_size_m():
+                self.close_draft()
+                return
+        if self.draft and np.allclose(self.draft[-1], p):
+            return
+        self.draft.append([float(p[0]), float(p[1])])
+        self._draw_draft()
+        self.plotter.render()
+
+    def close_draft(self) -> bool:
+        """Turn the drawn polygon into a new body of the selected (or first) material."""
+        if len(self.draft) < 3:
+            self.message.emit("A body needs at least 3 vertices")
+            return False
+        names = self.doc.material_names
+        current = self.doc.selection.body
+        bodies = self.doc.get("bodies", [])
+        material = bodies[current].get("material") if current is not None and current < len(bodies) else None
+        material = material or (names[0] if names else "soil")
+        taken = {b.get("name") for b in bodies}
+        k = len(bodies) + 1
+        while f"body-{k}" in taken:
+            k += 1
+        body = {"name": f"body-{k}", "material": material, "polygon_m": [list(p) for p in self.draft]}
+        self.draft = []
+        self._cursor = None
+        self.doc.edit(f"draw body {body['name']}", lambda d: d.setdefault("bodies", []).append(body))
+        self.doc.selection.set(len(self.doc.get("bodies", [])) - 1)
+        self.set_mode("select")
+        return True
+
+    def cancel_draft(self) -> None:
+        self.draft = []
+        self._draw_draft()
+        self.plotter.render()
+
+    def _nearest_vertex(self, xy: np.ndarray) -> tuple[int, int] | None:
+        tol = PICK_PIXELS * self.pixel_size_m()
+        bodies = self.doc.get("bodies", [])
+        order = list(range(len(bodies)))
+        sel = self.doc.selection.body
+        if sel is not None and sel in order:  # the selected body wins ties
+            order.remove(sel)
+            order.insert(0, sel)
+        best: tuple[float, int, int] | None = None
+        for i in order:
+            poly = _as_points(bodies[i].get("polygon_m"))
+            if poly is None or not len(poly):
+                continue
+            d = np.hypot(*(poly - xy).T)
+            k = int(np.argmin(d))
+            if d[k] <= tol and (best is None or d[k] < best[0] - 1e-12):
+                best = (float(d[k]), i, k)
+        return None if best is None else (best[1], best[2])
+
+    def _body_at(self, xy: np.ndarray) -> int | None:
+        from geometry.polygons import points_in_polygon
+
+        bodies = self.doc.get("bodies", [])
+        for i in reversed(range(len(bodies))):  # the later body is painted on top
+            poly = _as_points(bodies[i].get("polygon_m"))
+            if poly is not None and len(poly) >= 3:
+                try:
+                    if bool(points_in_polygon(xy[None, :], poly)[0]):
+                        return i
+                except ValueError:
+                    continue
+        return None
+
+    def move_vertex(self, body: int, vertex: int, xy: Any, merge_key: str | None = None) -> None:
+        x, y = float(xy[0]), float(xy[1])
+
+        def mutate(d: dict[str, Any]) -> None:
+            d["bodies"][body]["polygon_m"][vertex] = [x, y]
+
+        name = self.doc.get(f"bodies.{body}.name", body)
+        self.doc.edit(f"move vertex {vertex} of {name}", mutate, merge_key)
+
+    def delete_selected_vertex(self) -> None:
+        body, vertex = self.doc.selection.body, self.doc.selection.vertex
+        if body is None or vertex is None:
+            return
+        self.doc.edit("delete vertex", lambda d: d["bodies"][body]["polygon_m"].pop(vertex))
+
+    # -- Qt events ------------------------------------------------------------------------------
+
+    def eventFilter(self, obj: QObject, event: QEvent) -> bool:  # noqa: N802 - Qt's name
+        if obj is not self.plotter or self._closed:
+            return False
+        kind = event.type()
+        if kind == QEvent.Type.MouseMove:
+            return self._mouse_move(event)  # type: ignore[arg-type]
+        if kind == QEvent.Type.MouseButtonPress and _left(event):
+            return self._mouse_press(event)  # type: ignore[arg-type]
+        if kind == QEvent.Type.MouseButtonDblClick and _left(event):
+            if self.mode == "draw":
+                self.close_draft()
+                return True
+            return self._drag is not None
+        if kind == QEvent.Type.MouseButtonRelease and _left(event):
+            if self._drag is not None:
+                self._drag = None
+                return True
+            if self.mode != "draw":
+                self._auto_fit = False  # the left button pans in the select mode
+            return self.mode == "draw"
+        if kind == QEvent.Type.KeyPress:
+            return self._key(event)  # type: ignore[arg-type]
+        if kind in (QEvent.Type.Wheel, QEvent.Type.MouseButtonRelease):
+            self._auto_fit = False  # the user panned or zoomed
+        return False
+
+    def _mouse_move(self, event: QMouseEvent) -> bool:
+        xy = self.widget_to_world(event.position())
+        self.cursorMoved.emit(float(xy[0]), float(xy[1]))
+        if self._drag is not None:
+            body, vertex = self._drag
+            self.move_vertex(body, vertex, self.snapped(xy, moving=self._drag), merge_key=f"drag-{self._drag_count}")
+            return True
+        if self.mode == "draw" and self.draft:
+            self._cursor = self.snapped(xy)
+            self._draw_draft()
+            self.plotter.render()
+        return False
+
+    def _mouse_press(self, event: QMouseEvent) -> bool:
+        xy = self.widget_to_world(event.position())
+        self.plotter.setFocus()
+        if self.mode == "draw":
+            self.add_draft_point(self.snapped(xy))
+            return True
+        hit = self._nearest_vertex(xy)
+        if hit is not None:
+            self.doc.selection.set(*hit)
+            self._drag = hit
+            self._drag_count += 1
+            return True
+        body = self._body_at(xy)
+        if body is not None:
+            self.doc.selection.set(body)
+            return False  # a drag from inside a body still pans
+        self.doc.selection.set(None)
+        return False
+
+    def _key(self, event: QKeyEvent) -> bool:
+        key = event.key()
+        if self.mode == "draw":
+            if key in (Qt.Key.Key_Return, Qt.Key.Key_Enter):
+                self.close_draft()
+                return True
+            if key == Qt.Key.Key_Escape:
+                self.cancel_draft()
+                self.set_mode("select")
+                return True
+            if key == Qt.Key.Key_Backspace and self.draft:
+                self.draft.pop()
+                self._draw_draft()
+                self.plotter.render()
+                return True
+        elif key in (Qt.Key.Key_Delete, Qt.Key.Key_Backspace):
+            self.delete_selected_vertex()
+            return True
+        # pyvista's own keys (q closes, v isometric, ...) make no sense in the embedded view
+        return key not in (Qt.Key.Key_Plus, Qt.Key.Key_Minus)
