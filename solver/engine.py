@@ -309,19 +309,24 @@ class Engine:
     # cell inside completes the truncated B-spline support there (the mirror-image method): without
     # it a uniform stress pushes on the first interior node and the stress oscillates near walls.
     @ti.func
-    def _wall_pairs(self, side: ti.template(), k):
-        """(ghost node, mirror node) for the k-th node along a side."""
-        axis = ti.static(side // 2)
-        low = ti.static(side % 2 == 0)
-        wall = ti.static(PAD if low else PAD + (self.cells[0] if axis == 0 else self.cells[1]))
-        step = ti.static(1 if low else -1)
+    def _wall_pairs(self, axis: ti.template(), k):
+        """Side, ghost node and mirror node of the k-th node along the two walls normal to ``axis``.
+
+        Both walls of an axis share one loop (k < 2 * nodes along the wall): a loop is a task
+        with a fixed cost of its own, and two opposite walls never touch the same nodes.
+        """
+        along = ti.static(self.nodes[1 - axis])
+        high = k // along
+        side = 2 * axis + high
+        wall = PAD + high * ti.static(self.cells[axis])
+        step = 1 - 2 * high  # +1 into the domain from the low wall, -1 from the high one
         ghost = ti.Vector([0, 0])
-        mirror = ti.Vector([0, 0])
+        mirror = ghost
         ghost[axis] = wall - step
         mirror[axis] = wall + step
-        ghost[1 - axis] = k
-        mirror[1 - axis] = k
-        return ghost, mirror
+        ghost[1 - axis] = k % along
+        mirror[1 - axis] = k % along
+        return side, ti.cast(step, float), ghost, mirror
 
     @ti.func
     def _in_box(self, I):
@@ -331,11 +336,9 @@ class Engine:
 
     @ti.func
     def _fold_ghosts(self, momentum: ti.template(), forces: ti.template(), dt):
-        for side in ti.static(range(4)):
-            axis = ti.static(side // 2)
-            inward = ti.static(1.0 if side % 2 == 0 else -1.0)
-            for k in range(self.nodes[1 - axis]):  # top-level loop: runs in parallel
-                ghost, mirror = self._wall_pairs(side, k)
+        for axis in ti.static(range(2)):
+            for k in range(2 * self.nodes[1 - axis]):  # top-level loop: runs in parallel
+                side, inward, ghost, mirror = self._wall_pairs(axis, k)
                 impulse = 0.0 * dt  # normal momentum the mirror turns back into the domain
                 if self.bc_kind[side] != 3 and self._in_box(ghost) and self._in_box(mirror):
                     flip = ti.Vector([1.0, 1.0])
@@ -349,16 +352,15 @@ class Engine:
                         impulse += ti.max(-inward * self.g_f[ghost][axis], 0.0) * dt
                 # that reaction is wall contact too: Coulomb friction acts on it (mu = 0 unless friction)
                 if ti.static(momentum):
-                    self.wall_friction[side, k] = self.bc_mu[side] * impulse
+                    self.wall_friction[side, k % self.nodes[1 - axis]] = self.bc_mu[side] * impulse
                 else:
-                    self.wall_friction[side, k] += self.bc_mu[side] * impulse
+                    self.wall_friction[side, k % self.nodes[1 - axis]] += self.bc_mu[side] * impulse
 
     @ti.func
     def _mirror_ghosts(self, old: ti.template()):
-        for side in ti.static(range(4)):
-            axis = ti.static(side // 2)
-            for k in range(self.nodes[1 - axis]):
-                ghost, mirror = self._wall_pairs(side, k)
+        for axis in ti.static(range(2)):
+            for k in range(2 * self.nodes[1 - axis]):
+                side, inward, ghost, mirror = self._wall_pairs(axis, k)
                 kind = self.bc_kind[side]
                 if kind != 3 and self._in_box(ghost) and self._in_box(mirror):
                     flip = ti.Vector([1.0, 1.0])
