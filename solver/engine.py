@@ -339,17 +339,19 @@ class Engine:
         for axis in ti.static(range(2)):
             for k in range(2 * self.nodes[1 - axis]):  # top-level loop: runs in parallel
                 side, inward, ghost, mirror = self._wall_pairs(axis, k)
-                impulse = 0.0 * dt  # normal momentum the mirror turns back into the domain
+                # normal momentum the wall reverses: the ghost's inward momentum vanishes and the same
+                # appears outward at the mirror node, an impulse of twice that momentum
+                impulse = 0.0 * dt
                 if self.bc_kind[side] != 3 and self._in_box(ghost) and self._in_box(mirror):
                     flip = ti.Vector([1.0, 1.0])
                     flip[axis] = -1.0
                     if ti.static(momentum):
                         self.g_mass[mirror] += self.g_mass[ghost]
                         self.g_mom[mirror] += flip * self.g_mom[ghost]
-                        impulse += ti.max(-inward * self.g_mom[ghost][axis], 0.0)
+                        impulse += 2.0 * ti.max(-inward * self.g_mom[ghost][axis], 0.0)
                     if ti.static(forces):
                         self.g_f[mirror] += flip * self.g_f[ghost]
-                        impulse += ti.max(-inward * self.g_f[ghost][axis], 0.0) * dt
+                        impulse += 2.0 * ti.max(-inward * self.g_f[ghost][axis], 0.0) * dt
                 # that reaction is wall contact too: Coulomb friction acts on it (mu = 0 unless friction)
                 if ti.static(momentum):
                     self.wall_friction[side, k % self.nodes[1 - axis]] = self.bc_mu[side] * impulse

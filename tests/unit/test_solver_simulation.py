@@ -159,7 +159,7 @@ def test_coulomb_friction_decelerates_a_sliding_block_at_mu_g():
     frames = _sliding_block(Boundary("friction", math.radians(20.0)), (0.0, -9.81), 1.0, 0.1)
     d = frames[-1].diagnostics
     v_mean = d.momentum_x / d.total_mass_kg_per_m
-    assert v_mean == pytest.approx(1.0 - mu * 9.81 * 0.1, rel=0.10)  # 0.643 m/s; measured 0.68 (6 % short)
+    assert v_mean == pytest.approx(1.0 - mu * 9.81 * 0.1, rel=0.10)  # 0.643 m/s; measured 0.61 (chatter adds ~5 %)
 
 
 def test_gravity_in_any_direction_accelerates_a_block_on_a_frictionless_floor():
