@@ -1,0 +1,775 @@
+"""Shared pieces of the validation studies: running scenes, measuring deposits, writing reports.
+
+Runs go through the normal path: a shipped example project, ``--set``-style overrides
+(:func:`projects.document.apply_overrides`), :func:`projects.build.build_simulation` and either
+:func:`projects.runner.run_project` (a results folder, :func:`run_project_measured`) or, where the
+study needs a solver option that project files do not expose (the stability guard's ``remove``
+mode), :class:`solver.simulation.Simulation` on the built configuration (:func:`run_built`).
+
+Deposit measures (all lengths in m, on the final frame's active particles):
+
+- **surface** ``h(x)``: the highest particle top ``y_p + s/2`` among the particles whose ``x_p``
+  lies within ``w/2`` of ``x`` (a sliding window of width ``w = max(5 mm, 2 s)``, ``s`` the initial
+  particle spacing); zero where the window holds no particle.
+- **thickness** for the toe: the same with a narrow window ``|x_p - x| <= s`` (the neighbouring
+  particle columns only).
+- **toe**: the furthest particle edge ``x_p + s/2`` among the particles whose local thickness is at
+  least 2 mm (the issue's definition "furthest x where the deposit is at least 2 mm thick").
+  A single layer of particles is ``s`` thick, so at spacings of 2 mm and more every particle
+  counts: a coarse run cannot resolve a 2 mm threshold.
+- **reach**: the same at 5 mm (:data:`REACH_THICKNESS_M`): the run-out of the body of the
+  deposit. The deposit's tail is only a few millimetres thick over several centimetres, so the
+  2 mm toe moves by centimetres when the tail's thickness changes by a fraction of a millimetre;
+  the reach is the well-conditioned run-out measure used to compare runs (presets).
+- **front**: the furthest particle edge ``x_p + s/2`` (any thickness).
+- **crest**: the highest particle top within 10 mm of the back wall.
+- **RMS deviation**: ``sqrt(mean((h(x_k) - y_k)^2))`` over the reference points ``x_k`` in the
+  stated range (the experiment's digitised points, or a 5 mm grid against another run).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import math
+import os
+import resource
+import shutil
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+logger = logging.getLogger(__name__)
+
+REPO = Path(__file__).resolve().parents[2]
+EXAMPLES = REPO / "projects" / "examples"
+#: The experimental final surface of Bui et al. (2008) (shared data folder of the project).
+BUI_SURFACE_CSV_CANDIDATES = (
+    REPO / "projects" / "examples" / "bui2008_final_surface.csv",
+    REPO.parent / "shared" / "data" / "bui2008_final_surface.csv",
+)
+#: Toe threshold of the issue: the deposit is at least this thick there (m).
+TOE_THICKNESS_M = 0.002
+#: Thickness of the "reach", the well-conditioned run-out measure (m).
+REACH_THICKNESS_M = 0.005
+#: Crest: the highest particle top within this distance of the back wall (m).
+CREST_WINDOW_M = 0.010
+#: Smallest window of the surface envelope (m).
+SURFACE_WINDOW_M = 0.005
+
+Note = Callable[[str], None]
+
+
+class StudyError(Exception):
+    """A study cannot run (missing data file, unknown study, bad output folder)."""
+
+
+def quiet(_: str) -> None:
+    """Default progress sink: drop the message."""
+
+
+# --------------------------------------------------------------------------------------------
+# scenes
+
+
+def example(name: str) -> Path:
+    """Path of a shipped example project, ``projects/examples/NAME.toml``."""
+    path = EXAMPLES / f"{name}.toml"
+    if not path.is_file():
+        raise StudyError(f"example project {path} is missing")
+    return path
+
+
+def load_scene(name: str, overrides: Sequence[str] = ()) -> Any:
+    """Load a shipped example with ``--set``-style overrides, always on the CPU.
+
+    Parameters
+    ----------
+    name : str
+        Example name without ``.toml`` (``bui2008_aluminium_bars``, ``sand_column``, ...).
+    overrides : sequence of str
+        ``KEY=VALUE`` as for ``runout run --set``.
+
+    Returns
+    -------
+    projects.schema.Project
+    """
+    from projects.document import load_project
+
+    return load_project(example(name), ['numerics.arch="cpu"', *overrides])
+
+
+def bui_experiment() -> np.ndarray:
+    """The experimental final surface of Bui et al. (2008).
+
+    Returns
+    -------
+    numpy.ndarray, shape (K, 2)
+        ``x, y`` in m, origin at the back wall, at the base.
+    """
+    for path in BUI_SURFACE_CSV_CANDIDATES:
+        if path.is_file():
+            return read_xy_csv(path)
+    raise StudyError("the experimental surface bui2008_final_surface.csv was not found in "
+                     + " or ".join(str(p.parent) for p in BUI_SURFACE_CSV_CANDIDATES))
+
+
+def read_xy_csv(path: Path) -> np.ndarray:
+    """Two numeric columns of a CSV with ``#`` comment lines and an optional header line."""
+    points = []
+    with open(path, encoding="utf-8") as fh:
+        for row in csv.reader(line for line in fh if line.strip() and not line.lstrip().startswith("#")):
+            try:
+                points.append((float(row[0]), float(row[1])))
+            except (ValueError, IndexError):
+                continue  # the header line
+    if not points:
+        raise StudyError(f"{path} holds no x, y rows")
+    return np.asarray(points, dtype=float)
+
+
+# --------------------------------------------------------------------------------------------
+# running
+
+
+@dataclass
+class RunRecord:
+    """What one study run produced.
+
+    Attributes
+    ----------
+    label : str
+        Short name of the run in tables.
+    params : dict
+        The settings that distinguish it (scheme, cell size, ...).
+    status : str
+        ``completed``, ``stopped`` (wall-clock limit or cancel) or ``failed``.
+    message : str
+        The solver's or runner's one-line message.
+    wall_s, cpu_s : float
+        Wall-clock and process CPU seconds of the whole run (set-up, compilation, output).
+    steps, particles : int
+    simulated_time_s : float
+    particle_steps_per_s : float
+        From the run's summary (timed loop only).
+    series : dict of str to numpy.ndarray
+        One entry per output (columns of ``series.csv``).
+    positions : numpy.ndarray, shape (N, 2)
+        Final positions, m.
+    active : numpy.ndarray, shape (N,), bool
+    spacing_m : float
+        Initial particle spacing ``sqrt(median volume)``, m.
+    extra : dict
+        Study-specific numbers.
+    """
+
+    label: str
+    params: dict[str, Any]
+    status: str
+    message: str
+    wall_s: float
+    cpu_s: float
+    steps: int
+    particles: int
+    simulated_time_s: float
+    particle_steps_per_s: float
+    series: dict[str, np.ndarray] = field(default_factory=dict)
+    positions: np.ndarray | None = None
+    active: np.ndarray | None = None
+    spacing_m: float = 0.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "completed"
+
+    @property
+    def particle_steps(self) -> int:
+        return int(self.steps) * int(self.particles)
+
+    def row(self) -> dict[str, Any]:
+        """Flat JSON-friendly summary (no arrays)."""
+        out = {"label": self.label, **self.params, "status": self.status, "message": self.message,
+               "wall_s": self.wall_s, "cpu_s": self.cpu_s, "steps": self.steps, "particles": self.particles,
+               "particle_steps": self.particle_steps, "simulated_time_s": self.simulated_time_s,
+               "particle_steps_per_s": self.particle_steps_per_s}
+        out.update(self.extra)
+        return out
+
+
+def cpu_seconds() -> float:
+    """User + system CPU seconds of this process (all threads, Taichi's included)."""
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+class WallClockLimit:
+    """A ``cancel`` callable that turns True once ``limit_s`` seconds have passed.
+
+    Used so that no study row can hang: a run past its limit stops with status ``stopped``.
+    """
+
+    def __init__(self, limit_s: float | None) -> None:
+        self.limit_s = limit_s
+        self.start = time.perf_counter()
+        self.fired = False
+
+    def __call__(self) -> bool:
+        if self.limit_s is not None and time.perf_counter() - self.start > self.limit_s:
+            self.fired = True
+        return self.fired
+
+
+def spacing_of(volumes_m2: np.ndarray) -> float:
+    """Particle spacing ``sqrt(median volume)`` (m) of initial volumes (m2)."""
+    v = np.asarray(volumes_m2, dtype=float)
+    return float(np.sqrt(np.median(v))) if v.size else 0.0
+
+
+def run_project_measured(
+    project: Any,
+    out_dir: Path,
+    label: str,
+    params: Mapping[str, Any] | None = None,
+    *,
+    keep_frames: bool = True,
+    time_limit_s: float | None = None,
+    on_frame: Callable[[Any], None] | None = None,
+) -> RunRecord:
+    """Run a project with :func:`projects.runner.run_project` and read back what the studies need.
+
+    Parameters
+    ----------
+    project : projects.schema.Project
+    out_dir : Path
+        Its results folder (replaced if it is one already).
+    label : str
+    params : mapping, optional
+    keep_frames : bool
+        False deletes the frame files afterwards (sweeps); the final positions are kept in
+        ``final.npz`` of the folder either way.
+    time_limit_s : float, optional
+        Stop the run (status ``stopped``) after this many wall seconds.
+    on_frame : callable, optional
+        Called with every :class:`solver.config.Frame`.
+
+    Returns
+    -------
+    RunRecord
+    """
+    from projects.results import open_results
+    from projects.runner import run_project
+
+    limit = WallClockLimit(time_limit_s)
+    cpu0 = cpu_seconds()
+    wall0 = time.perf_counter()
+    result = run_project(project, out_dir, cancel=limit, on_frame=on_frame)
+    wall = time.perf_counter() - wall0
+    cpu = cpu_seconds() - cpu0
+    res = open_results(out_dir)
+    summary = res.summary
+    status, message = result.status, result.message
+    if limit.fired:
+        status, message = "stopped", f"wall-clock limit of {time_limit_s:g} s reached: {message}"
+    positions = active = None
+    if len(res):
+        last = res.frame(-1, {"positions", "active"})
+        positions = np.array(last["positions"], dtype=float)
+        active = np.array(last["active"], dtype=bool)
+        np.savez_compressed(Path(out_dir) / "final.npz", positions=positions, active=active)
+    record = RunRecord(
+        label=label, params=dict(params or {}), status=status, message=message, wall_s=wall, cpu_s=cpu,
+        steps=int(summary.get("steps", 0)), particles=int(summary.get("particles", 0)),
+        simulated_time_s=float(summary.get("simulated_time_s") or 0.0),
+        particle_steps_per_s=float(summary.get("particle_steps_per_s") or 0.0),
+        series={k: np.asarray(v) for k, v in res.series.items()},
+        positions=positions, active=active, spacing_m=float(summary.get("particle_spacing_m") or 0.0),
+    )
+    if not keep_frames:
+        for name in ("frames",):
+            shutil.rmtree(Path(out_dir) / name, ignore_errors=True)
+        pvd = Path(out_dir) / "particles.pvd"
+        if pvd.is_file():
+            pvd.unlink()
+    return record
+
+
+@dataclass
+class BuiltRunOutcome:
+    """What :func:`run_built` saw: one diagnostics row per output and the last good frame."""
+
+    status: str
+    message: str
+    rows: list[dict[str, Any]]
+    last_fields: dict[str, np.ndarray]
+    wall_s: float
+    cpu_s: float
+    steps: int
+    simulated_time_s: float
+
+
+def run_built(
+    config: Any,
+    particles: Any,
+    *,
+    time_limit_s: float | None = None,
+    on_frame: Callable[[Any], None] | None = None,
+) -> BuiltRunOutcome:
+    """Run a built configuration directly with :class:`solver.simulation.Simulation`.
+
+    For settings that project files do not expose (``Numerics.guard = "remove"``). The
+    instability guard's :class:`~solver.config.InstabilityError` is an outcome here, not an
+    error: status ``failed`` with its message. Other exceptions propagate (they are bugs).
+
+    Parameters
+    ----------
+    config : solver.config.SimulationConfig
+    particles : solver.config.Particles
+    time_limit_s : float, optional
+    on_frame : callable, optional
+
+    Returns
+    -------
+    BuiltRunOutcome
+    """
+    from solver.config import InstabilityError
+    from solver.simulation import Simulation
+
+    limit = WallClockLimit(time_limit_s)
+    rows: list[dict[str, Any]] = []
+    last: dict[str, np.ndarray] = {}
+    cpu0 = cpu_seconds()
+    wall0 = time.perf_counter()
+    status, message = "failed", "the run ended unexpectedly"
+    with Simulation(config, particles) as sim:
+        try:
+            for frame in sim.run(cancel=limit):
+                d = frame.diagnostics
+                rows.append({
+                    "time_s": d.time_s, "stage": d.stage, "step": d.step, "dt_s": d.dt_s,
+                    "kinetic_energy_J_per_m": d.kinetic_energy_J_per_m, "momentum_x": d.momentum_x,
+                    "momentum_y": d.momentum_y, "max_speed_m_s": d.max_speed_m_s,
+                    "unstable_particles": d.unstable_particles, "lost_particles": d.lost_particles,
+                    "total_mass_kg_per_m": d.total_mass_kg_per_m, "active_particles": int(frame.fields["active"].sum()),
+                })
+                last = frame.fields
+                if on_frame is not None:
+                    on_frame(frame)
+            status, message = sim.status, sim.message
+            if limit.fired:
+                status, message = "stopped", f"wall-clock limit of {time_limit_s:g} s reached at t = {sim.time_s:.4g} s"
+        except InstabilityError as err:
+            status, message = "failed", str(err)
+            if sim.last_frame is not None:
+                last = sim.last_frame.fields
+        steps, t = sim.steps, sim.time_s
+    return BuiltRunOutcome(status, message, rows, last, time.perf_counter() - wall0, cpu_seconds() - cpu0, steps, t)
+
+
+# --------------------------------------------------------------------------------------------
+# deposit measures
+
+
+def _active_xy(positions: np.ndarray, active: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    pos = np.asarray(positions, dtype=float)
+    if active is not None:
+        pos = pos[np.asarray(active, dtype=bool)]
+    pos = pos[np.all(np.isfinite(pos), axis=1)]
+    return pos[:, 0], pos[:, 1]
+
+
+def surface_window(spacing_m: float) -> float:
+    """Width of the surface envelope's sliding window, ``max(5 mm, 2 s)`` (m)."""
+    return max(SURFACE_WINDOW_M, 2.0 * spacing_m)
+
+
+def surface_heights(positions: np.ndarray, active: np.ndarray | None, spacing_m: float,
+                    x_query: np.ndarray, window_m: float | None = None, base_m: float = 0.0) -> np.ndarray:
+    """Free-surface height at ``x_query``: the highest particle top within half a window.
+
+    Parameters
+    ----------
+    positions : numpy.ndarray, shape (N, 2)
+        Particle positions, m.
+    active : numpy.ndarray, shape (N,), bool, optional
+    spacing_m : float
+        Initial particle spacing ``s``; a particle's top is ``y + s/2``.
+    x_query : numpy.ndarray, shape (K,)
+        Where to evaluate, m.
+    window_m : float, optional
+        Window width (default :func:`surface_window`).
+    base_m : float
+        Height of the ground: the result is at least this (no particle in the window).
+
+    Returns
+    -------
+    numpy.ndarray, shape (K,)
+        Surface heights, m.
+    """
+    x, y = _active_xy(positions, active)
+    w = surface_window(spacing_m) if window_m is None else window_m
+    xq = np.asarray(x_query, dtype=float)
+    out = np.full(xq.shape, base_m, dtype=float)
+    if x.size == 0:
+        return out
+    order = np.argsort(x)
+    xs, ys = x[order], y[order] + 0.5 * spacing_m
+    lo = np.searchsorted(xs, xq - 0.5 * w, side="left")
+    hi = np.searchsorted(xs, xq + 0.5 * w, side="right")
+    for k, (a, b) in enumerate(zip(lo, hi)):
+        if b > a:
+            out[k] = max(base_m, float(ys[a:b].max()))
+    return out
+
+
+def toe_position(positions: np.ndarray, active: np.ndarray | None, spacing_m: float,
+                 thickness_m: float = TOE_THICKNESS_M, base_m: float = 0.0) -> float:
+    """Furthest particle edge ``x_p + s/2`` where the deposit is at least ``thickness_m`` thick.
+
+    The local thickness at a particle is the highest particle top (above ``base_m``) within one
+    spacing of it in x. Returns NaN when no particle qualifies.
+    """
+    x, y = _active_xy(positions, active)
+    if x.size == 0:
+        return math.nan
+    local = surface_heights(positions, active, spacing_m, x, window_m=2.0 * spacing_m, base_m=base_m) - base_m
+    ok = local >= thickness_m - 1e-9
+    return float(x[ok].max() + 0.5 * spacing_m) if ok.any() else math.nan
+
+
+def front_position(positions: np.ndarray, active: np.ndarray | None, spacing_m: float) -> float:
+    """Furthest particle edge ``x_p + s/2`` (m), NaN without particles."""
+    x, _ = _active_xy(positions, active)
+    return float(x.max() + 0.5 * spacing_m) if x.size else math.nan
+
+
+def crest_height(positions: np.ndarray, active: np.ndarray | None, spacing_m: float,
+                 wall_x_m: float = 0.0, window_m: float = CREST_WINDOW_M) -> float:
+    """Highest particle top ``y_p + s/2`` within ``window_m`` of the back wall (m)."""
+    x, y = _active_xy(positions, active)
+    near = x <= wall_x_m + window_m
+    return float(y[near].max() + 0.5 * spacing_m) if near.any() else math.nan
+
+
+def rms_deviation(heights: np.ndarray, reference: np.ndarray) -> float:
+    """Root-mean-square of ``heights - reference`` (m)."""
+    d = np.asarray(heights, dtype=float) - np.asarray(reference, dtype=float)
+    return float(np.sqrt(np.mean(d * d))) if d.size else math.nan
+
+
+@dataclass(frozen=True)
+class Deposit:
+    """Measures of one final deposit of the aluminium-bar scene (m).
+
+    Attributes
+    ----------
+    rms_m : float
+        RMS vertical deviation from the experiment over x in [0, ``x_max``].
+    toe_m, front_m, crest_m, reach_m : float
+    surface_x, surface_y : numpy.ndarray
+        The surface on a 1 mm grid (for plots and run-to-run comparison).
+    """
+
+    rms_m: float
+    toe_m: float
+    front_m: float
+    crest_m: float
+    surface_x: np.ndarray
+    surface_y: np.ndarray
+    reach_m: float = math.nan
+
+    def as_dict(self) -> dict[str, float]:
+        return {"rms_mm": 1e3 * self.rms_m, "toe_m": self.toe_m, "reach_m": self.reach_m, "front_m": self.front_m,
+                "crest_m": self.crest_m}
+
+
+#: The issue's range of the RMS comparison, m.
+RMS_RANGE_M = (0.0, 0.42)
+
+
+def measure_deposit(positions: np.ndarray, active: np.ndarray | None, spacing_m: float,
+                    experiment: np.ndarray, x_range: tuple[float, float] = RMS_RANGE_M) -> Deposit:
+    """All deposit measures of a final frame against the experimental surface.
+
+    Parameters
+    ----------
+    positions : numpy.ndarray, shape (N, 2)
+    active : numpy.ndarray, shape (N,), bool, optional
+    spacing_m : float
+    experiment : numpy.ndarray, shape (K, 2)
+        Experimental surface points, m.
+    x_range : (float, float)
+        Range of the RMS comparison, m.
+
+    Returns
+    -------
+    Deposit
+    """
+    exp = np.asarray(experiment, dtype=float)
+    sel = (exp[:, 0] >= x_range[0]) & (exp[:, 0] <= x_range[1])
+    h = surface_heights(positions, active, spacing_m, exp[sel, 0])
+    grid = np.arange(0.0, 0.8 + 1e-9, 0.001)
+    return Deposit(
+        rms_m=rms_deviation(h, exp[sel, 1]),
+        toe_m=toe_position(positions, active, spacing_m),
+        front_m=front_position(positions, active, spacing_m),
+        crest_m=crest_height(positions, active, spacing_m),
+        surface_x=grid,
+        surface_y=surface_heights(positions, active, spacing_m, grid),
+        reach_m=toe_position(positions, active, spacing_m, REACH_THICKNESS_M),
+    )
+
+
+def experiment_toe(experiment: np.ndarray, thickness_m: float = TOE_THICKNESS_M) -> float:
+    """Furthest x where the experimental surface (linear between points) is ``thickness_m`` high."""
+    exp = np.asarray(experiment, dtype=float)
+    x, y = exp[:, 0], exp[:, 1]
+    above = np.nonzero(y >= thickness_m)[0]
+    if above.size == 0:
+        return math.nan
+    i = int(above.max())
+    if i + 1 >= len(x):
+        return float(x[i])
+    return float(x[i] + (y[i] - thickness_m) / (y[i] - y[i + 1]) * (x[i + 1] - x[i]))
+
+
+def surface_difference(a: Deposit, b: Deposit, x_range: tuple[float, float] = RMS_RANGE_M,
+                       step_m: float = 0.005) -> float:
+    """RMS difference of two deposits' surfaces on a ``step_m`` grid over ``x_range`` (m)."""
+    xs = np.arange(x_range[0], x_range[1] + 1e-9, step_m)
+    return rms_deviation(np.interp(xs, a.surface_x, a.surface_y), np.interp(xs, b.surface_x, b.surface_y))
+
+
+# --------------------------------------------------------------------------------------------
+# series helpers
+
+
+def peak(series: Mapping[str, np.ndarray], column: str) -> tuple[float, float]:
+    """``(value, time)`` of the largest finite value of a series column (NaN, NaN if none)."""
+    t = np.asarray(series.get("time_s", []), dtype=float)
+    v = np.asarray(series.get(column, []), dtype=float)
+    ok = np.isfinite(v)
+    if not ok.any():
+        return math.nan, math.nan
+    i = int(np.argmax(np.where(ok, v, -np.inf)))
+    return float(v[i]), float(t[i])
+
+
+def settle_time(series: Mapping[str, np.ndarray], fraction: float = 0.01) -> float:
+    """First time after the kinetic-energy peak when it falls below ``fraction`` of the peak."""
+    t = np.asarray(series.get("time_s", []), dtype=float)
+    ke = np.asarray(series.get("kinetic_energy_J_per_m", []), dtype=float)
+    if ke.size == 0 or not np.isfinite(ke).any():
+        return math.nan
+    i = int(np.nanargmax(ke))
+    below = np.nonzero(ke[i:] < fraction * ke[i])[0]
+    return float(t[i + below[0]]) if below.size else math.nan
+
+
+def series_finite(series: Mapping[str, np.ndarray]) -> bool:
+    """True when every numeric column of a series is finite."""
+    for values in series.values():
+        arr = np.asarray(values)
+        if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
+            return False
+    return True
+
+
+# --------------------------------------------------------------------------------------------
+# reports
+
+
+def fmt(value: Any, digits: int = 3) -> str:
+    """A number for a table: ``digits`` significant digits, "-" for None/NaN."""
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, (int, np.integer)):
+        return f"{int(value):,}"
+    if isinstance(value, (float, np.floating)):
+        if not math.isfinite(float(value)):
+            return "-" if math.isnan(float(value)) else str(value)
+        return f"{float(value):.{digits}g}"
+    return str(value)
+
+
+def md_table(headers: Sequence[str], rows: Iterable[Sequence[Any]]) -> str:
+    """A GitHub-flavoured markdown table (cells escaped for ``|``)."""
+    def cell(v: Any) -> str:
+        return (v if isinstance(v, str) else fmt(v)).replace("|", "\\|").replace("\n", " ")
+
+    lines = ["| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
+    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+class Report:
+    """A markdown report being assembled in a folder, with its figures and raw data.
+
+    Parameters
+    ----------
+    out_dir : Path
+        The study's folder (created).
+    title : str
+    """
+
+    def __init__(self, out_dir: Path, title: str) -> None:
+        self.out_dir = Path(out_dir)
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self.parts: list[str] = [f"# {title}", ""]
+
+    def text(self, *paragraphs: str) -> None:
+        for p in paragraphs:
+            self.parts += [p, ""]
+
+    def heading(self, text: str, level: int = 2) -> None:
+        self.parts += ["#" * level + " " + text, ""]
+
+    def table(self, headers: Sequence[str], rows: Iterable[Sequence[Any]]) -> None:
+        self.parts += [md_table(headers, rows), ""]
+
+    def figure(self, fig: Any, name: str, caption: str) -> Path:
+        """Save a matplotlib figure as ``NAME.png`` and reference it."""
+        path = self.out_dir / f"{name}.png"
+        fig.savefig(path, dpi=110, bbox_inches="tight")
+        self.parts += [f"![{caption}]({path.name})", "", f"*{caption}*", ""]
+        return path
+
+    def write(self) -> Path:
+        path = self.out_dir / "report.md"
+        _atomic_text(path, "\n".join(self.parts).rstrip() + "\n")
+        return path
+
+
+def new_figure(width: float = 7.0, height: float = 4.0, ncols: int = 1, nrows: int = 1) -> tuple[Any, Any]:
+    """A matplotlib figure (Agg canvas, no pyplot state) and its axes."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    return fig, (axes[0, 0] if nrows == ncols == 1 else axes)
+
+
+def _atomic_text(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating,)):
+        v = float(value)
+        return v if math.isfinite(v) else None
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (np.bool_,)):
+        return bool(value)
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"cannot write {type(value).__name__} as JSON")
+
+
+def _finite_or_none(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_or_none(v) for v in value]
+    return value
+
+
+def write_json(path: Path, data: Any) -> Path:
+    """Write JSON (NaN/inf as null, numpy values as Python ones)."""
+    _atomic_text(path, json.dumps(_finite_or_none(data), indent=2, default=_json_default) + "\n")
+    return path
+
+
+def write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> Path:
+    """Write dict rows as CSV (the union of their keys as columns, in first-seen order)."""
+    columns: list[str] = []
+    for r in rows:
+        for k in r:
+            if k not in columns:
+                columns.append(k)
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: _csv_cell(r.get(k)) for k in columns})
+    os.replace(tmp, path)
+    return path
+
+
+def _csv_cell(value: Any) -> Any:
+    if value is None:
+        return ""
+    if isinstance(value, (float, np.floating)):
+        return repr(float(value))
+    if isinstance(value, (list, tuple, dict)):
+        return json.dumps(_finite_or_none(value), default=_json_default)
+    return value
+
+
+def write_series(path: Path, series: Mapping[str, np.ndarray]) -> Path:
+    """Write a series (dict of equal-length columns) as CSV."""
+    keys = list(series)
+    n = len(next(iter(series.values()))) if series else 0
+    return write_csv(path, [{k: series[k][i] for k in keys} for i in range(n)])
+
+
+def rows_to_series(rows: Sequence[Mapping[str, Any]]) -> dict[str, np.ndarray]:
+    """Dict rows (as from :func:`run_built`) to columns."""
+    if not rows:
+        return {}
+    return {k: np.asarray([r[k] for r in rows]) for k in rows[0]}
+
+
+@dataclass
+class StudyResult:
+    """What a study hands back to its caller (the command line prints the verdict).
+
+    Attributes
+    ----------
+    name : str
+    passed : bool
+        Every stated target met.
+    verdict : list of str
+        A few lines, the first one the headline.
+    report : Path
+        The ``report.md``.
+    wall_s : float
+        Wall-clock seconds of the whole study.
+    data : dict
+        The numbers behind the verdict (also in the study's JSON file).
+    """
+
+    name: str
+    passed: bool
+    verdict: list[str]
+    report: Path
+    wall_s: float
+    data: dict[str, Any] = field(default_factory=dict)
+
+
+def machine_line() -> str:
+    """CPU count and load of this machine, for reports (timings depend on them)."""
+    import platform
+
+    try:
+        load = os.getloadavg()
+        load_text = f", load average {load[0]:.1f} (1 min) at the end"
+    except OSError:
+        load_text = ""
+    return f"{platform.processor() or platform.machine()}, {os.cpu_count()} logical CPUs{load_text}, Python {platform.python_version()}"
