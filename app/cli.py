@@ -406,6 +406,29 @@ def bench(
         out.print(f"written: {out_file} and {out_file.with_suffix('.md')}", markup=False)
 
 
+@cli.command()
+def study(
+    name: Annotated[str, typer.Argument(help="sand-column | bui2008 | slope | tradeoff | extremes", show_default=False)],
+    out_dir: Annotated[Path | None, typer.Option("--out", help="Report folder (default: study-results/NAME).")] = None,
+    quick: Annotated[bool, typer.Option("--quick", help="The reduced version: a few minutes on two CPU cores.")] = False,
+) -> None:
+    """Run a validation study: report.md with tables and plots, raw CSV/JSON, a verdict.
+
+    Exit status 0 when every stated target is met, 4 when the study ran but missed one.
+    """
+    from app.studies import StudyError, run_study
+
+    try:
+        with contextlib.redirect_stdout(sys.stderr):  # Taichi's messages; the verdict goes to stdout
+            result = run_study(name, out_dir, quick, note=lambda msg: err.print(msg, markup=False))
+    except (StudyError, OSError) as exc:
+        fail(str(exc))
+    for line in result.verdict:
+        out.print(line, markup=False)
+    out.print(f"report: {result.report} ({result.wall_s:.0f} s)", markup=False)
+    raise typer.Exit(0 if result.passed else 4)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point (``runout``)."""
     # Taichi prints a banner on import; keep standard output for results
