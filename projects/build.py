@@ -18,6 +18,7 @@ import numpy as np
 from geometry.polygons import polygon_area
 from geometry.seeding import Seeds, seed_gauss, seed_lattice
 from projects import schema
+from projects.presets import apply_preset
 from projects.schema import DEFAULT_GRAVITY_DAMPING, Problem, Project, ProjectError
 from solver import config as sc
 
@@ -215,6 +216,7 @@ def build_simulation(project: Project, *, arch_override: str | None = None) -> B
         When a body receives no particles (it is thinner than the particle spacing or
         entirely covered by later bodies).
     """
+    project = apply_preset(project)
     config = solver_config(project, arch_override=arch_override)
     seeds = seed_bodies(project)
     counts = np.bincount(seeds.body_index, minlength=len(project.bodies))
@@ -275,6 +277,7 @@ def estimate(project: Project) -> dict[str, object]:
         ``max_p_wave_speed_m_s`` (float), ``simulated_time_s`` (float, s, all stages),
         ``steps`` (int, all stages), ``frames`` (int, about one per ``output.interval_s``).
     """
+    project = apply_preset(project)
     dx = project.domain.cell_size_m
     area = sum(polygon_area(np.asarray(b.polygon_m)) for b in project.bodies)
     particles = int(round(area * (project.particles.per_cell / dx) ** 2))

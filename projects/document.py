@@ -373,7 +373,8 @@ def apply_overrides(project_or_dict: Project | Mapping[str, Any], overrides: Seq
     ``materials.bars.friction_angle_deg=25``, ``bodies.0.polygon_m=[[0,0],[1,0],[1,1]]``,
     ``stages.1.material_changes.soil.cohesion_pa=0``. A key may be any key the schema allows
     at that place, present in the file or not, but materials, bodies and stages must exist.
-    Setting ``numerics.time_step_s`` removes ``numerics.cfl`` and the other way round.
+    Setting ``numerics.time_step_s`` removes ``numerics.cfl`` and the other way round; setting
+    ``numerics.preset`` removes ``numerics.time_step_s``.
 
     Parameters
     ----------
@@ -446,6 +447,8 @@ def _set_path(data: dict[str, Any], parts: list[str], value: Any) -> Problem | N
             node[key] = value
             if done == ["numerics"] and part in ("time_step_s", "cfl"):
                 node.pop("cfl" if part == "time_step_s" else "time_step_s", None)
+            if done == ["numerics"] and part == "preset":  # the preset brings its own cfl
+                node.pop("time_step_s", None)
             return None
         child = node.get(key) if isinstance(node, dict) else node[key]
         child_kind = schema_kind(child_schema)[0]

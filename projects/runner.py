@@ -215,7 +215,9 @@ def run_project(
     """
     from projects.build import build_simulation
     from projects.document import dumps_project
+    from projects.presets import apply_preset
 
+    project = apply_preset(project)  # project.toml records the values the preset stood for
     if out_dir is None:
         if project_path is None:
             raise ValueError("give out_dir or project_path (the results go next to the project file)")

@@ -56,6 +56,8 @@ SEEDINGS: tuple[str, ...] = ("lattice", "gauss")
 SCHEMES: tuple[str, ...] = ("mpm", "apic", "apic-affine")
 PRECISIONS: tuple[str, ...] = ("f32", "f64")
 ARCHS: tuple[str, ...] = ("auto", "cpu", "gpu")
+#: Accuracy/cost presets measured by ``runout study tradeoff`` (projects/presets.json).
+PRESETS: tuple[str, ...] = ("draft", "standard", "fine")
 STAGE_TYPES: tuple[str, ...] = ("k0", "gravity", "dynamic")
 DAMPING_TYPES: tuple[str, ...] = ("local",)
 OUTPUT_FIELDS: tuple[str, ...] = ("displacement", "velocity", "stress", "plastic_strain", "material")
@@ -471,6 +473,7 @@ class Numerics(_Model):
     cfl: OptCfl = None
     precision: Annotated[Literal["f32", "f64"], _choice(PRECISIONS)] = "f32"
     arch: Annotated[Literal["auto", "cpu", "gpu"], _choice(ARCHS)] = "auto"
+    preset: Annotated[Literal["draft", "standard", "fine"], _choice(PRESETS)] | None = None
 
     @model_validator(mode="before")
     @classmethod
@@ -873,6 +876,14 @@ def _outside_points(path: str, points: list[Any], box: tuple[float, ...], origin
 
 
 def _numerics_rules(numerics: Mapping[str, Any]) -> list[Problem]:
+    if numerics.get("preset") is not None and numerics.get("time_step_s") is not None:
+        return [
+            Problem(
+                "numerics.time_step_s",
+                numerics["time_step_s"],
+                f"a preset ({numerics['preset']}) sets the time step through its cfl; remove one of them",
+            )
+        ]
     if numerics.get("time_step_s") is not None and numerics.get("cfl") is not None:
         return [
             Problem(
