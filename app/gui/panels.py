@@ -56,6 +56,7 @@ from projects.schema import (
     MATERIAL_MODELS,
     OUTPUT_FIELDS,
     PRECISIONS,
+    PRESETS,
     SCHEMES,
     SEEDINGS,
     SIDES,
@@ -734,6 +735,18 @@ class NumericsPanel(Panel):
         form.addRow("Seeding", self.seeding)
         self.layout_.addWidget(box)
 
+        box, form = _form("Speed and accuracy")
+        self.preset = QComboBox()
+        self.preset.addItems(["custom (no preset)", *PRESETS])
+        self.preset.setAccessibleName("Preset")
+        self.preset.activated.connect(self._preset_chosen)
+        self.preset_info = QLabel("")
+        self.preset_info.setWordWrap(True)
+        self.preset_info.setStyleSheet("color: #555;")
+        form.addRow("Preset", self.preset)
+        form.addRow("", self.preset_info)
+        self.layout_.addWidget(box)
+
         box, form = _form("Time integration")
         self.scheme = ChoiceField(doc, "numerics.scheme", "Scheme", SCHEMES, default="apic-affine")
         form.addRow("Scheme", self.scheme)
@@ -757,6 +770,41 @@ class NumericsPanel(Panel):
         self.watch(self.cfl, self.dt)
         self.finish()
         self._on_changed(frozenset({"numerics", "particles"}))
+
+    def _preset_chosen(self, index: int) -> None:
+        name = None if index == 0 else PRESETS[index - 1]
+        if name == self.doc.get("numerics.preset"):
+            return
+
+        def change(d: dict) -> None:
+            if name is None:
+                d["numerics"].pop("preset", None)
+            else:  # a preset brings its own cfl
+                d["numerics"]["preset"] = name
+                d["numerics"].pop("time_step_s", None)
+                d["numerics"].setdefault("cfl", 0.5)
+
+        self.doc.edit("use no preset" if name is None else f"use the {name} preset", change)
+
+    def _preset_text(self, name: str | None) -> str:
+        if name is None:
+            return "Cell size, particles per cell, scheme and time step as set below."
+        from projects.presets import load_presets
+        from projects.schema import ProjectError
+
+        try:
+            preset = load_presets()["presets"].get(name)
+        except ProjectError as exc:
+            return str(exc)
+        if not preset:
+            return f"{name}: no measured setting"
+        measured = preset.get("measured", {})
+        cost = measured.get("relative_wall_time")
+        return (f"{preset['scheme']}, {preset['per_cell']}x{preset['per_cell']} particles per cell, cfl {preset['cfl']:g}, "
+                f"{preset['cells_per_height']:g} cells over the smallest body's height; measured deposit error "
+                f"{measured.get('rms_vs_ref_mm', float('nan')):.1f} mm RMS against the finest run"
+                + (f", {cost:.2g}x the cost of 'standard'" if cost else "")
+                + ". These override the values below.")
 
     def _mode_chosen(self, cfl: bool) -> None:
         has_dt = self.doc.get("numerics.time_step_s") is not None
@@ -782,6 +830,11 @@ class NumericsPanel(Panel):
     def _on_changed(self, sections: frozenset) -> None:
         if not sections & {"numerics", "particles"}:
             return
+        preset = self.doc.get("numerics.preset")
+        self.preset.blockSignals(True)
+        self.preset.setCurrentIndex(0 if preset is None else 1 + PRESETS.index(preset))
+        self.preset.blockSignals(False)
+        self.preset_info.setText(self._preset_text(preset))
         has_dt = self.doc.get("numerics.time_step_s") is not None
         for w in (self.use_cfl, self.use_dt):
             w.blockSignals(True)

@@ -338,3 +338,18 @@ def _empty_project():
     from app.gui.document import new_project_data
 
     return new_project_data()
+
+
+def test_choosing_a_preset_drops_the_fixed_step_and_undo_restores_it(window, tiny_file):
+    window.open_project(tiny_file)
+    doc = window.doc
+    dt = doc.get("numerics.time_step_s")
+    panel = window.numerics_panel
+    index = panel.preset.findText("draft")
+    panel.preset.setCurrentIndex(index)  # as the user picks it
+    panel.preset.activated.emit(index)
+    assert doc.get("numerics.preset") == "draft" and doc.get("numerics.time_step_s") is None
+    assert panel.preset.currentText() == "draft" and panel.preset_info.text()
+    doc.undo_stack.undo()
+    assert doc.get("numerics.preset") is None and doc.get("numerics.time_step_s") == dt
+    assert panel.preset.currentIndex() == 0
