@@ -169,7 +169,8 @@ def _label_format(step: float) -> str:
     return f"%.{decimals}f"
 
 
-def _robust_range(values: np.ndarray) -> tuple[float, float]:
+def value_range(values: np.ndarray) -> tuple[float, float]:
+    """Colour range of the finite values, widened a little when they are all equal."""
     finite = values[np.isfinite(values)]
     if finite.size == 0:
         return 0.0, 1.0
@@ -394,7 +395,7 @@ class _Scene:
                 **common,
             )
         else:
-            clim = self.clim or _robust_range(np.asarray(self.cloud.point_data["values"]))
+            clim = self.clim or value_range(np.asarray(self.cloud.point_data["values"]))
             bar.update(fmt="%.3g", n_labels=5)
             self._actor = self.plotter.add_mesh(
                 self.cloud, cmap=self._cmap, clim=clim, scalar_bar_args=bar, **common
@@ -430,7 +431,7 @@ def _scene_for(
         if clim is None and not info.categorical:
             values.append(field_values(arrays, field)[active])
     if clim is None and values:
-        clim = _robust_range(np.concatenate(values))
+        clim = value_range(np.concatenate(values))
     view = _view(_union(*boxes), size)
     return _Scene(results, field, size, view, _particle_spacing(results, first), cmap, clim)
 

@@ -36,7 +36,7 @@ from PySide6.QtWidgets import (
 
 from app.gui.curves import HistoryCurve, SeriesCurves, write_curves_csv
 from app.gui.document import parse_number
-from app.render import FIELDS, field_info, field_values
+from app.render import FIELDS, field_info, field_values, value_range
 
 logger = logging.getLogger(__name__)
 
@@ -52,17 +52,6 @@ def _left(event: QEvent) -> bool:
 def _field_label(name: str) -> str:
     info = FIELDS[name]
     return info.label if info.categorical else f"{info.label} ({info.unit})"
-
-
-def _range(values: np.ndarray) -> tuple[float, float]:
-    finite = values[np.isfinite(values)]
-    if finite.size == 0:
-        return 0.0, 1.0
-    lo, hi = float(finite.min()), float(finite.max())
-    if hi - lo <= 1e-12 * max(1.0, abs(hi)):
-        pad = max(abs(hi) * 1e-3, 1e-9)
-        lo, hi = lo - pad, hi + pad
-    return lo, hi
 
 
 class ParticleScene(QWidget):
@@ -171,7 +160,7 @@ class ParticleScene(QWidget):
             count = max(len(self.material_names), int(values.max(initial=0)) + 1, 1)
             clim = (-0.5, count - 0.5)
         else:
-            clim = self.clim or _range(values)
+            clim = self.clim or value_range(values)
         self.shown_clim = clim
         key = (self.field, self.cmap, info.categorical, len(self.material_names))
         if self.actor is None or key != self._style_key:
@@ -799,7 +788,7 @@ class CompareView(QWidget):
             for a in arrays:
                 if a is not None:
                     try:
-                        ranges.append(_range(np.asarray(field_values(a, field), float)[np.asarray(a["active"], bool)]))
+                        ranges.append(value_range(np.asarray(field_values(a, field), float)[np.asarray(a["active"], bool)]))
                     except ValueError:
                         continue
             if ranges:
