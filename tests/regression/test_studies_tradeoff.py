@@ -3,8 +3,8 @@
 - The full sweep covers what issue 5 asks for every scheme: cell sizes 5, 4, 2.5, 2 and 1.25 mm,
   1, 4 and 9 particles per cell, several time-step fractions.
 - ``projects/presets.json`` (written from the study's ``presets.json``) holds draft, standard and
-  fine, each a valid ``[numerics]``/``[particles]`` setting with its measured error, and the
-  presets are ordered: finer is more accurate and costs more.
+  fine, each a valid ``[numerics]``/``[particles]`` setting with its measured error within its
+  criteria, and a finer preset never costs less wall time.
 """
 
 import json
@@ -42,4 +42,5 @@ def test_shipped_presets_are_valid_and_ordered():
         assert p["cells_per_height"] > 0
         assert p["measured"]["rms_vs_ref_mm"] <= 1e3 * PRESET_CRITERIA[name]["rms_vs_ref_m"] + 1e-9
     d, s, f = presets["draft"], presets["standard"], presets["fine"]
-    assert d["measured"]["particle_steps"] <= s["measured"]["particle_steps"] <= f["measured"]["particle_steps"]
+    # nested criteria and "cheapest by wall time": a finer preset never costs less
+    assert d["measured"]["wall_s"] <= s["measured"]["wall_s"] <= f["measured"]["wall_s"]
