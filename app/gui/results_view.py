@@ -107,6 +107,9 @@ class ParticleScene(QWidget):
         self._closed = True
         self.plotter.removeEventFilter(self)
         self.plotter.close()
+        # delete the GL widget while its window still exists (a QOpenGLWidget torn down together
+        # with its top-level window can abort in the GL driver)
+        self.plotter.deleteLater()
 
     # -- content ----------------------------------------------------------------------------
 

@@ -153,6 +153,9 @@ class SceneView(QWidget):
         except (RuntimeError, TypeError):  # already disconnected with the document
             pass
         self.plotter.close()
+        # delete the GL widget while its window still exists (a QOpenGLWidget torn down together
+        # with its top-level window can abort in the GL driver)
+        self.plotter.deleteLater()
 
     # -- coordinates ----------------------------------------------------------------------------
 

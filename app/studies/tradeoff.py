@@ -343,7 +343,8 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
     data = {"quick": quick, "settings": len(settings), "skipped": [s.label for s in skipped],
             "reference": ref["label"] if ref else None, "experiment_reach_m": exp_reach,
             "experiment_toe_m": exp_toe, "experiment_crest_m": exp_crest, "presets": presets,
-            "rows": clean, "study_wall_s": time.perf_counter() - t0}
+            "rows": clean, "study_wall_s": time.perf_counter() - t0,
+            "runs_wall_s": float(sum(r["wall_s"] for r in clean)), "runs_cpu_s": float(sum(r["cpu_s"] for r in clean))}
     write_json(out_dir / "tradeoff.json", data)
     passed = all(v is not None for v in chosen.values()) and not skipped
 
@@ -361,7 +362,8 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
         "times vary with the machine's load (the CPU time and particle-steps columns do not).",
         f"Reference (\"finest run\"): `{ref['label'] if ref else '-'}`. Experiment: toe (2 mm) {exp_toe:.3f} m, "
         f"reach (5 mm) {exp_reach:.3f} m, crest {exp_crest:.4f} m.",
-        f"Machine: {machine_line()}. Study wall time {data['study_wall_s']:.0f} s (cached runs count 0).",
+        f"Machine: {machine_line()}. Study wall time {data['study_wall_s']:.0f} s (cached runs count 0); the runs' "
+        f"wall times add up to {data['runs_wall_s']:.0f} s ({data['runs_cpu_s']:.0f} CPU seconds).",
     )
     report.heading("Presets")
     report.text("Each preset is the cheapest run (by wall time) whose errors against the reference are within: "
