@@ -411,6 +411,10 @@ def study(
     name: Annotated[str, typer.Argument(help="sand-column | bui2008 | slope | tradeoff | extremes", show_default=False)],
     out_dir: Annotated[Path | None, typer.Option("--out", help="Report folder (default: study-results/NAME).")] = None,
     quick: Annotated[bool, typer.Option("--quick", help="The reduced version: a few minutes on two CPU cores.")] = False,
+    budget_min: Annotated[float | None, typer.Option(
+        "--budget-min", help="tradeoff only: start no run whose estimated time exceeds what is left of this "
+        "many minutes; runs cached in the report folder are reused, so a sweep can be resumed.",
+        show_default=False)] = None,
 ) -> None:
     """Run a validation study: report.md with tables and plots, raw CSV/JSON, a verdict.
 
@@ -418,9 +422,10 @@ def study(
     """
     from app.studies import StudyError, run_study
 
+    budget_s = None if budget_min is None else 60.0 * budget_min
     try:
         with contextlib.redirect_stdout(sys.stderr):  # Taichi's messages; the verdict goes to stdout
-            result = run_study(name, out_dir, quick, note=lambda msg: err.print(msg, markup=False))
+            result = run_study(name, out_dir, quick, note=lambda msg: err.print(msg, markup=False), budget_s=budget_s)
     except (StudyError, OSError) as exc:
         fail(str(exc))
     for line in result.verdict:

@@ -46,7 +46,8 @@ def default_out_dir(name: str, quick: bool) -> Path:
     return DEFAULT_ROOT / (name + ("-quick" if quick else ""))
 
 
-def run_study(name: str, out_dir: Path | None = None, quick: bool = False, note: Note = quiet) -> StudyResult:
+def run_study(name: str, out_dir: Path | None = None, quick: bool = False, note: Note = quiet,
+              budget_s: float | None = None) -> StudyResult:
     """Run one study by name.
 
     Parameters
@@ -60,6 +61,9 @@ def run_study(name: str, out_dir: Path | None = None, quick: bool = False, note:
         The reduced version (a few minutes on 2 CPU cores); the report says what is reduced.
     note : callable
         Receives one progress line at a time (the command line prints them on stderr).
+    budget_s : float, optional
+        Wall-clock budget of a sweep (``tradeoff`` only): runs that would not fit are left out
+        and listed in the report; cached runs are always used.
 
     Returns
     -------
@@ -77,6 +81,12 @@ def run_study(name: str, out_dir: Path | None = None, quick: bool = False, note:
         raise StudyError(f"{out} exists and is not a folder")
     out.mkdir(parents=True, exist_ok=True)
     module = importlib.import_module(f"app.studies.{STUDIES[name]}")
+    if budget_s is not None:
+        if name != "tradeoff":
+            raise StudyError(f"a budget applies to the tradeoff sweep only, not to {name!r}")
+        if not budget_s > 0:
+            raise StudyError(f"the budget must be a positive number of seconds, not {budget_s!r}")
+        return module.run(out, quick=quick, note=note, budget_s=budget_s)
     return module.run(out, quick=quick, note=note)
 
 

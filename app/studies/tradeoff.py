@@ -257,9 +257,9 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
         (:func:`full_settings`); the reference is then the 2.5 mm apic-affine run.
     note : callable
     budget_s : float, optional
-        Start no new (uncached) run once the study has taken this many wall seconds; the
-        settings left out are listed in the report. Runs go apic-affine first, then the other
-        schemes, each cheapest first.
+        Start no new (uncached) run whose estimated wall time (:func:`estimated_cost`) does not
+        fit in what is left of this many seconds; the settings left out are listed in the report.
+        Runs go apic-affine first, then the other schemes, each cheapest first.
 
     Returns
     -------
@@ -278,7 +278,8 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
     skipped: list[Setting] = []
     for s in settings:
         cached = _cached(out_dir / "runs" / s.label, s)
-        if cached is None and budget_s is not None and time.perf_counter() - t0 > budget_s:
+        if cached is None and budget_s is not None and \
+                time.perf_counter() - t0 + estimated_cost(s) > budget_s:
             skipped.append(s)
             continue
         rows.append(cached if cached is not None else run_setting(out_dir, s, experiment, note))
