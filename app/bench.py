@@ -64,6 +64,9 @@ from solver.config import (
 log = logging.getLogger(__name__)
 
 YARDSTICK = "yardstick"
+#: Profile variant: apic-affine with the parallel atomic scatter where the engine would pick the
+#: serial one (solver.engine.SCATTERS), so the profile shows both in one run.
+ATOMIC_VARIANT = "apic-affine, atomic scatter"
 NOT_MEASURED_NO_GPU = "not measured: no GPU"
 
 #: The scene: the aluminium-bar collapse of Bui et al. (2008) at any particle count.
@@ -409,7 +412,9 @@ class _Variant:
             g = math.hypot(*config.gravity_m_s2)
             bound = config.numerics.speed_bound_factor * max(math.sqrt(2.0 * g * height), 1.0)
             # as Simulation builds it for this scene: no stage uses damping, so no grid force field
-            self.obj = Engine(grid, config.materials, n, name, np_float, speed_bound_m_s=bound, damping=False)
+            scheme, scatter = ("apic-affine", "atomic") if name == ATOMIC_VARIANT else (name, "auto")
+            self.obj = Engine(grid, config.materials, n, scheme, np_float, speed_bound_m_s=bound, damping=False,
+                              scatter=scatter)
             self.stress = _k0_stress(config, particles)
         self.reset()
         for _ in range(2):  # compile, then run the warm-up steps from a clean state
@@ -520,7 +525,7 @@ def _group(arch: str, precision: str, n: int, cfg: BenchConfig,
             rate = n_real * steps / min(v.times)
             rows.append({
                 "arch": arch, "precision": precision, "variant": v.name, "particles": n_real,
-                "grid_cells": list(v.config.grid.cells), "steps": steps, "rounds": len(v.times),
+                "scatter": getattr(v.obj, "scatter", None), "grid_cells": list(v.config.grid.cells), "steps": steps, "rounds": len(v.times),
                 "times_s": list(v.times), "best_s": min(v.times), "median_s": statistics.median(v.times),
                 "step_time_s": min(v.times) / steps,
                 "particle_steps_per_s": rate,
@@ -619,8 +624,11 @@ def profile_step(n: int, arch: str = "cpu", precision: str = "f32", steps: int =
         if used != arch:
             return None
         note(f"profile: {arch} {precision} {n:,} particles")
+        from solver.engine import resolve_scatter
+
+        extra = (ATOMIC_VARIANT,) if "apic-affine" in schemes and resolve_scatter("auto") != "atomic" else ()
         variants = []
-        for name in (YARDSTICK, *schemes):
+        for name in (YARDSTICK, *schemes, *extra):
             config, particles = collapse_scene(n, precision, name if name in SCHEMES else "apic-affine", arch)
             variants.append(_Variant(name, config, particles, _np_float(precision)))
         best: dict[str, tuple[float, list[tuple[str, float]]]] = {}
@@ -654,6 +662,7 @@ def profile_step(n: int, arch: str = "cpu", precision: str = "f32", steps: int =
             kernel_time = sum(kernels.values())
             outside = max(wall - kernel_time, 0.0)
             out["variants"][v.name] = {
+                "scatter": getattr(v.obj, "scatter", None),
                 "wall_s_per_step": wall,
                 "kernel_s_per_step": kernel_time,
                 "python_s_per_step": outside,

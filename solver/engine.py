@@ -27,8 +27,27 @@ from solver.config import SIDES, Grid, Material
 from solver.materials import MaterialTable
 
 PAD = 2
+#: How particle contributions are added to shared grid nodes. ``atomic``: every particle in
+#: parallel with float atomic adds, the constitutive update fused into the same pass (GPUs and
+#: many-core CPUs). ``serial``: the constitutive update in a parallel pass, then one thread adds
+#: every particle's contributions with plain adds. On the CPU a float atomic add is a
+#: compare-and-swap loop: on the development machine the atomic scatter costs about four times the
+#: plain one per particle (benchmarks/scatter.py), so up to four threads a single plain
+#: scatter beats the parallel atomic one. ``auto``: serial on a CPU with at most
+#: SERIAL_SCATTER_MAX_THREADS threads, atomic otherwise.
+SCATTERS = ("auto", "atomic", "serial")
+SERIAL_SCATTER_MAX_THREADS = 4
 BOUNDARY_CODES = {"fixed": 0, "slip": 1, "friction": 2, "open": 3}
 _BIG = 1 << 30
+
+
+def resolve_scatter(scatter: str) -> str:
+    """``atomic`` or ``serial`` for the Taichi runtime in use (see :data:`SCATTERS`)."""
+    if scatter != "auto":
+        return scatter
+    cfg = ti.lang.impl.current_cfg()
+    cpu = cfg.arch in (ti.x64, ti.arm64)
+    return "serial" if cpu and cfg.cpu_max_num_threads <= SERIAL_SCATTER_MAX_THREADS else "atomic"
 
 
 @ti.data_oriented
@@ -41,9 +60,13 @@ class Engine:
 
     def __init__(self, grid: Grid, materials: tuple[Material, ...], n_particles: int, scheme: str,
                  np_float=np.float32, speed_bound_m_s: float = 1e30, remove_unstable: bool = False,
-                 damping: bool = True):
+                 damping: bool = True, scatter: str = "auto"):
         if scheme not in ("mpm", "apic", "apic-affine"):
             raise ValueError(f"unknown scheme {scheme!r}; allowed: mpm, apic, apic-affine")
+        if scatter not in SCATTERS:
+            raise ValueError(f"unknown scatter {scatter!r}; allowed: {', '.join(SCATTERS)}")
+        self.scatter = resolve_scatter(scatter)
+        self.serial = self.scatter == "serial"
         self.scheme = scheme
         self.np_float = np_float
         self.n = int(n_particles)
@@ -79,6 +102,10 @@ class Engine:
         self.g_v_old = ti.Vector.field(2, float, self.nodes if self.six_stage else (1, 1))
         # tangential momentum Coulomb friction removes at the node one cell inside each wall
         self.wall_friction = ti.field(float, (4, max(self.nodes)))
+        # apic-affine fuses the forces into the momentum; at the ghost nodes beyond the closed walls
+        # it keeps them apart (per side, along the wall), so that the wall's reaction, and the
+        # friction on it, is worked out from momentum and force as in the six-stage schemes
+        self.ghost_f = ti.Vector.field(2, float, (4, max(self.nodes)) if not self.six_stage else (1, 1))
 
         # stencil bounding box [lo, hi) of the current positions, and the one being built in G2P
         self.lo = ti.Vector.field(2, ti.i32, ())
@@ -165,9 +192,11 @@ class Engine:
         """The named stages of one step, in order (paper: six stages for mpm/apic, four for apic-affine;
         the wall folds are the mirror-image boundary treatment)."""
         if self.six_stage:
+            stress = ("stress", "force") if self.serial else ("stress and force",)
             return ("reset grid", "P2G momentum", "fold walls (momentum)", "grid velocity", "mirror walls (old)",
-                    "stress and force", "fold walls (force)", "grid update", "mirror walls", "G2P")
-        return ("reset grid", "P2G with stress and force", "fold walls", "grid update", "mirror walls", "G2P")
+                    *stress, "fold walls (force)", "grid update", "mirror walls", "G2P")
+        fused = ("stress", "P2G with force") if self.serial else ("P2G with stress and force",)
+        return ("reset grid", *fused, "fold walls", "grid update", "mirror walls", "G2P")
 
     @ti.kernel
     def _step(self, dt: float, gx: float, gy: float, damping: float, damped: ti.template()):
@@ -196,6 +225,14 @@ class Engine:
             self._mirror_ghosts(True)
         elif ti.static(stage == "stress and force"):
             self._stress_and_force(dt, g)
+        elif ti.static(stage == "stress" and self.six_stage):
+            self._stress_from_grid(dt)
+        elif ti.static(stage == "force"):
+            self._force(g)
+        elif ti.static(stage == "stress"):
+            self._stress_from_affine(dt)
+        elif ti.static(stage == "P2G with force"):
+            self._p2g_with_force(dt, g, not damped)
         elif ti.static(stage == "fold walls (force)"):
             self._fold_ghosts(False, True, dt)
         elif ti.static(stage == "grid update" and self.six_stage):
@@ -203,7 +240,7 @@ class Engine:
         elif ti.static(stage == "P2G with stress and force"):
             self._p2g_fused(dt, g, not damped)
         elif ti.static(stage == "fold walls"):
-            self._fold_ghosts(True, damped, dt)
+            self._fold_ghosts(True, damped, dt, not damped)
         elif ti.static(stage == "grid update"):
             self._grid_update_fused(dt, damping, damped)
         elif ti.static(stage == "mirror walls"):
@@ -217,6 +254,9 @@ class Engine:
         """Base node, fractional offset, weights and weight derivatives of quadratic B-splines."""
         X = (xp - ti.Vector(self.origin)) * self.inv_dx + PAD
         base = ti.cast(X - 0.5, ti.i32)
+        # A blown-up particle (NaN or huge position, until the guard stops the run) must still
+        # address nodes of the grid: integer clamps hold whatever the float arithmetic did.
+        base = ti.max(ti.min(base, ti.Vector([self.nodes[0] - 3, self.nodes[1] - 3])), 0)
         fx = X - ti.cast(base, float)
         w = [0.5 * (1.5 - fx) ** 2, 0.75 - (fx - 1.0) ** 2, 0.5 * (fx - 0.5) ** 2]
         dw = [fx - 1.5, -2.0 * (fx - 1.0), fx - 0.5]
@@ -293,6 +333,14 @@ class Engine:
             if ti.static(self.separate_forces):
                 self.g_f[I] = ti.Vector.zero(float, 2)
 
+    @ti.func
+    def _add(self, field: ti.template(), I, value):
+        """Add to a grid node: plainly in the serial scatter, atomically in the parallel one."""
+        if ti.static(self.serial):
+            field[I] = field[I] + value
+        else:
+            field[I] += value
+
     @ti.kernel
     def _compute_bounds(self):
         self.next_lo[None] = ti.Vector([_BIG, _BIG])
@@ -335,10 +383,11 @@ class Engine:
         return lo[0] <= I[0] < hi[0] and lo[1] <= I[1] < hi[1]
 
     @ti.func
-    def _fold_ghosts(self, momentum: ti.template(), forces: ti.template(), dt):
+    def _fold_ghosts(self, momentum: ti.template(), forces: ti.template(), dt, ghost_forces: ti.template() = False):
         for axis in ti.static(range(2)):
             for k in range(2 * self.nodes[1 - axis]):  # top-level loop: runs in parallel
                 side, inward, ghost, mirror = self._wall_pairs(axis, k)
+                along = k % self.nodes[1 - axis]
                 # normal momentum the wall reverses: the ghost's inward momentum vanishes and the same
                 # appears outward at the mirror node, an impulse of twice that momentum
                 impulse = 0.0 * dt
@@ -352,11 +401,17 @@ class Engine:
                     if ti.static(forces):
                         self.g_f[mirror] += flip * self.g_f[ghost]
                         impulse += 2.0 * ti.max(-inward * self.g_f[ghost][axis], 0.0) * dt
+                    if ti.static(ghost_forces):  # the forces apic-affine kept apart at this ghost
+                        fg = self.ghost_f[side, along]
+                        self.g_mom[mirror] += flip * fg * dt
+                        impulse += 2.0 * ti.max(-inward * fg[axis], 0.0) * dt
+                if ti.static(ghost_forces):
+                    self.ghost_f[side, along] = ti.Vector.zero(float, 2)  # ready for the next step
                 # that reaction is wall contact too: Coulomb friction acts on it (mu = 0 unless friction)
                 if ti.static(momentum):
-                    self.wall_friction[side, k % self.nodes[1 - axis]] = self.bc_mu[side] * impulse
+                    self.wall_friction[side, along] = self.bc_mu[side] * impulse
                 else:
-                    self.wall_friction[side, k % self.nodes[1 - axis]] += self.bc_mu[side] * impulse
+                    self.wall_friction[side, along] += self.bc_mu[side] * impulse
 
     @ti.func
     def _mirror_ghosts(self, old: ti.template()):
@@ -379,27 +434,70 @@ class Engine:
     def _p2g_fused(self, dt, g, fuse_force: ti.template()):
         for p in range(self.n):
             if self.active[p]:
-                base, fx, w, dw = self._stencil(self.x[p])
-                C = self.C[p]
-                vol = self._stress_point(p, C, dt)  # eqs 29-30: D = sym(C), W = skew(C)
-                s = self.s[p]
-                sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
-                m = self.m[p]
-                mv = m * self.v[p]
-                mC = m * C
-                for i, j in ti.static(ti.ndrange(3, 3)):
-                    offset = ti.Vector([i, j])
-                    dpos = (ti.cast(offset, float) - fx) * self.dx
-                    weight = w[i][0] * w[j][1]
-                    grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
-                    force = -vol * (sig @ grad) + weight * m * g
-                    I = base + offset
-                    self.g_mass[I] += weight * m
-                    if ti.static(fuse_force):
-                        self.g_mom[I] += weight * (mv + mC @ dpos) + dt * force
-                    else:
-                        self.g_mom[I] += weight * (mv + mC @ dpos)
-                        self.g_f[I] += force
+                vol = self._stress_point(p, self.C[p], dt)  # eqs 29-30: D = sym(C), W = skew(C)
+                self._scatter_particle(p, vol, dt, g, fuse_force)
+
+    @ti.func
+    def _stress_from_affine(self, dt):
+        for p in range(self.n):
+            if self.active[p]:
+                self._stress_point(p, self.C[p], dt)
+
+    @ti.func
+    def _p2g_with_force(self, dt, g, fuse_force: ti.template()):
+        ti.loop_config(serialize=True)
+        for p in range(self.n):
+            if self.active[p]:
+                self._scatter_particle(p, self.m[p] / self.rho[p], dt, g, fuse_force)
+
+    @ti.func
+    def _scatter_particle(self, p, vol, dt, g, fuse_force: ti.template()):
+        """Mass, APIC momentum and (fused or apart) internal and body force of particle p."""
+        base, fx, w, dw = self._stencil(self.x[p])
+        s = self.s[p]
+        sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
+        m = self.m[p]
+        mv = m * self.v[p]
+        mC = m * self.C[p]
+        # does the stencil reach the ghost nodes beyond a closed wall? (then only its first or last
+        # row or column does)
+        ghost_lo = ti.Vector([0, 0])
+        ghost_hi = ti.Vector([0, 0])
+        for d in ti.static(range(2)):
+            ghost_lo[d] = base[d] == PAD - 1 and self.bc_kind[2 * d] != 3
+            ghost_hi[d] = base[d] == PAD + self.cells[d] - 1 and self.bc_kind[2 * d + 1] != 3
+        for i, j in ti.static(ti.ndrange(3, 3)):
+            offset = ti.Vector([i, j])
+            dpos = (ti.cast(offset, float) - fx) * self.dx
+            weight = w[i][0] * w[j][1]
+            grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
+            force = -vol * (sig @ grad) + weight * m * g
+            I = base + offset
+            self._add(self.g_mass, I, weight * m)
+            if ti.static(fuse_force):
+                # side of the wall whose ghost node I is (-1: none); a corner ghost keeps the fused form
+                x_side = -1
+                y_side = -1
+                if ti.static(i == 0):
+                    x_side = 0 if ghost_lo[0] else -1
+                elif ti.static(i == 2):
+                    x_side = 1 if ghost_hi[0] else -1
+                if ti.static(j == 0):
+                    y_side = 2 if ghost_lo[1] else -1
+                elif ti.static(j == 2):
+                    y_side = 3 if ghost_hi[1] else -1
+                momentum = weight * (mv + mC @ dpos)
+                if x_side >= 0 and y_side < 0:
+                    self._add(self.g_mom, I, momentum)
+                    self._add(self.ghost_f, ti.Vector([x_side, I[1]]), force)
+                elif y_side >= 0 and x_side < 0:
+                    self._add(self.g_mom, I, momentum)
+                    self._add(self.ghost_f, ti.Vector([y_side, I[0]]), force)
+                else:
+                    self._add(self.g_mom, I, momentum + dt * force)
+            else:
+                self._add(self.g_mom, I, weight * (mv + mC @ dpos))
+                self._add(self.g_f, I, force)
 
     @ti.func
     def _grid_update_fused(self, dt, damping, damped: ti.template()):
@@ -419,6 +517,7 @@ class Engine:
     # ------------------------------------------------------------------ six-stage (mpm, apic)
     @ti.func
     def _p2g_momentum(self):
+        ti.loop_config(serialize=self.serial)  # the serial scatter: one thread, plain adds
         for p in range(self.n):
             if self.active[p]:
                 base, fx, w, dw = self._stencil(self.x[p])
@@ -429,12 +528,12 @@ class Engine:
                     offset = ti.Vector([i, j])
                     weight = w[i][0] * w[j][1]
                     I = base + offset
-                    self.g_mass[I] += weight * m
+                    self._add(self.g_mass, I, weight * m)
                     if ti.static(self.scheme == "apic"):
                         dpos = (ti.cast(offset, float) - fx) * self.dx
-                        self.g_mom[I] += weight * (mv + mC @ dpos)
+                        self._add(self.g_mom, I, weight * (mv + mC @ dpos))
                     else:
-                        self.g_mom[I] += weight * mv
+                        self._add(self.g_mom, I, weight * mv)
 
     @ti.func
     def _grid_velocity(self):
@@ -452,19 +551,42 @@ class Engine:
     def _stress_and_force(self, dt, g):
         for p in range(self.n):
             if self.active[p]:
-                base, fx, w, dw = self._stencil(self.x[p])
-                L = ti.Matrix.zero(float, 2, 2)
-                for i, j in ti.static(ti.ndrange(3, 3)):
-                    grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
-                    L += self.g_v_old[base + ti.Vector([i, j])].outer_product(grad)
-                vol = self._stress_point(p, L, dt)
-                s = self.s[p]
-                sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
-                m = self.m[p]
-                for i, j in ti.static(ti.ndrange(3, 3)):
-                    weight = w[i][0] * w[j][1]
-                    grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
-                    self.g_f[base + ti.Vector([i, j])] += -vol * (sig @ grad) + weight * m * g
+                vol = self._stress_from_grid_point(p, dt)
+                self._force_particle(p, vol, g)
+
+    @ti.func
+    def _stress_from_grid(self, dt):
+        for p in range(self.n):
+            if self.active[p]:
+                self._stress_from_grid_point(p, dt)
+
+    @ti.func
+    def _force(self, g):
+        ti.loop_config(serialize=True)
+        for p in range(self.n):
+            if self.active[p]:
+                self._force_particle(p, self.m[p] / self.rho[p], g)
+
+    @ti.func
+    def _stress_from_grid_point(self, p, dt):
+        """Velocity gradient from the grid velocities, then the constitutive update; the volume."""
+        base, fx, w, dw = self._stencil(self.x[p])
+        L = ti.Matrix.zero(float, 2, 2)
+        for i, j in ti.static(ti.ndrange(3, 3)):
+            grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
+            L += self.g_v_old[base + ti.Vector([i, j])].outer_product(grad)
+        return self._stress_point(p, L, dt)
+
+    @ti.func
+    def _force_particle(self, p, vol, g):
+        base, fx, w, dw = self._stencil(self.x[p])
+        s = self.s[p]
+        sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
+        m = self.m[p]
+        for i, j in ti.static(ti.ndrange(3, 3)):
+            weight = w[i][0] * w[j][1]
+            grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
+            self._add(self.g_f, base + ti.Vector([i, j]), -vol * (sig @ grad) + weight * m * g)
 
     @ti.func
     def _grid_update(self, dt, damping):

@@ -77,12 +77,14 @@ TARGETS = Targets(0.006, (0.40, 0.48), (0.095, 0.101), "issue 5 targets at 2 mm 
 #: crest targets of the standard resolution already hold at 5 mm (measured 1.9-2.6 mm and
 #: 0.0993-0.0998 m for cfl 0.1-0.8), so they are kept. The toe's upper bound is raised from 0.48 to
 #: 0.56 m: at 2.5 mm particle spacing a single particle layer counts as "2 mm thick", so the toe is
-#: the front of the deposit's thin tail (measured 0.52-0.53 m). The reach (5 mm thickness, measured
-#: 0.43-0.46 m, experiment 0.396 m) must lie in [0.40, 0.47] m: it catches a changed run-out that the
-#: ill-conditioned toe would not.
+#: the front of the deposit's thin tail (measured 0.46 m since the wall-reaction change of the fused
+#: scheme, 0.52-0.53 m before). The reach (5 mm thickness, measured 0.399 m, before 0.43-0.46 m;
+#: experiment 0.396 m) must lie in [0.38, 0.47] m: the experiment less about three 5 mm cells to
+#: a little under 0.48 m; it catches a changed run-out that the ill-conditioned toe would not.
+#: (The lower bound was 0.40 m, above the experiment's own 0.396 m, until the run reached it.)
 COARSE_TARGETS = Targets(0.006, (0.40, 0.56), (0.095, 0.101),
                          "coarse tolerances at 5 mm cells (toe upper bound 0.56 m: a single 2.5 mm particle layer "
-                         "counts as 2 mm thick)", reach_m=(0.40, 0.47))
+                         "counts as 2 mm thick)", reach_m=(0.38, 0.47))
 
 #: The paper's reported numbers (section 2.5, Figure 7, Table 2).
 PAPER = {

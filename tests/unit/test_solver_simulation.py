@@ -69,8 +69,12 @@ def test_auto_stop_ends_the_dynamic_stage_after_the_slide_stops():
         assert sim.status == "completed"
         assert "kinetic energy" in sim.message
         assert sim.time_s < 5.0
-    peak = max(f.diagnostics.kinetic_energy_J_per_m for f in frames)
-    assert frames[-1].diagnostics.kinetic_energy_J_per_m < 0.01 * peak
+        message = sim.message
+    # the stop is judged against the peak over all checked steps (every 20 steps), which the frames
+    # only sample: the message states it, and it is at least the frames' peak
+    stated_peak = float(re.search(r"of its peak ([0-9.e+-]+) J/m", message).group(1))
+    assert stated_peak >= 0.999 * max(f.diagnostics.kinetic_energy_J_per_m for f in frames)
+    assert frames[-1].diagnostics.kinetic_energy_J_per_m < 0.01 * stated_peak * 1.001  # message rounds to 3 digits
 
 
 def test_frames_at_output_times_with_requested_fields_only_and_mass_conserved():
