@@ -422,6 +422,8 @@ def study(
     """
     from app.studies import StudyError, run_study
 
+    if budget_min is not None and not budget_min > 0:
+        fail(f"--budget-min must be a positive number of minutes, not {budget_min:g}")
     budget_s = None if budget_min is None else 60.0 * budget_min
     try:
         with contextlib.redirect_stdout(sys.stderr):  # Taichi's messages; the verdict goes to stdout

@@ -76,16 +76,17 @@ def run_study(name: str, out_dir: Path | None = None, quick: bool = False, note:
     """
     if name not in STUDIES:
         raise StudyError(f"unknown study {name!r}; choose one of: {', '.join(STUDIES)}")
+    if budget_s is not None:
+        if name != "tradeoff":
+            raise StudyError(f"a budget applies to the tradeoff sweep only, not to {name!r}")
+        if not budget_s > 0:
+            raise StudyError(f"the budget must be a positive number of seconds, not {budget_s!r}")
     out = Path(out_dir) if out_dir is not None else default_out_dir(name, quick)
     if out.exists() and not out.is_dir():
         raise StudyError(f"{out} exists and is not a folder")
     out.mkdir(parents=True, exist_ok=True)
     module = importlib.import_module(f"app.studies.{STUDIES[name]}")
     if budget_s is not None:
-        if name != "tradeoff":
-            raise StudyError(f"a budget applies to the tradeoff sweep only, not to {name!r}")
-        if not budget_s > 0:
-            raise StudyError(f"the budget must be a positive number of seconds, not {budget_s!r}")
         return module.run(out, quick=quick, note=note, budget_s=budget_s)
     return module.run(out, quick=quick, note=note)
 

@@ -193,3 +193,15 @@ def test_run_with_an_invalid_project_writes_nothing(project, tmp_path):
     assert proc.stderr.startswith("error: ") and "domain.cell_size_m" in proc.stderr
     assert "Traceback" not in proc.stderr
     assert not (tmp_path / "tiny.results").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["study", "bui2008", "--budget-min", "5"], "a budget applies to the tradeoff sweep only"),
+    (["study", "tradeoff", "--budget-min", "-1"], "--budget-min must be a positive number of minutes, not -1"),
+    (["study", "no-such-study"], "unknown study 'no-such-study'; choose one of: sand-column"),
+])
+def test_study_refuses_bad_arguments_before_running_anything(tmp_path, args, message):
+    proc = runout(*args, "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert proc.returncode == 1, proc.stderr
+    assert message in " ".join(proc.stderr.split())
+    assert not any((tmp_path / "out").rglob("report.md"))
