@@ -50,6 +50,28 @@ def resolve_scatter(scatter: str) -> str:
     return "serial" if cpu and cfg.cpu_max_num_threads <= SERIAL_SCATTER_MAX_THREADS else "atomic"
 
 
+@ti.func
+def _bspline(f, i):
+    """Quadratic B-spline weight of stencil node ``i`` (0, 1, 2) at fractional offset ``f``."""
+    r = 0.5 * (f - 0.5) ** 2
+    if i == 0:
+        r = 0.5 * (1.5 - f) ** 2
+    elif i == 1:
+        r = 0.75 - (f - 1.0) ** 2
+    return r
+
+
+@ti.func
+def _bspline_slope(f, i):
+    """Derivative of :func:`_bspline` with respect to the position, in cell units."""
+    r = f - 0.5
+    if i == 0:
+        r = f - 1.5
+    elif i == 1:
+        r = -2.0 * (f - 1.0)
+    return r
+
+
 @ti.data_oriented
 class Engine:
     """State and step kernels of one MPM run (needs an acquired runtime).
@@ -102,9 +124,9 @@ class Engine:
         self.g_v_old = ti.Vector.field(2, float, self.nodes if self.six_stage else (1, 1))
         # tangential momentum Coulomb friction removes at the node one cell inside each wall
         self.wall_friction = ti.field(float, (4, max(self.nodes)))
-        # apic-affine fuses the forces into the momentum; at the ghost nodes beyond the closed walls
-        # it keeps them apart (per side, along the wall), so that the wall's reaction, and the
-        # friction on it, is worked out from momentum and force as in the six-stage schemes
+        # apic-affine fuses the forces into the momentum; the force part at the ghost nodes beyond
+        # the closed walls is also summed apart (per side, along the wall), so that the wall's
+        # reaction, and the friction on it, is worked out as in the six-stage schemes
         self.ghost_f = ti.Vector.field(2, float, (4, max(self.nodes)) if not self.six_stage else (1, 1))
 
         # stencil bounding box [lo, hi) of the current positions, and the one being built in G2P
@@ -196,7 +218,7 @@ class Engine:
             return ("reset grid", "P2G momentum", "fold walls (momentum)", "grid velocity", "mirror walls (old)",
                     *stress, "fold walls (force)", "grid update", "mirror walls", "G2P")
         fused = ("stress", "P2G with force") if self.serial else ("P2G with stress and force",)
-        return ("reset grid", *fused, "fold walls", "grid update", "mirror walls", "G2P")
+        return ("reset grid", *fused, "wall forces", "fold walls", "grid update", "mirror walls", "G2P")
 
     @ti.kernel
     def _step(self, dt: float, gx: float, gy: float, damping: float, damped: ti.template()):
@@ -239,6 +261,9 @@ class Engine:
             self._grid_update(dt, damping)
         elif ti.static(stage == "P2G with stress and force"):
             self._p2g_fused(dt, g, not damped)
+        elif ti.static(stage == "wall forces"):
+            if ti.static(not damped):
+                self._ghost_forces(g)
         elif ti.static(stage == "fold walls"):
             self._fold_ghosts(True, damped, dt, not damped)
         elif ti.static(stage == "grid update"):
@@ -397,14 +422,15 @@ class Engine:
                     if ti.static(momentum):
                         self.g_mass[mirror] += self.g_mass[ghost]
                         self.g_mom[mirror] += flip * self.g_mom[ghost]
-                        impulse += 2.0 * ti.max(-inward * self.g_mom[ghost][axis], 0.0)
+                        p_ghost = self.g_mom[ghost]
+                        if ti.static(ghost_forces):  # apic-affine: the fused momentum less its force part
+                            fg = self.ghost_f[side, along] * dt
+                            p_ghost -= fg
+                            impulse += 2.0 * ti.max(-inward * fg[axis], 0.0)
+                        impulse += 2.0 * ti.max(-inward * p_ghost[axis], 0.0)
                     if ti.static(forces):
                         self.g_f[mirror] += flip * self.g_f[ghost]
                         impulse += 2.0 * ti.max(-inward * self.g_f[ghost][axis], 0.0) * dt
-                    if ti.static(ghost_forces):  # the forces apic-affine kept apart at this ghost
-                        fg = self.ghost_f[side, along]
-                        self.g_mom[mirror] += flip * fg * dt
-                        impulse += 2.0 * ti.max(-inward * fg[axis], 0.0) * dt
                 if ti.static(ghost_forces):
                     self.ghost_f[side, along] = ti.Vector.zero(float, 2)  # ready for the next step
                 # that reaction is wall contact too: Coulomb friction acts on it (mu = 0 unless friction)
@@ -438,6 +464,51 @@ class Engine:
                 self._scatter_particle(p, vol, dt, g, fuse_force)
 
     @ti.func
+    def _ghost_forces(self, g):
+        # The force part of the fused momentum at the ghost nodes beyond closed walls, per side and
+        # along the wall, so that the wall's reaction (and the friction on it) is worked out from
+        # momentum and force apart, as in the six-stage schemes. Only particles within a cell of a
+        # closed wall reach a ghost node; the others cost one test each. A corner ghost (beyond two
+        # walls) keeps the fused form. Runs after P2G, which left the stresses and densities it used.
+        for p in range(self.n):
+            if self.active[p]:
+                base, fx, w, dw = self._stencil(self.x[p])
+                ghost_lo = ti.Vector([0, 0])
+                ghost_hi = ti.Vector([0, 0])
+                for d in ti.static(range(2)):
+                    ghost_lo[d] = base[d] == PAD - 1 and self.bc_kind[2 * d] != 3
+                    ghost_hi[d] = base[d] == PAD + self.cells[d] - 1 and self.bc_kind[2 * d + 1] != 3
+                if ghost_lo[0] or ghost_lo[1] or ghost_hi[0] or ghost_hi[1]:
+                    s = self.s[p]
+                    sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
+                    m = self.m[p]
+                    vol = m / self.rho[p]
+                    for k in range(9):  # a runtime loop: this rare path compiles once, not nine times
+                        i = k // 3
+                        j = k % 3
+                        x_side = -1
+                        y_side = -1
+                        if i == 0 and ghost_lo[0]:
+                            x_side = 0
+                        if i == 2 and ghost_hi[0]:
+                            x_side = 1
+                        if j == 0 and ghost_lo[1]:
+                            y_side = 2
+                        if j == 2 and ghost_hi[1]:
+                            y_side = 3
+                        if (x_side >= 0) != (y_side >= 0):
+                            wx = _bspline(fx[0], i)
+                            wy = _bspline(fx[1], j)
+                            grad = ti.Vector([_bspline_slope(fx[0], i) * wy,
+                                              wx * _bspline_slope(fx[1], j)]) * self.inv_dx
+                            force = -vol * (sig @ grad) + wx * wy * m * g
+                            I = base + ti.Vector([i, j])
+                            if x_side >= 0:
+                                self.ghost_f[x_side, I[1]] += force  # atomic: few particles get here
+                            else:
+                                self.ghost_f[y_side, I[0]] += force
+
+    @ti.func
     def _stress_from_affine(self, dt):
         for p in range(self.n):
             if self.active[p]:
@@ -459,13 +530,6 @@ class Engine:
         m = self.m[p]
         mv = m * self.v[p]
         mC = m * self.C[p]
-        # does the stencil reach the ghost nodes beyond a closed wall? (then only its first or last
-        # row or column does)
-        ghost_lo = ti.Vector([0, 0])
-        ghost_hi = ti.Vector([0, 0])
-        for d in ti.static(range(2)):
-            ghost_lo[d] = base[d] == PAD - 1 and self.bc_kind[2 * d] != 3
-            ghost_hi[d] = base[d] == PAD + self.cells[d] - 1 and self.bc_kind[2 * d + 1] != 3
         for i, j in ti.static(ti.ndrange(3, 3)):
             offset = ti.Vector([i, j])
             dpos = (ti.cast(offset, float) - fx) * self.dx
@@ -475,26 +539,7 @@ class Engine:
             I = base + offset
             self._add(self.g_mass, I, weight * m)
             if ti.static(fuse_force):
-                # side of the wall whose ghost node I is (-1: none); a corner ghost keeps the fused form
-                x_side = -1
-                y_side = -1
-                if ti.static(i == 0):
-                    x_side = 0 if ghost_lo[0] else -1
-                elif ti.static(i == 2):
-                    x_side = 1 if ghost_hi[0] else -1
-                if ti.static(j == 0):
-                    y_side = 2 if ghost_lo[1] else -1
-                elif ti.static(j == 2):
-                    y_side = 3 if ghost_hi[1] else -1
-                momentum = weight * (mv + mC @ dpos)
-                if x_side >= 0 and y_side < 0:
-                    self._add(self.g_mom, I, momentum)
-                    self._add(self.ghost_f, ti.Vector([x_side, I[1]]), force)
-                elif y_side >= 0 and x_side < 0:
-                    self._add(self.g_mom, I, momentum)
-                    self._add(self.ghost_f, ti.Vector([y_side, I[0]]), force)
-                else:
-                    self._add(self.g_mom, I, momentum + dt * force)
+                self._add(self.g_mom, I, weight * (mv + mC @ dpos) + dt * force)
             else:
                 self._add(self.g_mom, I, weight * (mv + mC @ dpos))
                 self._add(self.g_f, I, force)
@@ -636,17 +681,17 @@ class Engine:
                     self.unstable[None] += 1
                     if ti.static(self.remove_unstable):
                         keep = 0
-                for d in ti.static(range(2)):
+                for d in ti.static(range(2)):  # a particle the guard removed is not also counted lost
                     lo_kind = self.bc_kind[2 * d]
                     hi_kind = self.bc_kind[2 * d + 1]
                     if x[d] < self.origin[d]:
                         if lo_kind == 3:
-                            keep = -1
+                            keep = -1 if keep == 1 else keep
                         else:
                             x[d] = self.origin[d]
                     if x[d] > self.upper[d]:
                         if hi_kind == 3:
-                            keep = -1
+                            keep = -1 if keep == 1 else keep
                         else:
                             x[d] = self.upper[d]
                 self.x[p] = x

@@ -200,3 +200,15 @@ def test_a_blown_up_particle_stays_inside_the_grid_arrays_until_the_guard_acts(s
     # the stencils (and the grid box built from them) stayed inside the arrays
     lo, hi = eng.next_lo.to_numpy(), eng.next_hi.to_numpy()
     assert np.all(lo >= 0) and np.all(hi <= np.array(eng.nodes))
+
+
+def test_a_particle_the_guard_removes_as_it_leaves_is_counted_once():
+    from solver.engine import Engine
+
+    grid = Grid((0.0, 0.0), (1.0, 1.0), 0.1, left=Boundary("slip"), right=Boundary("open"),
+                bottom=Boundary("slip"), top=Boundary("slip"))
+    eng = Engine(grid, MAT, 1, "apic-affine", np.float64, speed_bound_m_s=1.0, remove_unstable=True)
+    eng.load_particles([[0.95, 0.5]], [1e-3], [0], [[5.0, 0.0]])
+    eng.step(0.02, (0.0, 0.0))
+    d = eng.diagnostics()
+    assert (d["active"], d["unstable"], d["lost"]) == (0, 1, 0)
