@@ -137,16 +137,25 @@ def estimated_cost(setting: Setting) -> float:
     return 4.0 + steps * (1.2e-3 + 4e-8 * _SCHEME_COST[setting.scheme] * particles)
 
 
-#: Preset criteria: largest allowed errors against the reference run (m). The surface RMS and
-#: crest bounds are 5 %, 2.5 % and 1 % of the block height; the reach (run-out of the deposit at
-#: 5 mm thickness, see :mod:`app.studies.common`) bounds 10 %, 5 % and 2 % of the reference
-#: run-out (reach minus the block's 0.2 m, about 0.23 m). The 2 mm toe is reported but not used:
-#: it sits on a tail a few millimetres thick and moves by centimetres between similar runs.
+#: Preset criteria: largest allowed errors against the reference run (m). Surface RMS 5 %, 1 % and
+#: 0.5 % of the block height (0.1 m); reach (run-out of the deposit at 5 mm thickness, see
+#: :mod:`app.studies.common`) 25 %, 6 % and 4 % of the reference run-out (reach minus the block's
+#: 0.2 m, about 0.23 m); crest 5, 1 and 0.5 mm. The 2 mm toe is reported but not used: it sits on
+#: a tail a few millimetres thick. These levels were set after the sweep, to spread the three
+#: presets over the measured range: until the wall-reaction fix of apic-affine the criteria were
+#: 5/2.5/1 mm RMS and 10/5/2 % reach, and with the fix one 2.5 mm setting met all three.
 PRESET_CRITERIA: dict[str, dict[str, float]] = {
-    "draft": {"rms_vs_ref_m": 0.005, "reach_vs_ref_m": 0.023, "crest_vs_ref_m": 0.005},
-    "standard": {"rms_vs_ref_m": 0.0025, "reach_vs_ref_m": 0.0115, "crest_vs_ref_m": 0.0025},
-    "fine": {"rms_vs_ref_m": 0.001, "reach_vs_ref_m": 0.0046, "crest_vs_ref_m": 0.001},
+    "draft": {"rms_vs_ref_m": 0.005, "reach_vs_ref_m": 0.0575, "crest_vs_ref_m": 0.005},
+    "standard": {"rms_vs_ref_m": 0.001, "reach_vs_ref_m": 0.0138, "crest_vs_ref_m": 0.001},
+    "fine": {"rms_vs_ref_m": 0.0005, "reach_vs_ref_m": 0.0092, "crest_vs_ref_m": 0.0005},
 }
+
+#: Presets keep a stability margin: the largest time step any preset may use, as a fraction of the
+#: critical step. The sand column (another scene) loses particles above 0.75 of it with apic-affine
+#: (docs/validation.md), so a setting that is stable on this scene at 0.8 is not offered to others.
+PRESET_MAX_CFL = 0.5
+#: Presets use the default scheme; apic and mpm stay in the sweep for comparison.
+PRESET_SCHEMES = ("apic-affine",)
 
 
 def pareto_front(cost: np.ndarray, error: np.ndarray) -> np.ndarray:
@@ -176,8 +185,9 @@ def pareto_front(cost: np.ndarray, error: np.ndarray) -> np.ndarray:
 
 
 def choose_presets(rows: list[dict[str, Any]], criteria: dict[str, dict[str, float]] = PRESET_CRITERIA,
-                   cost_key: str = "wall_s") -> dict[str, dict[str, Any] | None]:
-    """The cheapest row meeting each preset's criteria (None where no row does).
+                   cost_key: str = "wall_s", max_cfl: float = PRESET_MAX_CFL) -> dict[str, dict[str, Any] | None]:
+    """The cheapest row meeting each preset's criteria (None where no row does), among the rows of
+    :data:`PRESET_SCHEMES` whose time step is at most ``max_cfl`` of the critical one.
 
     Parameters
     ----------
@@ -186,6 +196,7 @@ def choose_presets(rows: list[dict[str, Any]], criteria: dict[str, dict[str, flo
     criteria : dict
         Preset name -> error name -> largest allowed value.
     cost_key : str
+    max_cfl : float
 
     Returns
     -------
@@ -194,6 +205,8 @@ def choose_presets(rows: list[dict[str, Any]], criteria: dict[str, dict[str, flo
     out: dict[str, dict[str, Any] | None] = {}
     for name, crit in criteria.items():
         ok = [r for r in rows if r.get("status") == "completed" and not r.get("is_reference")
+              and (r.get("cfl") is None or r["cfl"] <= max_cfl)
+              and (r.get("scheme") is None or r["scheme"] in PRESET_SCHEMES)
               and all(_finite(r.get(k)) and r[k] <= v for k, v in crit.items())]
         out[name] = min(ok, key=lambda r: r[cost_key]) if ok else None
     return out
@@ -353,7 +366,7 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
     report.text(
         (f"**quick** (reduced): {' '.join(quick_settings.__doc__.split())}" if quick
          else f"**full**: {' '.join(full_settings.__doc__.split())}"),
-        (f"**Not run** (wall-clock budget of {budget_s:g} s spent): " + ", ".join(f"`{s.label}`" for s in skipped)
+        (f"**Not run** (not cached, and no room left in this invocation's wall-clock budget of {budget_s:g} s): " + ", ".join(f"`{s.label}`" for s in skipped)
          + ". The presets and the reference come from the runs that were done.") if skipped else
         "Every setting of the sweep ran.",
         "Each run: `projects/examples/bui2008_aluminium_bars.toml` with `domain.cell_size_m`, "
@@ -367,7 +380,9 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
         f"wall times add up to {data['runs_wall_s']:.0f} s ({data['runs_cpu_s']:.0f} CPU seconds).",
     )
     report.heading("Presets")
-    report.text("Each preset is the cheapest run (by wall time) whose errors against the reference are within: "
+    report.text(f"Each preset is the cheapest {'/'.join(PRESET_SCHEMES)} run (by wall time) with a time step of at most "
+                f"{PRESET_MAX_CFL:g} of the critical one (a stability margin for other scenes) whose errors against the "
+                "reference are within: "
                 + "; ".join(f"**{n}** surface RMS <= {c['rms_vs_ref_m'] * 1e3:g} mm, reach <= {c['reach_vs_ref_m'] * 1e3:g} mm, "
                             f"crest <= {c['crest_vs_ref_m'] * 1e3:g} mm" for n, c in PRESET_CRITERIA.items())
                 + ". Resolution as cells per body height (the block is 0.1 m high).")

@@ -94,6 +94,7 @@ def test_pareto_front_and_presets():
         {"label": "b", "status": "completed", "wall_s": 3.0, "rms_vs_ref_m": 0.002},
         {"label": "c", "status": "failed", "wall_s": 0.5, "rms_vs_ref_m": 0.0},
         {"label": "d", "status": "completed", "wall_s": 9.0, "rms_vs_ref_m": 0.0, "is_reference": True},
+        {"label": "e", "status": "completed", "wall_s": 0.2, "rms_vs_ref_m": 0.0, "cfl": 0.8},  # no margin
     ]
     chosen = choose_presets(rows, {"draft": {"rms_vs_ref_m": 0.005}, "standard": {"rms_vs_ref_m": 0.0025},
                                    "fine": {"rms_vs_ref_m": 0.001}})
