@@ -19,8 +19,10 @@ logger = logging.getLogger(__name__)
 SETTINGS_NAME = "workbench.json"
 LIBRARY_NAME = "materials.json"
 MAX_RECENT = 8
-#: Particle-steps per second assumed before a run on this machine measured it.
-ASSUMED_THROUGHPUT = {"cpu": 2.0e5, "gpu": 2.0e7}
+#: Particle-steps per second assumed before a run on this machine measured it: whole runs of
+#: apic-affine on two CPU cores make 3.2e6 (3,200 particles) to 6.8e6 (20,000 particles) with
+#: set-up and compilation included (docs/validation); the paper's GPU run made 7.6e7 on an RTX 3060.
+ASSUMED_THROUGHPUT = {"cpu": 3.0e6, "gpu": 2.0e7}
 
 
 def config_dir() -> Path:
