@@ -106,10 +106,7 @@ class ParticleScene(QWidget):
             return
         self._closed = True
         self.plotter.removeEventFilter(self)
-        self.plotter.close()
-        # delete the GL widget while its window still exists (a QOpenGLWidget torn down together
-        # with its top-level window can abort in the GL driver)
-        self.plotter.deleteLater()
+        self.plotter.close()  # releases the render window; the widget goes with its window
 
     # -- content ----------------------------------------------------------------------------
 

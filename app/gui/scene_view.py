@@ -152,10 +152,7 @@ class SceneView(QWidget):
             self.doc.selection.changed.disconnect(self._on_selection)
         except (RuntimeError, TypeError):  # already disconnected with the document
             pass
-        self.plotter.close()
-        # delete the GL widget while its window still exists (a QOpenGLWidget torn down together
-        # with its top-level window can abort in the GL driver)
-        self.plotter.deleteLater()
+        self.plotter.close()  # releases the render window; the widget goes with its window
 
     # -- coordinates ----------------------------------------------------------------------------
 

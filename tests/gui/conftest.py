@@ -1,6 +1,6 @@
 """Fixtures of the workbench tests: a window with its own config folder, answering no dialogs,
-checked for leaked threads and VTK plotters when it closes; project files made from the tiny
-example (CPU)."""
+checked for leaked threads and VTK plotters when it closes and then kept, not deleted (see
+tests/conftest.py); project files made from the tiny example (CPU)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,8 @@ import time
 from pathlib import Path
 
 import pytest
+
+from tests.conftest import KEPT_WIDGETS
 
 os.environ.setdefault("QT_API", "pyside6")
 
@@ -89,8 +91,7 @@ def window(qtbot, tmp_path: Path, monkeypatch):
     yield win
     win.shutdown()
     win.close()
-    win.deleteLater()
-    qtbot.wait(10)
+    KEPT_WIDGETS.append(win)  # not deleted: see tests/conftest.py
     gc.collect()
     deadline = time.monotonic() + 5.0
     while threading.active_count() > threads_before and time.monotonic() < deadline:

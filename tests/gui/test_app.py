@@ -8,6 +8,8 @@ import pytest
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication
 
+from tests.conftest import KEPT_WIDGETS
+
 pytestmark = pytest.mark.gui
 
 
@@ -28,6 +30,7 @@ def test_main_opens_the_project_and_returns_when_the_window_closes(qtbot, tiny_f
         seen["bodies"] = len(windows[0].doc.get("bodies")) if windows else 0
         for w in windows:
             w.close()
+            KEPT_WIDGETS.append(w)  # not deleted when main() returns: see tests/conftest.py
 
     QTimer.singleShot(1500, close_it)
     assert main(tiny_file) == 0
