@@ -410,7 +410,9 @@ class Engine:
     @ti.func
     def _fold_ghosts(self, momentum: ti.template(), forces: ti.template(), dt, ghost_forces: ti.template() = False):
         for axis in ti.static(range(2)):
-            for k in range(2 * self.nodes[1 - axis]):  # top-level loop: runs in parallel
+            # a few hundred nodes: on a CPU with few threads one thread beats waking the pool
+            ti.loop_config(serialize=self.serial)
+            for k in range(2 * self.nodes[1 - axis]):
                 side, inward, ghost, mirror = self._wall_pairs(axis, k)
                 along = k % self.nodes[1 - axis]
                 # normal momentum the wall reverses: the ghost's inward momentum vanishes and the same
@@ -442,6 +444,7 @@ class Engine:
     @ti.func
     def _mirror_ghosts(self, old: ti.template()):
         for axis in ti.static(range(2)):
+            ti.loop_config(serialize=self.serial)
             for k in range(2 * self.nodes[1 - axis]):
                 side, inward, ghost, mirror = self._wall_pairs(axis, k)
                 kind = self.bc_kind[side]
@@ -470,6 +473,9 @@ class Engine:
         # momentum and force apart, as in the six-stage schemes. Only particles within a cell of a
         # closed wall reach a ghost node; the others cost one test each. A corner ghost (beyond two
         # walls) keeps the fused form. Runs after P2G, which left the stresses and densities it used.
+        # With the serial scatter this pass is serial too, so that its sums, like the scatter's, come
+        # in one fixed order and a run repeats bit for bit.
+        ti.loop_config(serialize=self.serial)
         for p in range(self.n):
             if self.active[p]:
                 base, fx, w, dw = self._stencil(self.x[p])
