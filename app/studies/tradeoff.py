@@ -30,6 +30,7 @@ import json
 import math
 import time
 from dataclasses import dataclass
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
@@ -246,12 +247,42 @@ def run_setting(out_dir: Path, setting: Setting, experiment: np.ndarray, note: N
                        cfl=setting.cfl, keep_frames=False, interval_s=0.02, fields=())
     row = rec.row()
     row.update(setting.params())
+    row["run_at"] = _now()
     surface = (dep.surface_x, dep.surface_y) if dep is not None else (np.array([]), np.array([]))
     write_json(run_dir / "record.json", row)
     np.savez_compressed(run_dir / "surface.npz", x=surface[0], y=surface[1])
     row["_surface"] = surface
     note(f"  {rec.status} in {rec.wall_s:.0f} s: RMS {fmt(row.get('rms_mm'))} mm, toe {fmt(row.get('toe_m'))} m")
     return row
+
+
+#: Wall time (s) of the cached run the drift check repeats: long enough that compilation and
+#: start-up do not dominate, short enough to cost little.
+DRIFT_RUN_S = 30.0
+
+
+def _drift_check(out_dir: Path, cached_rows: list[dict[str, Any]], experiment: np.ndarray,
+                 note: Note) -> dict[str, Any] | None:
+    """Repeat one cached run now (the one nearest :data:`DRIFT_RUN_S`, apic-affine first), so that
+    the report says how the machine's speed compares with when the cached runs were timed: a
+    shared machine's speed drifts between hours, and the wall-time axis mixes both."""
+    done = [r for r in cached_rows if r.get("status") == "completed"]
+    if not done:
+        return None
+    row = min(done, key=lambda r: (r["scheme"] != "apic-affine", abs(math.log(r["wall_s"] / DRIFT_RUN_S))))
+    note(f"tradeoff: drift check, {row['label']} again (cached {row['wall_s']:.0f} s)")
+    rec, _dep = run_bui(out_dir / "drift", row["label"], row["cell_mm"] / 1e3, int(row["per_cell"]), row["scheme"],
+                        experiment, cfl=row["cfl"], keep_frames=False, interval_s=0.02, fields=())
+    out = {"label": row["label"], "cached_wall_s": row["wall_s"], "cached_at": row.get("run_at"),
+           "fresh_wall_s": rec.wall_s, "fresh_at": _now(), "fresh_over_cached": rec.wall_s / row["wall_s"]}
+    (out_dir / "drift").mkdir(parents=True, exist_ok=True)
+    write_json(out_dir / "drift" / "drift.json", out)
+    note(f"  now {rec.wall_s:.0f} s ({out['fresh_over_cached']:.2f}x the cached time)")
+    return out
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
 
 
 def _deposit(row: dict[str, Any]) -> Deposit | None:
@@ -292,6 +323,7 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
                       key=lambda s: (s.scheme != "apic-affine", estimated_cost(s)))
     rows = []
     skipped: list[Setting] = []
+    from_cache: list[Setting] = []
     for s in settings:
         cached = _cached(out_dir / "runs" / s.label, s)
         if cached is None and budget_s is not None and \
@@ -300,7 +332,10 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
             continue
         rows.append(cached if cached is not None else run_setting(out_dir, s, experiment, note))
         if cached is not None:
+            from_cache.append(s)
             note(f"tradeoff: {s.label} (cached)")
+    drift = _drift_check(out_dir, [r for r in rows if any(r["label"] == s.label for s in from_cache)],
+                         experiment, note)
 
     # reference: the most resolved apic-affine run (most particle-steps) that completed
     candidates = [r for r in rows if r["scheme"] == "apic-affine" and r["status"] == "completed" and _deposit(r)]
@@ -361,7 +396,8 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
             "reference": ref["label"] if ref else None, "experiment_reach_m": exp_reach,
             "experiment_toe_m": exp_toe, "experiment_crest_m": exp_crest, "presets": presets,
             "rows": clean, "study_wall_s": time.perf_counter() - t0,
-            "runs_wall_s": float(sum(r["wall_s"] for r in clean)), "runs_cpu_s": float(sum(r["cpu_s"] for r in clean))}
+            "runs_wall_s": float(sum(r["wall_s"] for r in clean)), "runs_cpu_s": float(sum(r["cpu_s"] for r in clean)),
+            "drift_check": drift}
     write_json(out_dir / "tradeoff.json", data)
     passed = all(v is not None for v in chosen.values()) and not skipped
 
@@ -381,6 +417,10 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
         f"reach (5 mm) {exp_reach:.3f} m, crest {exp_crest:.4f} m.",
         f"Machine: {machine_line()}. Study wall time {data['study_wall_s']:.0f} s (cached runs count 0); the runs' "
         f"wall times add up to {data['runs_wall_s']:.0f} s ({data['runs_cpu_s']:.0f} CPU seconds).",
+        (f"Drift check: `{drift['label']}` took {drift['cached_wall_s']:.1f} s when it was cached "
+         f"({drift['cached_at'] or 'time not recorded'}) and {drift['fresh_wall_s']:.1f} s again at {drift['fresh_at']} "
+         f"({drift['fresh_over_cached']:.2f}x): wall times of runs done at different times compare within about "
+         "that factor.") if drift else "No cached run was used: all wall times are from this invocation.",
     )
     report.heading("Presets")
     report.text(f"Each preset is the cheapest {'/'.join(PRESET_SCHEMES)} run (by wall time) with a time step of at most "

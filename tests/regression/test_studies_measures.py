@@ -101,3 +101,29 @@ def test_pareto_front_and_presets():
     assert chosen["draft"]["label"] == "a"
     assert chosen["standard"]["label"] == "b"
     assert chosen["fine"] is None
+
+
+def test_drift_check_repeats_the_cached_run_nearest_half_a_minute(tmp_path, monkeypatch):
+    """The tradeoff report says how the machine's speed now compares with when cached runs were timed."""
+    from types import SimpleNamespace
+
+    import app.studies.tradeoff as tradeoff
+
+    calls = []
+
+    def fake_run_bui(out_dir, label, cell_m, per_cell, scheme, experiment, **kwargs):
+        calls.append((label, cell_m, per_cell, scheme, kwargs["cfl"]))
+        return SimpleNamespace(wall_s=45.0), None
+
+    monkeypatch.setattr(tradeoff, "run_bui", fake_run_bui)
+    row = {"status": "completed", "cell_mm": 2.5, "per_cell": 2, "cfl": 0.4}
+    rows = [dict(row, label="a", scheme="apic-affine", wall_s=7.0),
+            dict(row, label="b", scheme="apic-affine", wall_s=40.0, run_at="2026-11-21 22:19 UTC"),
+            dict(row, label="c", scheme="apic", wall_s=30.0),
+            dict(row, label="d", scheme="apic-affine", wall_s=31.0, status="stopped")]
+    drift = tradeoff._drift_check(tmp_path, rows, np.zeros((2, 2)), lambda *_: None)
+    assert calls == [("b", 0.0025, 2, "apic-affine", 0.4)]
+    assert drift["fresh_over_cached"] == pytest.approx(45.0 / 40.0)
+    assert drift["cached_at"] == "2026-11-21 22:19 UTC"
+    assert (tmp_path / "drift" / "drift.json").is_file()
+    assert tradeoff._drift_check(tmp_path, [], np.zeros((2, 2)), lambda *_: None) is None
