@@ -449,6 +449,10 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
                    "reference" if r["is_reference"] else fmt(1e3 * r["rms_vs_ref_m"]),
                    fmt(1e3 * r["reach_vs_ref_m"]), "yes" if r["pareto_vs_ref"] else ""]
                   for r in sorted(clean, key=lambda r: (r["scheme"], -r["cell_mm"], r["per_cell"], r["cfl"]))])
+    unfinished = [r for r in clean if r["status"] != "completed"]
+    if unfinished:
+        report.text("Runs that did not complete (no deposit, so no errors; they count for no preset): "
+                    + "; ".join(f"`{r['label']}`: {r['status']}, {r.get('message', '')}" for r in unfinished) + ".")
     report.text("Raw data: `sweep.csv`, `tradeoff.json`, `presets.json`; per run `runs/LABEL/` (summary, series, "
                 "`record.json`, `surface.npz`, `final.npz`).")
     path = report.write()
