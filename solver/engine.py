@@ -708,9 +708,16 @@ class Engine:
                 elif keep == 0:
                     self.active[p] = ti.cast(0, ti.i8)
                 else:
+                    # the grid box of the next step; read before writing, since an atomic on one
+                    # shared value from every particle serialises the threads, and once the box is
+                    # known few particles widen it
                     nb, nfx, nw, ndw = self._stencil(x)
-                    ti.atomic_min(self.next_lo[None], nb)
-                    ti.atomic_max(self.next_hi[None], nb + 3)
+                    lo = self.next_lo[None]
+                    hi = self.next_hi[None]
+                    if nb[0] < lo[0] or nb[1] < lo[1]:
+                        ti.atomic_min(self.next_lo[None], nb)
+                    if nb[0] + 3 > hi[0] or nb[1] + 3 > hi[1]:
+                        ti.atomic_max(self.next_hi[None], nb + 3)
 
     # ------------------------------------------------------------------ diagnostics
     @ti.kernel
