@@ -510,7 +510,7 @@ class Engine:
                             force = -vol * (sig @ grad) + wx * wy * m * g
                             I = base + ti.Vector([i, j])
                             if x_side >= 0:
-                                self.ghost_f[x_side, I[1]] += force  # atomic: few particles get here
+                                self.ghost_f[x_side, I[1]] += force  # atomic when parallel: few particles get here
                             else:
                                 self.ghost_f[y_side, I[0]] += force
 

@@ -101,7 +101,8 @@ def tiny_project() -> Path:
 
 # -- GUI windows outlive their tests -------------------------------------------------------------
 # Deleting a window with embedded VTK (QOpenGLWidget) views under Xvfb crashed the interpreter
-# at random, about once in several hundred deletions (twice in CI, never reproduced here). Tests
+# at random while Qt processed the deferred deletion (twice in CI; here about one GUI-suite run in
+# four with two suites running side by side). Tests
 # shut their windows down (runs stopped, plotters finalised: the fixtures check both) and keep
 # them here instead of deleting them; the process then ends without destroying them, after
 # pytest has written its report and stopped Xvfb.

@@ -235,6 +235,12 @@ def _cached(run_dir: Path, setting: Setting) -> dict[str, Any] | None:
     return row
 
 
+def _run_bui(run_dir: Path, setting: Setting, experiment: np.ndarray):
+    """One run of the sweep's form: frames every 20 ms, positions only, none kept."""
+    return run_bui(run_dir, setting.label, setting.cell_m, setting.per_cell, setting.scheme, experiment,
+                   cfl=setting.cfl, keep_frames=False, interval_s=0.02, fields=())
+
+
 def run_setting(out_dir: Path, setting: Setting, experiment: np.ndarray, note: Note) -> dict[str, Any]:
     """Run (or read back) one setting; returns its row with the deposit and ``_surface``."""
     run_dir = out_dir / "runs" / setting.label
@@ -243,8 +249,7 @@ def run_setting(out_dir: Path, setting: Setting, experiment: np.ndarray, note: N
         note(f"tradeoff: {setting.label} (cached)")
         return cached
     note(f"tradeoff: {setting.label}")
-    rec, dep = run_bui(run_dir, setting.label, setting.cell_m, setting.per_cell, setting.scheme, experiment,
-                       cfl=setting.cfl, keep_frames=False, interval_s=0.02, fields=())
+    rec, dep = _run_bui(run_dir, setting, experiment)
     row = rec.row()
     row.update(setting.params())
     row["run_at"] = _now()
@@ -271,8 +276,8 @@ def _drift_check(out_dir: Path, cached_rows: list[dict[str, Any]], experiment: n
         return None
     row = min(done, key=lambda r: (r["scheme"] != "apic-affine", abs(math.log(r["wall_s"] / DRIFT_RUN_S))))
     note(f"tradeoff: drift check, {row['label']} again (cached {row['wall_s']:.0f} s)")
-    rec, _dep = run_bui(out_dir / "drift", row["label"], row["cell_mm"] / 1e3, int(row["per_cell"]), row["scheme"],
-                        experiment, cfl=row["cfl"], keep_frames=False, interval_s=0.02, fields=())
+    setting = Setting(row["scheme"], row["cell_mm"] / 1e3, int(row["per_cell"]), row["cfl"])
+    rec, _dep = _run_bui(out_dir / "drift", setting, experiment)
     out = {"label": row["label"], "cached_wall_s": row["wall_s"], "cached_at": row.get("run_at"),
            "fresh_wall_s": rec.wall_s, "fresh_at": _now(), "fresh_over_cached": rec.wall_s / row["wall_s"]}
     (out_dir / "drift").mkdir(parents=True, exist_ok=True)
@@ -323,7 +328,7 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
                       key=lambda s: (s.scheme != "apic-affine", estimated_cost(s)))
     rows = []
     skipped: list[Setting] = []
-    from_cache: list[Setting] = []
+    cached_rows: list[dict[str, Any]] = []
     for s in settings:
         cached = _cached(out_dir / "runs" / s.label, s)
         if cached is None and budget_s is not None and \
@@ -332,10 +337,9 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
             continue
         rows.append(cached if cached is not None else run_setting(out_dir, s, experiment, note))
         if cached is not None:
-            from_cache.append(s)
+            cached_rows.append(cached)
             note(f"tradeoff: {s.label} (cached)")
-    drift = _drift_check(out_dir, [r for r in rows if any(r["label"] == s.label for s in from_cache)],
-                         experiment, note)
+    drift = _drift_check(out_dir, cached_rows, experiment, note)
 
     # reference: the most resolved apic-affine run (most particle-steps) that completed
     candidates = [r for r in rows if r["scheme"] == "apic-affine" and r["status"] == "completed" and _deposit(r)]

@@ -116,13 +116,14 @@ def test_drift_check_repeats_the_cached_run_nearest_half_a_minute(tmp_path, monk
         return SimpleNamespace(wall_s=45.0), None
 
     monkeypatch.setattr(tradeoff, "run_bui", fake_run_bui)
-    row = {"status": "completed", "cell_mm": 2.5, "per_cell": 2, "cfl": 0.4}
-    rows = [dict(row, label="a", scheme="apic-affine", wall_s=7.0),
-            dict(row, label="b", scheme="apic-affine", wall_s=40.0, run_at="2026-11-21 22:19 UTC"),
-            dict(row, label="c", scheme="apic", wall_s=30.0),
-            dict(row, label="d", scheme="apic-affine", wall_s=31.0, status="stopped")]
+    row = {"status": "completed", "per_cell": 2, "cfl": 0.4}
+    rows = [dict(row, label="a", cell_mm=5.0, scheme="apic-affine", wall_s=7.0),
+            dict(row, label="b", cell_mm=2.5, scheme="apic-affine", wall_s=40.0, run_at="2026-11-21 22:19 UTC"),
+            dict(row, label="c", cell_mm=2.0, scheme="apic", wall_s=30.0),
+            dict(row, label="d", cell_mm=4.0, scheme="apic-affine", wall_s=31.0, status="stopped")]
     drift = tradeoff._drift_check(tmp_path, rows, np.zeros((2, 2)), lambda *_: None)
-    assert calls == [("b", 0.0025, 2, "apic-affine", 0.4)]
+    assert calls == [("apic-affine_2.5mm_4ppc_cfl0.4", 0.0025, 2, "apic-affine", 0.4)]
+    assert drift["label"] == "b"
     assert drift["fresh_over_cached"] == pytest.approx(45.0 / 40.0)
     assert drift["cached_at"] == "2026-11-21 22:19 UTC"
     assert (tmp_path / "drift" / "drift.json").is_file()
