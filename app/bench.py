@@ -64,9 +64,9 @@ from solver.config import (
 log = logging.getLogger(__name__)
 
 YARDSTICK = "yardstick"
-#: Profile variant: apic-affine with the parallel atomic scatter where the engine would pick the
-#: serial one (solver.engine.SCATTERS), so the profile shows both in one run.
-ATOMIC_VARIANT = "apic-affine, atomic scatter"
+#: Profile variants: apic-affine with each scatter (solver.engine.SCATTERS) the engine would not
+#: pick itself, so that the profile shows them all in one run.
+SCATTER_VARIANTS = {f"apic-affine, {s} scatter": s for s in ("atomic", "serial", "split")}
 NOT_MEASURED_NO_GPU = "not measured: no GPU"
 
 #: The scene: the aluminium-bar collapse of Bui et al. (2008) at any particle count.
@@ -412,7 +412,7 @@ class _Variant:
             g = math.hypot(*config.gravity_m_s2)
             bound = config.numerics.speed_bound_factor * max(math.sqrt(2.0 * g * height), 1.0)
             # as Simulation builds it for this scene: no stage uses damping, so no grid force field
-            scheme, scatter = ("apic-affine", "atomic") if name == ATOMIC_VARIANT else (name, "auto")
+            scheme, scatter = ("apic-affine", SCATTER_VARIANTS[name]) if name in SCATTER_VARIANTS else (name, "auto")
             self.obj = Engine(grid, config.materials, n, scheme, np_float, speed_bound_m_s=bound, damping=False,
                               scatter=scatter)
             self.stress = _k0_stress(config, particles)
@@ -626,7 +626,8 @@ def profile_step(n: int, arch: str = "cpu", precision: str = "f32", steps: int =
         note(f"profile: {arch} {precision} {n:,} particles")
         from solver.engine import resolve_scatter
 
-        extra = (ATOMIC_VARIANT,) if "apic-affine" in schemes and resolve_scatter("auto") != "atomic" else ()
+        chosen = resolve_scatter("auto", n)
+        extra = tuple(name for name, s in SCATTER_VARIANTS.items() if s != chosen) if "apic-affine" in schemes else ()
         variants = []
         for name in (YARDSTICK, *schemes, *extra):
             config, particles = collapse_scene(n, precision, name if name in SCHEMES else "apic-affine", arch)

@@ -15,7 +15,7 @@ Schemes (chosen once, at construction, and compiled in with ``ti.static``):
 - ``apic-affine``: improved MPM-APIC: strain rate and spin from the particle's own C
   (eqs 29-30), stress update and force scatter fused into P2G; four stages.
 
-Grid passes run only over the bounding box of the particles' stencils (recomputed in G2P), so
+Grid passes run only over the bounding box of the particles' stencils (built in the scatter), so
 empty parts of the domain cost nothing.
 """
 
@@ -30,24 +30,37 @@ PAD = 2
 #: How particle contributions are added to shared grid nodes. ``atomic``: every particle in
 #: parallel with float atomic adds, the constitutive update fused into the same pass (GPUs and
 #: many-core CPUs). ``serial``: the constitutive update in a parallel pass, then one thread adds
-#: every particle's contributions with plain adds. On the CPU a float atomic add is a
-#: compare-and-swap loop: on the development machine the atomic scatter costs about four times the
-#: plain one per particle (benchmarks/scatter.py), so up to four threads a single plain
-#: scatter beats the parallel atomic one. ``auto``: serial on a CPU with at most
-#: SERIAL_SCATTER_MAX_THREADS threads, atomic otherwise.
-SCATTERS = ("auto", "atomic", "serial")
+#: every particle's contributions with plain adds. ``split``: one chunk of particle indices per
+#: thread, each thread adding with plain adds the particles whose stencils lie in its own band of
+#: grid nodes (bands cut between the chunks' stencil ranges of the last step, along the axis that
+#: separates them best); the particles outside their chunk's band are added afterwards by one
+#: thread. Which particle goes where depends only on positions, never on timing, so runs repeat
+#: bit for bit. On the CPU a float atomic add is a compare-and-swap loop: on the development
+#: machine the atomic scatter costs about four times the plain one per particle
+#: (benchmarks/scatter.py), so with few threads plain adds win. ``auto``: on a CPU with at most
+#: SERIAL_SCATTER_MAX_THREADS threads split from SPLIT_MIN_PARTICLES particles on and serial below
+#: (the split recipe takes about 4 s longer to compile, which a small run does not earn back),
+#: atomic otherwise.
+SCATTERS = ("auto", "atomic", "serial", "split")
 SERIAL_SCATTER_MAX_THREADS = 4
+SPLIT_MIN_PARTICLES = 10_000
+CPU_GRAIN = 512  # loop iterations a Taichi 1.7 CPU thread takes at a time (measured; see _split_scatter)
 BOUNDARY_CODES = {"fixed": 0, "slip": 1, "friction": 2, "open": 3}
 _BIG = 1 << 30
 
 
-def resolve_scatter(scatter: str) -> str:
-    """``atomic`` or ``serial`` for the Taichi runtime in use (see :data:`SCATTERS`)."""
-    if scatter != "auto":
-        return scatter
+def resolve_scatter(scatter: str, n_particles: int) -> str:
+    """``atomic``, ``serial`` or ``split`` for the Taichi runtime in use and the particle count
+    (see :data:`SCATTERS`)."""
     cfg = ti.lang.impl.current_cfg()
     cpu = cfg.arch in (ti.x64, ti.arm64)
-    return "serial" if cpu and cfg.cpu_max_num_threads <= SERIAL_SCATTER_MAX_THREADS else "atomic"
+    if scatter == "auto":
+        if not cpu or cfg.cpu_max_num_threads > SERIAL_SCATTER_MAX_THREADS:
+            return "atomic"
+        return "split" if n_particles >= SPLIT_MIN_PARTICLES else "serial"
+    if scatter in ("serial", "split") and not cpu:
+        raise ValueError(f"the {scatter} scatter runs on a CPU only; allowed on a GPU: auto, atomic")
+    return scatter
 
 
 @ti.func
@@ -78,17 +91,24 @@ class Engine:
 
     ``damping=False`` promises that no step will use local damping, which lets ``apic-affine``
     fuse the forces into the momentum and skip the grid force field (less memory).
+    ``scatter`` chooses how particles add to grid nodes (see :data:`SCATTERS`).
     """
 
     def __init__(self, grid: Grid, materials: tuple[Material, ...], n_particles: int, scheme: str,
                  np_float=np.float32, speed_bound_m_s: float = 1e30, remove_unstable: bool = False,
-                 damping: bool = True, scatter: str = "auto"):
+                 damping: bool = True, scatter: str = "auto", chunks: int | None = None):
         if scheme not in ("mpm", "apic", "apic-affine"):
             raise ValueError(f"unknown scheme {scheme!r}; allowed: mpm, apic, apic-affine")
         if scatter not in SCATTERS:
             raise ValueError(f"unknown scatter {scatter!r}; allowed: {', '.join(SCATTERS)}")
-        self.scatter = resolve_scatter(scatter)
+        self.scatter = resolve_scatter(scatter, n_particles)
         self.serial = self.scatter == "serial"
+        self.split = self.scatter == "split"
+        self.plain = self.scatter != "atomic"  # plain adds: no two threads ever add to one node
+        # the split scatter's chunks: one per thread (``chunks`` overrides, e.g. to test more bands)
+        self.chunks = (chunks or ti.lang.impl.current_cfg().cpu_max_num_threads) if self.split else 1
+        if self.chunks < 1:
+            raise ValueError(f"chunks must be at least 1, got {chunks}")
         self.scheme = scheme
         self.np_float = np_float
         self.n = int(n_particles)
@@ -129,11 +149,18 @@ class Engine:
         # reaction, and the friction on it, is worked out as in the six-stage schemes
         self.ghost_f = ti.Vector.field(2, float, (4, max(self.nodes)) if not self.six_stage else (1, 1))
 
-        # stencil bounding box [lo, hi) of the current positions, and the one being built in G2P
+        # node box [lo, hi) the last scatter wrote (every node outside it holds zeros): built in the
+        # scatter, which works out every particle's stencil anyway, and cleared by the next reset
         self.lo = ti.Vector.field(2, ti.i32, ())
         self.hi = ti.Vector.field(2, ti.i32, ())
-        self.next_lo = ti.Vector.field(2, ti.i32, ())
-        self.next_hi = ti.Vector.field(2, ti.i32, ())
+        # split scatter: per chunk the stencil range (min and max base node) of the last scatter,
+        # 16 ints a row so that no two threads write one cache line; the band cuts along the
+        # chosen axis (``flip``: coordinates negated, for chunks ordered high to low); and which
+        # particles were left to the serial remainder
+        self.chunk_range = ti.field(ti.i32, (self.chunks, 16))
+        self.cut = ti.field(ti.i32, self.chunks + 1)
+        self.cut_axis = ti.field(ti.i32, 2)  # axis, flip
+        self.deferred = ti.field(ti.i8, n if self.split else 1)
 
         self.bc_kind = ti.field(ti.i32, 4)
         self.bc_mu = ti.field(float, 4)
@@ -173,7 +200,9 @@ class Engine:
         self.yielded.from_numpy(np.zeros(self.n, np.int8))
         self.lost[None] = 0
         self.unstable[None] = 0
-        self.refresh_bounds()
+        ranges = np.zeros((self.chunks, 16), np.int32)
+        ranges[:, :2], ranges[:, 2:4] = _BIG, -_BIG  # no ranges yet: the first split scatter is serial
+        self.chunk_range.from_numpy(ranges)
 
     def set_stress(self, stress: np.ndarray) -> None:
         """Overwrite the particle stresses, (N, 4) Pa."""
@@ -187,9 +216,6 @@ class Engine:
     def reset_reference(self) -> None:
         """Measure displacements from the current positions from now on."""
         self.x0.copy_from(self.x)
-
-    def refresh_bounds(self) -> None:
-        self._compute_bounds()
 
     def state(self, names: tuple[str, ...] = ("x", "v", "s", "eps_p", "mat", "active", "x0", "rho", "m", "C")
               ) -> dict[str, np.ndarray]:
@@ -218,7 +244,8 @@ class Engine:
             return ("reset grid", "P2G momentum", "fold walls (momentum)", "grid velocity", "mirror walls (old)",
                     *stress, "fold walls (force)", "grid update", "mirror walls", "G2P")
         fused = ("stress", "P2G with force") if self.serial else ("P2G with stress and force",)
-        return ("reset grid", *fused, "wall forces", "fold walls", "grid update", "mirror walls", "G2P")
+        walls = () if self.split else ("wall forces",)  # the split scatter sums the wall forces itself
+        return ("reset grid", *fused, *walls, "fold walls", "grid update", "mirror walls", "G2P")
 
     @ti.kernel
     def _step(self, dt: float, gx: float, gy: float, damping: float, damped: ti.template()):
@@ -237,6 +264,8 @@ class Engine:
     def _run_stage(self, stage: ti.template(), dt, g, damping, damped: ti.template()):
         if ti.static(stage == "reset grid"):
             self._reset_grid()
+        elif ti.static(stage == "P2G momentum" and self.split):
+            self._split_scatter("momentum", dt, g, False)
         elif ti.static(stage == "P2G momentum"):
             self._p2g_momentum()
         elif ti.static(stage == "fold walls (momentum)"):
@@ -245,6 +274,8 @@ class Engine:
             self._grid_velocity()
         elif ti.static(stage == "mirror walls (old)"):
             self._mirror_ghosts(True)
+        elif ti.static(stage == "stress and force" and self.split):
+            self._split_scatter("force", dt, g, False)
         elif ti.static(stage == "stress and force"):
             self._stress_and_force(dt, g)
         elif ti.static(stage == "stress" and self.six_stage):
@@ -259,6 +290,8 @@ class Engine:
             self._fold_ghosts(False, True, dt)
         elif ti.static(stage == "grid update" and self.six_stage):
             self._grid_update(dt, damping)
+        elif ti.static(stage == "P2G with stress and force" and self.split):
+            self._split_scatter("affine", dt, g, not damped)
         elif ti.static(stage == "P2G with stress and force"):
             self._p2g_fused(dt, g, not damped)
         elif ti.static(stage == "wall forces"):
@@ -347,8 +380,6 @@ class Engine:
 
     @ti.func
     def _reset_grid(self):
-        self.lo[None] = self.next_lo[None]
-        self.hi[None] = self.next_hi[None]
         lo = self.lo[None]
         width = ti.max(self.hi[None] - lo, 0)
         for k in range(width[0] * width[1]):
@@ -357,24 +388,32 @@ class Engine:
             self.g_mom[I] = ti.Vector.zero(float, 2)
             if ti.static(self.separate_forces):
                 self.g_f[I] = ti.Vector.zero(float, 2)
+        self.lo[None] = ti.Vector([_BIG, _BIG])  # empty: the scatter widens it
+        self.hi[None] = ti.Vector([-_BIG, -_BIG])
+
+    @ti.func
+    def _widen_box(self, base):
+        """Take particle stencil ``base .. base + 2`` into the box of written nodes."""
+        lo = self.lo[None]
+        hi = self.hi[None]
+        if ti.static(self.serial):
+            self.lo[None] = ti.min(lo, base)
+            self.hi[None] = ti.max(hi, base + 3)
+        else:
+            # read before writing: an atomic on one shared value from every particle serialises
+            # the threads, and once the box is known few particles widen it
+            if base[0] < lo[0] or base[1] < lo[1]:
+                ti.atomic_min(self.lo[None], base)
+            if base[0] + 3 > hi[0] or base[1] + 3 > hi[1]:
+                ti.atomic_max(self.hi[None], base + 3)
 
     @ti.func
     def _add(self, field: ti.template(), I, value):
         """Add to a grid node: plainly in the serial scatter, atomically in the parallel one."""
-        if ti.static(self.serial):
+        if ti.static(self.plain):
             field[I] = field[I] + value
         else:
             field[I] += value
-
-    @ti.kernel
-    def _compute_bounds(self):
-        self.next_lo[None] = ti.Vector([_BIG, _BIG])
-        self.next_hi[None] = ti.Vector([-_BIG, -_BIG])
-        for p in range(self.n):
-            if self.active[p]:
-                base, fx, w, dw = self._stencil(self.x[p])
-                ti.atomic_min(self.next_lo[None], base)
-                ti.atomic_max(self.next_hi[None], base + 3)
 
     # ------------------------------------------------------------------ walls as mirror planes
     # A closed wall sits on a node line; the ghost node one cell beyond it would only be reached by
@@ -411,7 +450,7 @@ class Engine:
     def _fold_ghosts(self, momentum: ti.template(), forces: ti.template(), dt, ghost_forces: ti.template() = False):
         for axis in ti.static(range(2)):
             # a few hundred nodes: on a CPU with few threads one thread beats waking the pool
-            ti.loop_config(serialize=self.serial)
+            ti.loop_config(serialize=self.plain)
             for k in range(2 * self.nodes[1 - axis]):
                 side, inward, ghost, mirror = self._wall_pairs(axis, k)
                 along = k % self.nodes[1 - axis]
@@ -444,7 +483,7 @@ class Engine:
     @ti.func
     def _mirror_ghosts(self, old: ti.template()):
         for axis in ti.static(range(2)):
-            ti.loop_config(serialize=self.serial)
+            ti.loop_config(serialize=self.plain)
             for k in range(2 * self.nodes[1 - axis]):
                 side, inward, ghost, mirror = self._wall_pairs(axis, k)
                 kind = self.bc_kind[side]
@@ -470,49 +509,59 @@ class Engine:
     def _ghost_forces(self, g):
         # The force part of the fused momentum at the ghost nodes beyond closed walls, per side and
         # along the wall, so that the wall's reaction (and the friction on it) is worked out from
-        # momentum and force apart, as in the six-stage schemes. Only particles within a cell of a
-        # closed wall reach a ghost node; the others cost one test each. A corner ghost (beyond two
-        # walls) keeps the fused form. Runs after P2G, which left the stresses and densities it used.
+        # momentum and force apart, as in the six-stage schemes. Runs after P2G, which left the
+        # stresses and densities it used (the split scatter does this particle by particle itself).
         # With the serial scatter this pass is serial too, so that its sums, like the scatter's, come
         # in one fixed order and a run repeats bit for bit.
-        ti.loop_config(serialize=self.serial)
+        ti.loop_config(serialize=self.plain)
         for p in range(self.n):
             if self.active[p]:
-                base, fx, w, dw = self._stencil(self.x[p])
-                ghost_lo = ti.Vector([0, 0])
-                ghost_hi = ti.Vector([0, 0])
-                for d in ti.static(range(2)):
-                    ghost_lo[d] = base[d] == PAD - 1 and self.bc_kind[2 * d] != 3
-                    ghost_hi[d] = base[d] == PAD + self.cells[d] - 1 and self.bc_kind[2 * d + 1] != 3
-                if ghost_lo[0] or ghost_lo[1] or ghost_hi[0] or ghost_hi[1]:
-                    s = self.s[p]
-                    sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
-                    m = self.m[p]
-                    vol = m / self.rho[p]
-                    for k in range(9):  # a runtime loop: this rare path compiles once, not nine times
-                        i = k // 3
-                        j = k % 3
-                        x_side = -1
-                        y_side = -1
-                        if i == 0 and ghost_lo[0]:
-                            x_side = 0
-                        if i == 2 and ghost_hi[0]:
-                            x_side = 1
-                        if j == 0 and ghost_lo[1]:
-                            y_side = 2
-                        if j == 2 and ghost_hi[1]:
-                            y_side = 3
-                        if (x_side >= 0) != (y_side >= 0):
-                            wx = _bspline(fx[0], i)
-                            wy = _bspline(fx[1], j)
-                            grad = ti.Vector([_bspline_slope(fx[0], i) * wy,
-                                              wx * _bspline_slope(fx[1], j)]) * self.inv_dx
-                            force = -vol * (sig @ grad) + wx * wy * m * g
-                            I = base + ti.Vector([i, j])
-                            if x_side >= 0:
-                                self.ghost_f[x_side, I[1]] += force  # atomic when parallel: few particles get here
-                            else:
-                                self.ghost_f[y_side, I[0]] += force
+                self._ghost_particle(p, g)
+
+    @ti.func
+    def _ghost_particle(self, p, g):
+        """Add particle p's force at ghost nodes beyond closed walls to ``ghost_f``.
+
+        Only particles within a cell of a closed wall reach a ghost node; the others cost one test
+        each. A corner ghost (beyond two walls) keeps the fused form.
+        """
+        base, fx, w, dw = self._stencil(self.x[p])
+        ghost_lo = ti.Vector([0, 0])
+        ghost_hi = ti.Vector([0, 0])
+        for d in ti.static(range(2)):
+            ghost_lo[d] = base[d] == PAD - 1 and self.bc_kind[2 * d] != 3
+            ghost_hi[d] = base[d] == PAD + self.cells[d] - 1 and self.bc_kind[2 * d + 1] != 3
+        if ghost_lo[0] or ghost_lo[1] or ghost_hi[0] or ghost_hi[1]:
+            s = self.s[p]
+            sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
+            m = self.m[p]
+            vol = m / self.rho[p]
+            for k in range(9):  # a runtime loop: this rare path compiles once, not nine times
+                i = k // 3
+                j = k % 3
+                x_side = -1
+                y_side = -1
+                if i == 0 and ghost_lo[0]:
+                    x_side = 0
+                if i == 2 and ghost_hi[0]:
+                    x_side = 1
+                if j == 0 and ghost_lo[1]:
+                    y_side = 2
+                if j == 2 and ghost_hi[1]:
+                    y_side = 3
+                if (x_side >= 0) != (y_side >= 0):
+                    wx = _bspline(fx[0], i)
+                    wy = _bspline(fx[1], j)
+                    grad = ti.Vector([_bspline_slope(fx[0], i) * wy,
+                                      wx * _bspline_slope(fx[1], j)]) * self.inv_dx
+                    force = -vol * (sig @ grad) + wx * wy * m * g
+                    I = base + ti.Vector([i, j])
+                    # atomic where threads share the pass: few particles get here. In the split
+                    # scatter a ghost node, like any node, belongs to one chunk's band.
+                    if x_side >= 0:
+                        self.ghost_f[x_side, I[1]] += force
+                    else:
+                        self.ghost_f[y_side, I[0]] += force
 
     @ti.func
     def _stress_from_affine(self, dt):
@@ -531,6 +580,8 @@ class Engine:
     def _scatter_particle(self, p, vol, dt, g, fuse_force: ti.template()):
         """Mass, APIC momentum and (fused or apart) internal and body force of particle p."""
         base, fx, w, dw = self._stencil(self.x[p])
+        if ti.static(not self.split):  # the split scatter takes its box from the chunk ranges
+            self._widen_box(base)
         s = self.s[p]
         sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
         m = self.m[p]
@@ -571,20 +622,27 @@ class Engine:
         ti.loop_config(serialize=self.serial)  # the serial scatter: one thread, plain adds
         for p in range(self.n):
             if self.active[p]:
-                base, fx, w, dw = self._stencil(self.x[p])
-                m = self.m[p]
-                mv = m * self.v[p]
-                mC = m * self.C[p]
-                for i, j in ti.static(ti.ndrange(3, 3)):
-                    offset = ti.Vector([i, j])
-                    weight = w[i][0] * w[j][1]
-                    I = base + offset
-                    self._add(self.g_mass, I, weight * m)
-                    if ti.static(self.scheme == "apic"):
-                        dpos = (ti.cast(offset, float) - fx) * self.dx
-                        self._add(self.g_mom, I, weight * (mv + mC @ dpos))
-                    else:
-                        self._add(self.g_mom, I, weight * mv)
+                self._momentum_particle(p, True)
+
+    @ti.func
+    def _momentum_particle(self, p, widen: ti.template()):
+        """Mass and momentum (FLIP or APIC) of particle p to its nodes."""
+        base, fx, w, dw = self._stencil(self.x[p])
+        if ti.static(widen):
+            self._widen_box(base)
+        m = self.m[p]
+        mv = m * self.v[p]
+        mC = m * self.C[p]
+        for i, j in ti.static(ti.ndrange(3, 3)):
+            offset = ti.Vector([i, j])
+            weight = w[i][0] * w[j][1]
+            I = base + offset
+            self._add(self.g_mass, I, weight * m)
+            if ti.static(self.scheme == "apic"):
+                dpos = (ti.cast(offset, float) - fx) * self.dx
+                self._add(self.g_mom, I, weight * (mv + mC @ dpos))
+            else:
+                self._add(self.g_mom, I, weight * mv)
 
     @ti.func
     def _grid_velocity(self):
@@ -653,11 +711,130 @@ class Engine:
             else:
                 self.g_mom[I] = ti.Vector.zero(float, 2)
 
+    # ------------------------------------------------------------------ the split scatter
+    @ti.func
+    def _split_scatter(self, kind: ti.template(), dt, g, fuse_force: ti.template()):
+        """A scatter in ``self.chunks`` threads with plain adds (see :data:`SCATTERS`).
+
+        ``kind``: ``affine`` (stress from C, then mass, momentum and force: apic-affine),
+        ``momentum`` (mass and momentum: mpm, apic) or ``force`` (stress from the grid, then the
+        force; reuses the momentum pass's choice of particles, the positions being the same).
+        """
+        if ti.static(kind != "force"):
+            ti.loop_config(serialize=True)
+            for _ in range(1):
+                self._plan_bands()
+        # One chunk per thread: Taichi 1.7 hands a CPU thread 512 consecutive iterations of a loop at
+        # a time (whatever loop_config's block_dim says) and runs a loop of up to 512 in one thread,
+        # so the chunk loop runs CPU_GRAIN iterations per chunk and the first of each does the work.
+        for t in range(self.chunks * CPU_GRAIN):
+            if t % CPU_GRAIN != 0:
+                continue
+            k = t // CPU_GRAIN
+            axis = self.cut_axis[0]
+            flip = self.cut_axis[1]
+            band_lo = self.cut[k]
+            band_hi = self.cut[k + 1]
+            lo = ti.Vector([_BIG, _BIG])
+            hi = ti.Vector([-_BIG, -_BIG])
+            for p in range(k * self.n // self.chunks, (k + 1) * self.n // self.chunks):
+                if self.active[p]:
+                    vol = 0.0 * dt
+                    if ti.static(kind == "affine"):
+                        vol = self._stress_point(p, self.C[p], dt)  # eqs 29-30
+                    elif ti.static(kind == "force"):
+                        vol = self._stress_from_grid_point(p, dt)
+                    own = self.deferred[p] == 0
+                    if ti.static(kind != "force"):
+                        base, fx, w, dw = self._stencil(self.x[p])
+                        lo = ti.min(lo, base)
+                        hi = ti.max(hi, base)
+                        u = base[0] if axis == 0 else base[1]
+                        if flip:
+                            u = -u - 2
+                        own = band_lo <= u and u + 3 <= band_hi
+                        self.deferred[p] = ti.cast(0 if own else 1, ti.i8)
+                    if own:
+                        self._split_particle(kind, p, vol, dt, g, fuse_force)
+            if ti.static(kind != "force"):
+                for d in ti.static(range(2)):
+                    self.chunk_range[k, d] = lo[d]
+                    self.chunk_range[k, 2 + d] = hi[d]
+        if ti.static(kind != "force"):
+            ti.loop_config(serialize=True)
+            for _ in range(1):  # the box of written nodes: all chunks' stencil ranges
+                lo = ti.Vector([_BIG, _BIG])
+                hi = ti.Vector([-_BIG, -_BIG])
+                for k in range(self.chunks):
+                    for d in ti.static(range(2)):
+                        lo[d] = ti.min(lo[d], self.chunk_range[k, d])
+                        hi[d] = ti.max(hi[d], self.chunk_range[k, 2 + d] + 3)
+                self.lo[None] = lo
+                self.hi[None] = hi
+        ti.loop_config(serialize=True)  # the particles outside their chunk's band, in index order
+        for p in range(self.n):
+            if self.active[p] and self.deferred[p]:
+                self._split_particle(kind, p, self.m[p] / self.rho[p], dt, g, fuse_force)
+
+    @ti.func
+    def _split_particle(self, kind: ti.template(), p, vol, dt, g, fuse_force: ti.template()):
+        if ti.static(kind == "affine"):
+            self._scatter_particle(p, vol, dt, g, fuse_force)
+            if ti.static(fuse_force):
+                self._ghost_particle(p, g)
+        elif ti.static(kind == "momentum"):
+            self._momentum_particle(p, False)
+        else:
+            self._force_particle(p, vol, g)
+
+    @ti.func
+    def _chunk_span(self, k, axis, flip):
+        """Lowest and highest stencil base node of chunk k along ``axis`` (negated when ``flip``)."""
+        lo = self.chunk_range[k, axis]
+        hi = self.chunk_range[k, 2 + axis]
+        if flip:
+            low = -hi - 2
+            hi = -lo - 2
+            lo = low
+        return lo, hi
+
+    @ti.func
+    def _plan_bands(self):
+        """Choose the axis, direction and cuts of the chunks' node bands from their last ranges.
+
+        The axis and direction are the ones along which consecutive chunks overlap least; each cut
+        lies halfway through the overlap of two neighbours (or in the gap between them). The cuts
+        never decrease, so the bands never share a node whatever the ranges were: they only
+        decide how many particles are left to the serial remainder.
+        """
+        best = -_BIG
+        for axis in ti.static(range(2)):
+            for flip in ti.static(range(2)):
+                gap = 0
+                for k in range(1, self.chunks):
+                    a_lo, a_hi = self._chunk_span(k - 1, axis, flip)
+                    b_lo, b_hi = self._chunk_span(k, axis, flip)
+                    if a_lo <= a_hi and b_lo <= b_hi:  # both chunks hold active particles
+                        gap += ti.min(ti.max(b_lo - (a_hi + 3), -100_000), 100_000)
+                if gap > best:
+                    best = gap
+                    self.cut_axis[0] = axis
+                    self.cut_axis[1] = flip
+        axis = self.cut_axis[0]
+        flip = self.cut_axis[1]
+        self.cut[0] = -_BIG
+        self.cut[self.chunks] = _BIG
+        for k in range(1, self.chunks):
+            a_lo, a_hi = self._chunk_span(k - 1, axis, flip)
+            b_lo, b_hi = self._chunk_span(k, axis, flip)
+            c = self.cut[k - 1]
+            if a_lo <= a_hi and b_lo <= b_hi:
+                c = ti.max(c, (a_hi + 3 + b_lo) // 2)
+            self.cut[k] = ti.min(c, _BIG)
+
     # ------------------------------------------------------------------ G2P (all schemes)
     @ti.func
     def _g2p(self, dt):
-        self.next_lo[None] = ti.Vector([_BIG, _BIG])
-        self.next_hi[None] = ti.Vector([-_BIG, -_BIG])
         bound2 = self.speed_bound[None] ** 2
         for p in range(self.n):
             if self.active[p]:
@@ -707,17 +884,6 @@ class Engine:
                     self.lost[None] += 1
                 elif keep == 0:
                     self.active[p] = ti.cast(0, ti.i8)
-                else:
-                    # the grid box of the next step; read before writing, since an atomic on one
-                    # shared value from every particle serialises the threads, and once the box is
-                    # known few particles widen it
-                    nb, nfx, nw, ndw = self._stencil(x)
-                    lo = self.next_lo[None]
-                    hi = self.next_hi[None]
-                    if nb[0] < lo[0] or nb[1] < lo[1]:
-                        ti.atomic_min(self.next_lo[None], nb)
-                    if nb[0] + 3 > hi[0] or nb[1] + 3 > hi[1]:
-                        ti.atomic_max(self.next_hi[None], nb + 3)
 
     # ------------------------------------------------------------------ diagnostics
     @ti.kernel
@@ -766,7 +932,9 @@ class Engine:
         """Apply the side constraints to a whole grid of node velocities, shape (nx, ny, 2)."""
         self.g_mom.from_numpy(np.asarray(node_velocity, dtype=self.np_float))
         self._apply_boundaries_everywhere()
-        return self.g_mom.to_numpy()
+        out = self.g_mom.to_numpy()
+        self.g_mom.fill(0.0)  # the steps rely on zeros outside the box of written nodes
+        return out
 
     def node_position(self, i: int, j: int) -> tuple[float, float]:
         return (self.origin[0] + (i - PAD) * self.dx, self.origin[1] + (j - PAD) * self.dx)

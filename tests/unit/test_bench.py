@@ -99,10 +99,13 @@ def test_gpu_is_measured_or_marked_not_measured(bench):
 
 def test_profile_splits_the_step_into_stages_and_overhead(bench):
     (prof,) = bench[0]["profile"]
-    from app.bench import ATOMIC_VARIANT
+    from app.bench import SCATTER_VARIANTS
 
-    # where the engine picks the serial scatter, the profile also shows the atomic one beside it
-    extra = {ATOMIC_VARIANT} if prof["variants"]["apic-affine"]["scatter"] == "serial" else set()
+    # beside the scatter the engine picks, the profile shows apic-affine with the other ones
+    chosen = prof["variants"]["apic-affine"]["scatter"]
+    extra = {name for name, s in SCATTER_VARIANTS.items() if s != chosen}
+    for name in extra:
+        assert prof["variants"][name]["scatter"] == SCATTER_VARIANTS[name]
     assert set(prof["variants"]) == {YARDSTICK, "apic", "apic-affine"} | extra
     affine = prof["variants"]["apic-affine"]
     apic = prof["variants"]["apic"]

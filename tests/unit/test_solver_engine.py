@@ -147,63 +147,100 @@ def test_one_launch_step_equals_the_stage_by_stage_recipe(scheme):
         np.testing.assert_allclose(a.state((name,))[name], b.state((name,))[name], rtol=1e-12, atol=1e-15)
 
 
-@pytest.mark.parametrize("scheme", ["mpm", "apic", "apic-affine"])
-def test_serial_and_atomic_scatter_give_the_same_steps(scheme):
-    """The CPU's serial plain-add scatter and the parallel atomic one differ only in summation order."""
-    from solver.engine import Engine
-
-    grid = Grid((0.0, 0.0), (1.0, 1.0), 0.05, left=Boundary("slip"), right=Boundary("friction", math.radians(20.0)),
-                bottom=Boundary("friction", math.radians(25.0)), top=Boundary("open"))
-    dp = (Material("dp", "drucker-prager", 2000.0, 5e6, 0.3, cohesion_pa=1e3, friction_angle_rad=math.radians(30.0)),)
-    rng = np.random.default_rng(5)
-    n = 400
-    pos = np.c_[0.05 + 0.4 * rng.random(n), 0.02 + 0.3 * rng.random(n)]
-    states = {}
-    for scatter in ("atomic", "serial"):
-        eng = Engine(grid, dp, n, scheme, np.float64, scatter=scatter)
-        assert eng.scatter == scatter
-        eng.load_particles(pos, np.full(n, 2.5e-4), np.zeros(n, np.int32),
-                           np.random.default_rng(6).normal(scale=0.1, size=(n, 2)))
-        for _ in range(40):
-            eng.step(2e-4, (0.0, -9.81))
-        states[scatter] = eng.state(("x", "v", "s"))
-    for name in ("x", "v", "s"):
-        scale = max(np.abs(states["atomic"][name]).max(), 1e-30)
-        np.testing.assert_allclose(states["serial"][name], states["atomic"][name], rtol=0, atol=1e-9 * scale)
-
-
-@pytest.mark.parametrize("scheme", ["mpm", "apic", "apic-affine"])
-def test_the_serial_scatter_repeats_a_run_bit_for_bit(scheme):
-    """Every sum of the serial recipe comes in one fixed order: two runs give identical bits."""
+def _wall_scene(scheme, scatter, n, dtype=np.float64, chunks=None):
+    """An engine for a Drucker-Prager heap in a box with friction walls (particles not loaded)."""
     from solver.engine import Engine
 
     grid = Grid((0.0, 0.0), (1.0, 1.0), 0.05, left=Boundary("friction", math.radians(15.0)),
                 right=Boundary("friction", math.radians(20.0)), bottom=Boundary("friction", math.radians(25.0)),
                 top=Boundary("open"))
     dp = (Material("dp", "drucker-prager", 2000.0, 5e6, 0.3, cohesion_pa=1e3, friction_angle_rad=math.radians(30.0)),)
+    eng = Engine(grid, dp, n, scheme, dtype, scatter=scatter, chunks=chunks)
+    assert eng.scatter == scatter
+    return eng
+
+
+def _run(eng, pos, velocity, steps=40, dt=2e-4):
+    eng.load_particles(pos, np.full(len(pos), 2.5e-4), np.zeros(len(pos), np.int32), velocity)
+    for _ in range(steps):
+        eng.step(dt, (0.0, -9.81))
+    return eng.state(("x", "v", "s"))
+
+
+def _lattice(nx, ny, spacing=0.0125, corner=(0.001, 0.001)):
+    """Particles on a lattice, row after row from the bottom (the order seeding gives)."""
+    X, Y = np.meshgrid(corner[0] + spacing * (np.arange(nx) + 0.5), corner[1] + spacing * (np.arange(ny) + 0.5))
+    return np.c_[X.ravel(), Y.ravel()]
+
+
+def _assert_same_steps(a, b):
+    for name in ("x", "v", "s"):
+        scale = max(np.abs(a[name]).max(), 1e-30)
+        np.testing.assert_allclose(b[name], a[name], rtol=0, atol=1e-9 * scale, err_msg=name)
+
+
+@pytest.mark.parametrize("scheme", ["mpm", "apic", "apic-affine"])
+def test_every_scatter_gives_the_same_steps(scheme):
+    """Serial plain adds, parallel atomics and the split scatter (here in 3 chunks, so that two band
+    cuts are placed) differ only in summation order."""
+    pos = _lattice(40, 64)  # 10 x 16 cells, in seeding order
+    vel = np.random.default_rng(6).normal(scale=0.3, size=pos.shape)
+    states = {}
+    for scatter in ("atomic", "serial", "split"):
+        eng = _wall_scene(scheme, scatter, len(pos), chunks=3 if scatter == "split" else None)
+        states[scatter] = _run(eng, pos, vel)
+        if scatter == "split":
+            assert np.all(np.diff(eng.cut.to_numpy()) >= 0)  # bands never overlap
+            # each cut leaves about 2.5 cells of rows to the serial remainder: 2 x 2.5 of 16 cells
+            assert eng.deferred.to_numpy().mean() < 0.4
+    _assert_same_steps(states["atomic"], states["serial"])
+    _assert_same_steps(states["atomic"], states["split"])
+
+
+def test_the_split_scatter_is_right_in_any_particle_order():
+    """In reverse seeding order the split scatter cuts along the flipped axis and leaves as few
+    particles to its remainder as in seeding order; shuffled it leaves most of them, and stays right."""
+    pos = _lattice(40, 64)
+    vel = np.random.default_rng(6).normal(scale=0.3, size=pos.shape)
+    reference = _run(_wall_scene("apic-affine", "serial", len(pos)), pos, vel)
+    eng = _wall_scene("apic-affine", "split", len(pos), chunks=2)
+    for order, most_deferred in (("reversed", 0.25), ("shuffled", 1.0)):
+        perm = np.arange(len(pos))[::-1] if order == "reversed" else np.random.default_rng(1).permutation(len(pos))
+        state = _run(eng, pos[perm], vel[perm])
+        deferred = eng.deferred.to_numpy().mean()
+        if order == "reversed":
+            assert eng.cut_axis.to_numpy().tolist() == [1, 1]  # along y, flipped
+            assert deferred < most_deferred  # one cut, about 2.5 of 16 cells
+        else:
+            assert deferred > 0.5
+        _assert_same_steps({k: v[perm] for k, v in reference.items()}, state)
+
+
+@pytest.mark.parametrize("scheme", ["mpm", "apic", "apic-affine"])
+@pytest.mark.parametrize("scatter", ["serial", "split"])
+def test_the_plain_add_scatters_repeat_a_run_bit_for_bit(scheme, scatter):
+    """Every sum of the serial and split recipes comes in one fixed order (which particle a split
+    chunk adds depends on positions only): a run repeated on the same engine gives identical bits."""
     rng = np.random.default_rng(7)
     n = 2000  # enough for both threads of the parallel passes to share wall-touching particles
     pos = np.c_[0.001 + 0.998 * rng.random(n), 0.001 + 0.4 * rng.random(n)]
-    runs = []
-    for _ in range(2):
-        eng = Engine(grid, dp, n, scheme, np.float32, scatter="serial")
-        eng.load_particles(pos, np.full(n, 1e-4), np.zeros(n, np.int32),
-                           np.random.default_rng(8).normal(scale=0.5, size=(n, 2)))
-        for _ in range(30):
-            eng.step(1e-4, (0.0, -9.81))
-        runs.append(eng.state(("x", "v", "s")))
+    pos = pos[np.argsort(pos[:, 1], kind="stable")]  # bottom to top, so that the split bands hold particles
+    vel = np.random.default_rng(8).normal(scale=0.5, size=(n, 2))
+    eng = _wall_scene(scheme, scatter, n, np.float32)
+    runs = [_run(eng, pos, vel, steps=30, dt=1e-4) for _ in range(2)]
     for name in ("x", "v", "s"):
         assert np.array_equal(runs[0][name], runs[1][name]), name
 
 
-def test_scatter_auto_is_serial_on_a_cpu_with_few_threads():
-    from solver.engine import SERIAL_SCATTER_MAX_THREADS, resolve_scatter
+def test_scatter_auto_on_a_cpu_with_few_threads_is_serial_for_small_runs_and_split_for_large_ones():
+    from solver.engine import SERIAL_SCATTER_MAX_THREADS, SPLIT_MIN_PARTICLES, resolve_scatter
     import taichi as ti
 
-    threads = ti.lang.impl.current_cfg().cpu_max_num_threads
-    assert resolve_scatter("auto") == ("serial" if threads <= SERIAL_SCATTER_MAX_THREADS else "atomic")
-    assert resolve_scatter("atomic") == "atomic"
-    with pytest.raises(ValueError, match="unknown scatter 'fast'; allowed: auto, atomic, serial"):
+    few = ti.lang.impl.current_cfg().cpu_max_num_threads <= SERIAL_SCATTER_MAX_THREADS
+    assert resolve_scatter("auto", SPLIT_MIN_PARTICLES - 1) == ("serial" if few else "atomic")
+    assert resolve_scatter("auto", SPLIT_MIN_PARTICLES) == ("split" if few else "atomic")
+    assert resolve_scatter("atomic", 10) == "atomic"
+    with pytest.raises(ValueError, match="unknown scatter 'fast'; allowed: auto, atomic, serial, split"):
         make_engine(scatter="fast")
 
 
@@ -222,7 +259,7 @@ def test_a_blown_up_particle_stays_inside_the_grid_arrays_until_the_guard_acts(s
     damaged = ~np.isfinite(st["v"]).all(axis=1)
     assert damaged[7] and (d["unstable"] > 0 or not np.isfinite(d["kinetic_energy"]))
     # the stencils (and the grid box built from them) stayed inside the arrays
-    lo, hi = eng.next_lo.to_numpy(), eng.next_hi.to_numpy()
+    lo, hi = eng.lo.to_numpy(), eng.hi.to_numpy()
     assert np.all(lo >= 0) and np.all(hi <= np.array(eng.nodes))
 
 
