@@ -30,11 +30,11 @@ PAD = 2
 #: How particle contributions are added to shared grid nodes. ``atomic``: every particle in
 #: parallel with float atomic adds, the constitutive update fused into the same pass (GPUs and
 #: many-core CPUs). ``serial``: the constitutive update in a parallel pass, then one thread adds
-#: every particle's contributions with plain adds. ``split``: one chunk of particle indices per
-#: thread, each thread adding with plain adds the particles whose stencils lie in its own band of
-#: grid nodes (bands cut between the chunks' stencil ranges of the last step, along the axis that
-#: separates them best); the particles outside their chunk's band are added afterwards by one
-#: thread. Which particle goes where depends only on positions, never on timing, so runs repeat
+#: every particle's contributions with plain adds. ``split``: the grid is cut into one band of
+#: node lines per thread (across the longer side of the particles' box, at the quantiles of the
+#: particle positions of the last step); each thread updates and adds, with plain adds, the
+#: particles in its band, except those whose stencil crosses a cut, which one thread adds
+#: afterwards. Which particle goes where depends only on positions, never on timing, so runs repeat
 #: bit for bit. On the CPU a float atomic add is a compare-and-swap loop: on the development
 #: machine the atomic scatter costs about four times the plain one per particle
 #: (benchmarks/scatter.py), so with few threads plain adds win. ``auto``: on a CPU with at most
@@ -153,14 +153,15 @@ class Engine:
         # scatter, which works out every particle's stencil anyway, and cleared by the next reset
         self.lo = ti.Vector.field(2, ti.i32, ())
         self.hi = ti.Vector.field(2, ti.i32, ())
-        # split scatter: per chunk the stencil range (min and max base node) of the last scatter,
-        # 16 ints a row so that no two threads write one cache line; the band cuts along the
-        # chosen axis (``flip``: coordinates negated, for chunks ordered high to low); and which
-        # particles were left to the serial remainder
+        # split scatter: per band the stencil range (min and max base node) of its particles in the
+        # last scatter, 16 ints a row so that no two threads write one cache line; how many of its
+        # particles sat on each node line along either axis; the cuts between the bands along
+        # ``cut_axis``; and each particle's band (assigned in G2P from its new position)
         self.chunk_range = ti.field(ti.i32, (self.chunks, 16))
+        self.band_count = ti.field(ti.i32, (self.chunks, 2, max(self.nodes)) if self.split else (1, 1, 1))
         self.cut = ti.field(ti.i32, self.chunks + 1)
-        self.cut_axis = ti.field(ti.i32, 2)  # axis, flip
-        self.deferred = ti.field(ti.i8, n if self.split else 1)
+        self.cut_axis = ti.field(ti.i32, ())
+        self.band = ti.field(ti.i8, n if self.split else 1)
 
         self.bc_kind = ti.field(ti.i32, 4)
         self.bc_mu = ti.field(float, 4)
@@ -201,8 +202,13 @@ class Engine:
         self.lost[None] = 0
         self.unstable[None] = 0
         ranges = np.zeros((self.chunks, 16), np.int32)
-        ranges[:, :2], ranges[:, 2:4] = _BIG, -_BIG  # no ranges yet: the first split scatter is serial
+        ranges[:, :2], ranges[:, 2:4] = _BIG, -_BIG
         self.chunk_range.from_numpy(ranges)
+        self.band_count.fill(0)
+        # nothing counted yet: one band over the whole grid, so the first split scatter is one thread's
+        self.cut.from_numpy(np.array([-_BIG] * self.chunks + [_BIG], np.int32))
+        self.cut_axis[None] = 0
+        self.band.fill(self.chunks - 1)
 
     def set_stress(self, stress: np.ndarray) -> None:
         """Overwrite the particle stresses, (N, 4) Pa."""
@@ -557,7 +563,7 @@ class Engine:
                     force = -vol * (sig @ grad) + wx * wy * m * g
                     I = base + ti.Vector([i, j])
                     # atomic where threads share the pass: few particles get here. In the split
-                    # scatter a ghost node, like any node, belongs to one chunk's band.
+                    # scatter a ghost node, like any node, belongs to one band.
                     if x_side >= 0:
                         self.ghost_f[x_side, I[1]] += force
                     else:
@@ -580,7 +586,7 @@ class Engine:
     def _scatter_particle(self, p, vol, dt, g, fuse_force: ti.template()):
         """Mass, APIC momentum and (fused or apart) internal and body force of particle p."""
         base, fx, w, dw = self._stencil(self.x[p])
-        if ti.static(not self.split):  # the split scatter takes its box from the chunk ranges
+        if ti.static(not self.split):  # the split scatter takes its box from the bands' ranges
             self._widen_box(base)
         s = self.s[p]
         sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
@@ -718,43 +724,35 @@ class Engine:
 
         ``kind``: ``affine`` (stress from C, then mass, momentum and force: apic-affine),
         ``momentum`` (mass and momentum: mpm, apic) or ``force`` (stress from the grid, then the
-        force; reuses the momentum pass's choice of particles, the positions being the same).
+        force; the positions, and so the bands, are those of the momentum pass). Each particle's
+        band was assigned in the last G2P (``band``: b, or b + chunks where its stencil crosses a
+        cut and a single thread adds it afterwards).
         """
-        if ti.static(kind != "force"):
-            ti.loop_config(serialize=True)
-            for _ in range(1):
-                self._plan_bands()
-        # One chunk per thread: Taichi 1.7 hands a CPU thread 512 consecutive iterations of a loop at
+        T = ti.static(self.chunks)
+        # One band per thread: Taichi 1.7 hands a CPU thread 512 consecutive iterations of a loop at
         # a time (whatever loop_config's block_dim says) and runs a loop of up to 512 in one thread,
-        # so the chunk loop runs CPU_GRAIN iterations per chunk and the first of each does the work.
-        for t in range(self.chunks * CPU_GRAIN):
+        # so the band loop runs CPU_GRAIN iterations per band and the first of each does the work.
+        for t in range(T * CPU_GRAIN):
             if t % CPU_GRAIN != 0:
                 continue
             k = t // CPU_GRAIN
-            axis = self.cut_axis[0]
-            flip = self.cut_axis[1]
-            band_lo = self.cut[k]
-            band_hi = self.cut[k + 1]
             lo = ti.Vector([_BIG, _BIG])
             hi = ti.Vector([-_BIG, -_BIG])
-            for p in range(k * self.n // self.chunks, (k + 1) * self.n // self.chunks):
-                if self.active[p]:
+            for p in range(self.n):  # a byte per particle tells each thread which are its own
+                b = ti.cast(self.band[p], ti.i32)
+                if self.active[p] and (b == k or b == k + T):
                     vol = 0.0 * dt
                     if ti.static(kind == "affine"):
                         vol = self._stress_point(p, self.C[p], dt)  # eqs 29-30
                     elif ti.static(kind == "force"):
                         vol = self._stress_from_grid_point(p, dt)
-                    own = self.deferred[p] == 0
                     if ti.static(kind != "force"):
                         base, fx, w, dw = self._stencil(self.x[p])
                         lo = ti.min(lo, base)
                         hi = ti.max(hi, base)
-                        u = base[0] if axis == 0 else base[1]
-                        if flip:
-                            u = -u - 2
-                        own = band_lo <= u and u + 3 <= band_hi
-                        self.deferred[p] = ti.cast(0 if own else 1, ti.i8)
-                    if own:
+                        for d in ti.static(range(2)):  # positions along both axes, for the next plan
+                            self.band_count[k, d, base[d]] = self.band_count[k, d, base[d]] + 1
+                    if b == k:
                         self._split_particle(kind, p, vol, dt, g, fuse_force)
             if ti.static(kind != "force"):
                 for d in ti.static(range(2)):
@@ -762,19 +760,33 @@ class Engine:
                     self.chunk_range[k, 2 + d] = hi[d]
         if ti.static(kind != "force"):
             ti.loop_config(serialize=True)
-            for _ in range(1):  # the box of written nodes: all chunks' stencil ranges
+            for _ in range(1):  # the box of written nodes, and the bands of the next step
                 lo = ti.Vector([_BIG, _BIG])
                 hi = ti.Vector([-_BIG, -_BIG])
-                for k in range(self.chunks):
+                for k in range(T):
                     for d in ti.static(range(2)):
                         lo[d] = ti.min(lo[d], self.chunk_range[k, d])
                         hi[d] = ti.max(hi[d], self.chunk_range[k, 2 + d] + 3)
                 self.lo[None] = lo
                 self.hi[None] = hi
-        ti.loop_config(serialize=True)  # the particles outside their chunk's band, in index order
+                self._plan_bands(hi - lo)
+        ti.loop_config(serialize=True)  # the particles whose stencil crosses a cut, in index order
         for p in range(self.n):
-            if self.active[p] and self.deferred[p]:
+            if self.active[p] and self.band[p] >= T:
                 self._split_particle(kind, p, self.m[p] / self.rho[p], dt, g, fuse_force)
+
+    @ti.func
+    def _band_of(self, xp):
+        """The split scatter's band code of a particle at ``xp`` (see ``_split_scatter``)."""
+        base, fx, w, dw = self._stencil(xp)
+        u = base[0] if self.cut_axis[None] == 0 else base[1]
+        b = 0
+        for k in range(1, self.chunks):
+            if u >= self.cut[k]:
+                b = k
+        if u + 3 > self.cut[b + 1]:  # the stencil crosses the cut above
+            b += self.chunks
+        return ti.cast(b, ti.i8)
 
     @ti.func
     def _split_particle(self, kind: ti.template(), p, vol, dt, g, fuse_force: ti.template()):
@@ -788,49 +800,38 @@ class Engine:
             self._force_particle(p, vol, g)
 
     @ti.func
-    def _chunk_span(self, k, axis, flip):
-        """Lowest and highest stencil base node of chunk k along ``axis`` (negated when ``flip``)."""
-        lo = self.chunk_range[k, axis]
-        hi = self.chunk_range[k, 2 + axis]
-        if flip:
-            low = -hi - 2
-            hi = -lo - 2
-            lo = low
-        return lo, hi
+    def _plan_bands(self, extent):
+        """Cut the grid into one band of node lines per thread, with equal particle counts.
 
-    @ti.func
-    def _plan_bands(self):
-        """Choose the axis, direction and cuts of the chunks' node bands from their last ranges.
-
-        The axis and direction are the ones along which consecutive chunks overlap least; each cut
-        lies halfway through the overlap of two neighbours (or in the gap between them). The cuts
-        never decrease, so the bands never share a node whatever the ranges were: they only
-        decide how many particles are left to the serial remainder.
+        The bands run across the longer side of the box (``extent``, in nodes; the cuts are then
+        short and few particles straddle them) and the cuts sit at the quantiles of the particles'
+        stencil positions counted in this scatter. Whatever those counts, the bands never share a
+        node: they only decide how many particles are left to the serial remainder.
         """
-        best = -_BIG
-        for axis in ti.static(range(2)):
-            for flip in ti.static(range(2)):
-                gap = 0
-                for k in range(1, self.chunks):
-                    a_lo, a_hi = self._chunk_span(k - 1, axis, flip)
-                    b_lo, b_hi = self._chunk_span(k, axis, flip)
-                    if a_lo <= a_hi and b_lo <= b_hi:  # both chunks hold active particles
-                        gap += ti.min(ti.max(b_lo - (a_hi + 3), -100_000), 100_000)
-                if gap > best:
-                    best = gap
-                    self.cut_axis[0] = axis
-                    self.cut_axis[1] = flip
-        axis = self.cut_axis[0]
-        flip = self.cut_axis[1]
+        axis = 0 if extent[0] >= extent[1] else 1
+        self.cut_axis[None] = axis
+        lines = self.nodes[0] if axis == 0 else self.nodes[1]
+        total = 0
+        for u in range(lines):
+            for k in range(self.chunks):
+                total += self.band_count[k, axis, u]
         self.cut[0] = -_BIG
         self.cut[self.chunks] = _BIG
-        for k in range(1, self.chunks):
-            a_lo, a_hi = self._chunk_span(k - 1, axis, flip)
-            b_lo, b_hi = self._chunk_span(k, axis, flip)
-            c = self.cut[k - 1]
-            if a_lo <= a_hi and b_lo <= b_hi:
-                c = ti.max(c, (a_hi + 3 + b_lo) // 2)
-            self.cut[k] = ti.min(c, _BIG)
+        j = 1
+        below = 0  # particles on node lines below u
+        for u in range(lines):
+            while j < self.chunks and below * self.chunks >= j * total:
+                self.cut[j] = u
+                j += 1
+            for k in range(self.chunks):
+                below += self.band_count[k, axis, u]
+        while j < self.chunks:
+            self.cut[j] = lines
+            j += 1
+        for k in range(self.chunks):  # counted afresh by the next scatter
+            for d in ti.static(range(2)):
+                for u in range(self.nodes[d]):
+                    self.band_count[k, d, u] = 0
 
     # ------------------------------------------------------------------ G2P (all schemes)
     @ti.func
@@ -884,6 +885,8 @@ class Engine:
                     self.lost[None] += 1
                 elif keep == 0:
                     self.active[p] = ti.cast(0, ti.i8)
+                elif ti.static(self.split):
+                    self.band[p] = self._band_of(x)
 
     # ------------------------------------------------------------------ diagnostics
     @ti.kernel

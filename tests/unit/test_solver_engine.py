@@ -191,28 +191,26 @@ def test_every_scatter_gives_the_same_steps(scheme):
         states[scatter] = _run(eng, pos, vel)
         if scatter == "split":
             assert np.all(np.diff(eng.cut.to_numpy()) >= 0)  # bands never overlap
-            # each cut leaves about 2.5 cells of rows to the serial remainder: 2 x 2.5 of 16 cells
-            assert eng.deferred.to_numpy().mean() < 0.4
+            assert eng.cut_axis[None] == 1  # across the heap's longer side
+            # the particles on the two node lines below each cut are left to the serial
+            # remainder: 2 cuts x 2 lines of the heap's 16 cells
+            assert (eng.band.to_numpy() >= 3).mean() < 0.35
     _assert_same_steps(states["atomic"], states["serial"])
     _assert_same_steps(states["atomic"], states["split"])
 
 
-def test_the_split_scatter_is_right_in_any_particle_order():
-    """In reverse seeding order the split scatter cuts along the flipped axis and leaves as few
-    particles to its remainder as in seeding order; shuffled it leaves most of them, and stays right."""
+def test_the_split_scatter_is_right_and_fast_in_any_particle_order():
+    """Its bands follow positions, not particle numbers: in reverse and in shuffled order it leaves
+    as few particles to its serial remainder as in seeding order, with bands of equal counts."""
     pos = _lattice(40, 64)
     vel = np.random.default_rng(6).normal(scale=0.3, size=pos.shape)
     reference = _run(_wall_scene("apic-affine", "serial", len(pos)), pos, vel)
     eng = _wall_scene("apic-affine", "split", len(pos), chunks=2)
-    for order, most_deferred in (("reversed", 0.25), ("shuffled", 1.0)):
-        perm = np.arange(len(pos))[::-1] if order == "reversed" else np.random.default_rng(1).permutation(len(pos))
+    for perm in (np.arange(len(pos))[::-1], np.random.default_rng(1).permutation(len(pos))):
         state = _run(eng, pos[perm], vel[perm])
-        deferred = eng.deferred.to_numpy().mean()
-        if order == "reversed":
-            assert eng.cut_axis.to_numpy().tolist() == [1, 1]  # along y, flipped
-            assert deferred < most_deferred  # one cut, about 2.5 of 16 cells
-        else:
-            assert deferred > 0.5
+        counts = np.bincount(eng.band.to_numpy(), minlength=4)
+        assert counts[2:].sum() / len(pos) < 0.2  # one cut: 2 node lines of 16 cells, about 12 %
+        assert abs(counts[0] + counts[2] - (counts[1] + counts[3])) < 0.1 * len(pos)  # balanced
         _assert_same_steps({k: v[perm] for k, v in reference.items()}, state)
 
 
