@@ -96,7 +96,7 @@ class Engine:
 
     def __init__(self, grid: Grid, materials: tuple[Material, ...], n_particles: int, scheme: str,
                  np_float=np.float32, speed_bound_m_s: float = 1e30, remove_unstable: bool = False,
-                 damping: bool = True, scatter: str = "auto", chunks: int | None = None):
+                 damping: bool = True, scatter: str = "auto", bands: int | None = None):
         if scheme not in ("mpm", "apic", "apic-affine"):
             raise ValueError(f"unknown scheme {scheme!r}; allowed: mpm, apic, apic-affine")
         if scatter not in SCATTERS:
@@ -105,10 +105,10 @@ class Engine:
         self.serial = self.scatter == "serial"
         self.split = self.scatter == "split"
         self.plain = self.scatter != "atomic"  # plain adds: no two threads ever add to one node
-        # the split scatter's chunks: one per thread (``chunks`` overrides, e.g. to test more bands)
-        self.chunks = (chunks or ti.lang.impl.current_cfg().cpu_max_num_threads) if self.split else 1
-        if self.chunks < 1:
-            raise ValueError(f"chunks must be at least 1, got {chunks}")
+        # the split scatter's bands: one per thread (``bands`` overrides, e.g. to test more cuts)
+        self.n_bands = (bands or ti.lang.impl.current_cfg().cpu_max_num_threads) if self.split else 1
+        if self.n_bands < 1:
+            raise ValueError(f"bands must be at least 1, got {bands}")
         self.scheme = scheme
         self.np_float = np_float
         self.n = int(n_particles)
@@ -157,9 +157,9 @@ class Engine:
         # last scatter, 16 ints a row so that no two threads write one cache line; how many of its
         # particles sat on each node line along either axis; the cuts between the bands along
         # ``cut_axis``; and each particle's band (assigned in G2P from its new position)
-        self.chunk_range = ti.field(ti.i32, (self.chunks, 16))
-        self.band_count = ti.field(ti.i32, (self.chunks, 2, max(self.nodes)) if self.split else (1, 1, 1))
-        self.cut = ti.field(ti.i32, self.chunks + 1)
+        self.band_range = ti.field(ti.i32, (self.n_bands, 16))
+        self.band_count = ti.field(ti.i32, (self.n_bands, 2, max(self.nodes)) if self.split else (1, 1, 1))
+        self.cut = ti.field(ti.i32, self.n_bands + 1)
         self.cut_axis = ti.field(ti.i32, ())
         self.band = ti.field(ti.i8, n if self.split else 1)
 
@@ -201,14 +201,14 @@ class Engine:
         self.yielded.from_numpy(np.zeros(self.n, np.int8))
         self.lost[None] = 0
         self.unstable[None] = 0
-        ranges = np.zeros((self.chunks, 16), np.int32)
+        ranges = np.zeros((self.n_bands, 16), np.int32)
         ranges[:, :2], ranges[:, 2:4] = _BIG, -_BIG
-        self.chunk_range.from_numpy(ranges)
+        self.band_range.from_numpy(ranges)
         self.band_count.fill(0)
         # nothing counted yet: one band over the whole grid, so the first split scatter is one thread's
-        self.cut.from_numpy(np.array([-_BIG] * self.chunks + [_BIG], np.int32))
+        self.cut.from_numpy(np.array([-_BIG] * self.n_bands + [_BIG], np.int32))
         self.cut_axis[None] = 0
-        self.band.fill(self.chunks - 1)
+        self.band.fill(self.n_bands - 1)
 
     def set_stress(self, stress: np.ndarray) -> None:
         """Overwrite the particle stresses, (N, 4) Pa."""
@@ -720,15 +720,15 @@ class Engine:
     # ------------------------------------------------------------------ the split scatter
     @ti.func
     def _split_scatter(self, kind: ti.template(), dt, g, fuse_force: ti.template()):
-        """A scatter in ``self.chunks`` threads with plain adds (see :data:`SCATTERS`).
+        """A scatter in ``self.n_bands`` threads with plain adds (see :data:`SCATTERS`).
 
         ``kind``: ``affine`` (stress from C, then mass, momentum and force: apic-affine),
         ``momentum`` (mass and momentum: mpm, apic) or ``force`` (stress from the grid, then the
         force; the positions, and so the bands, are those of the momentum pass). Each particle's
-        band was assigned in the last G2P (``band``: b, or b + chunks where its stencil crosses a
+        band was assigned in the last G2P (``band``: b, or b + n_bands where its stencil crosses a
         cut and a single thread adds it afterwards).
         """
-        T = ti.static(self.chunks)
+        T = ti.static(self.n_bands)
         # One band per thread: Taichi 1.7 hands a CPU thread 512 consecutive iterations of a loop at
         # a time (whatever loop_config's block_dim says) and runs a loop of up to 512 in one thread,
         # so the band loop runs CPU_GRAIN iterations per band and the first of each does the work.
@@ -756,8 +756,8 @@ class Engine:
                         self._split_particle(kind, p, vol, dt, g, fuse_force)
             if ti.static(kind != "force"):
                 for d in ti.static(range(2)):
-                    self.chunk_range[k, d] = lo[d]
-                    self.chunk_range[k, 2 + d] = hi[d]
+                    self.band_range[k, d] = lo[d]
+                    self.band_range[k, 2 + d] = hi[d]
         if ti.static(kind != "force"):
             ti.loop_config(serialize=True)
             for _ in range(1):  # the box of written nodes, and the bands of the next step
@@ -765,8 +765,8 @@ class Engine:
                 hi = ti.Vector([-_BIG, -_BIG])
                 for k in range(T):
                     for d in ti.static(range(2)):
-                        lo[d] = ti.min(lo[d], self.chunk_range[k, d])
-                        hi[d] = ti.max(hi[d], self.chunk_range[k, 2 + d] + 3)
+                        lo[d] = ti.min(lo[d], self.band_range[k, d])
+                        hi[d] = ti.max(hi[d], self.band_range[k, 2 + d] + 3)
                 self.lo[None] = lo
                 self.hi[None] = hi
                 self._plan_bands(hi - lo)
@@ -781,11 +781,11 @@ class Engine:
         base, fx, w, dw = self._stencil(xp)
         u = base[0] if self.cut_axis[None] == 0 else base[1]
         b = 0
-        for k in range(1, self.chunks):
+        for k in range(1, self.n_bands):
             if u >= self.cut[k]:
                 b = k
         if u + 3 > self.cut[b + 1]:  # the stencil crosses the cut above
-            b += self.chunks
+            b += self.n_bands
         return ti.cast(b, ti.i8)
 
     @ti.func
@@ -813,22 +813,22 @@ class Engine:
         lines = self.nodes[0] if axis == 0 else self.nodes[1]
         total = 0
         for u in range(lines):
-            for k in range(self.chunks):
+            for k in range(self.n_bands):
                 total += self.band_count[k, axis, u]
         self.cut[0] = -_BIG
-        self.cut[self.chunks] = _BIG
+        self.cut[self.n_bands] = _BIG
         j = 1
         below = 0  # particles on node lines below u
         for u in range(lines):
-            while j < self.chunks and below * self.chunks >= j * total:
+            while j < self.n_bands and below * self.n_bands >= j * total:
                 self.cut[j] = u
                 j += 1
-            for k in range(self.chunks):
+            for k in range(self.n_bands):
                 below += self.band_count[k, axis, u]
-        while j < self.chunks:
+        while j < self.n_bands:
             self.cut[j] = lines
             j += 1
-        for k in range(self.chunks):  # counted afresh by the next scatter
+        for k in range(self.n_bands):  # counted afresh by the next scatter
             for d in ti.static(range(2)):
                 for u in range(self.nodes[d]):
                     self.band_count[k, d, u] = 0

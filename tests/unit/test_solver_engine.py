@@ -147,7 +147,7 @@ def test_one_launch_step_equals_the_stage_by_stage_recipe(scheme):
         np.testing.assert_allclose(a.state((name,))[name], b.state((name,))[name], rtol=1e-12, atol=1e-15)
 
 
-def _wall_scene(scheme, scatter, n, dtype=np.float64, chunks=None):
+def _wall_scene(scheme, scatter, n, dtype=np.float64, bands=None):
     """An engine for a Drucker-Prager heap in a box with friction walls (particles not loaded)."""
     from solver.engine import Engine
 
@@ -155,7 +155,7 @@ def _wall_scene(scheme, scatter, n, dtype=np.float64, chunks=None):
                 right=Boundary("friction", math.radians(20.0)), bottom=Boundary("friction", math.radians(25.0)),
                 top=Boundary("open"))
     dp = (Material("dp", "drucker-prager", 2000.0, 5e6, 0.3, cohesion_pa=1e3, friction_angle_rad=math.radians(30.0)),)
-    eng = Engine(grid, dp, n, scheme, dtype, scatter=scatter, chunks=chunks)
+    eng = Engine(grid, dp, n, scheme, dtype, scatter=scatter, bands=bands)
     assert eng.scatter == scatter
     return eng
 
@@ -181,13 +181,13 @@ def _assert_same_steps(a, b):
 
 @pytest.mark.parametrize("scheme", ["mpm", "apic", "apic-affine"])
 def test_every_scatter_gives_the_same_steps(scheme):
-    """Serial plain adds, parallel atomics and the split scatter (here in 3 chunks, so that two band
+    """Serial plain adds, parallel atomics and the split scatter (here in 3 bands, so that two band
     cuts are placed) differ only in summation order."""
     pos = _lattice(40, 64)  # 10 x 16 cells, in seeding order
     vel = np.random.default_rng(6).normal(scale=0.3, size=pos.shape)
     states = {}
     for scatter in ("atomic", "serial", "split"):
-        eng = _wall_scene(scheme, scatter, len(pos), chunks=3 if scatter == "split" else None)
+        eng = _wall_scene(scheme, scatter, len(pos), bands=3 if scatter == "split" else None)
         states[scatter] = _run(eng, pos, vel)
         if scatter == "split":
             assert np.all(np.diff(eng.cut.to_numpy()) >= 0)  # bands never overlap
@@ -205,7 +205,7 @@ def test_the_split_scatter_is_right_and_fast_in_any_particle_order():
     pos = _lattice(40, 64)
     vel = np.random.default_rng(6).normal(scale=0.3, size=pos.shape)
     reference = _run(_wall_scene("apic-affine", "serial", len(pos)), pos, vel)
-    eng = _wall_scene("apic-affine", "split", len(pos), chunks=2)
+    eng = _wall_scene("apic-affine", "split", len(pos), bands=2)
     for perm in (np.arange(len(pos))[::-1], np.random.default_rng(1).permutation(len(pos))):
         state = _run(eng, pos[perm], vel[perm])
         counts = np.bincount(eng.band.to_numpy(), minlength=4)
@@ -217,12 +217,11 @@ def test_the_split_scatter_is_right_and_fast_in_any_particle_order():
 @pytest.mark.parametrize("scheme", ["mpm", "apic", "apic-affine"])
 @pytest.mark.parametrize("scatter", ["serial", "split"])
 def test_the_plain_add_scatters_repeat_a_run_bit_for_bit(scheme, scatter):
-    """Every sum of the serial and split recipes comes in one fixed order (which particle a split
-    chunk adds depends on positions only): a run repeated on the same engine gives identical bits."""
+    """Every sum of the serial and split recipes comes in one fixed order (which band a particle
+    belongs to depends on positions only): a run repeated on the same engine gives identical bits."""
     rng = np.random.default_rng(7)
     n = 2000  # enough for both threads of the parallel passes to share wall-touching particles
     pos = np.c_[0.001 + 0.998 * rng.random(n), 0.001 + 0.4 * rng.random(n)]
-    pos = pos[np.argsort(pos[:, 1], kind="stable")]  # bottom to top, so that the split bands hold particles
     vel = np.random.default_rng(8).normal(scale=0.5, size=(n, 2))
     eng = _wall_scene(scheme, scatter, n, np.float32)
     runs = [_run(eng, pos, vel, steps=30, dt=1e-4) for _ in range(2)]
