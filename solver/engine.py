@@ -105,10 +105,12 @@ class Engine:
         self.serial = self.scatter == "serial"
         self.split = self.scatter == "split"
         self.plain = self.scatter != "atomic"  # plain adds: no two threads ever add to one node
-        # the split scatter's bands: one per thread (``bands`` overrides, e.g. to test more cuts)
-        self.n_bands = (bands or ti.lang.impl.current_cfg().cpu_max_num_threads) if self.split else 1
-        if self.n_bands < 1:
-            raise ValueError(f"bands must be at least 1, got {bands}")
+        # the split scatter's bands: one per thread (``bands`` overrides, e.g. to test more cuts);
+        # a particle's band code (band, or band + n_bands) is one signed byte
+        if bands is not None and not 1 <= bands <= 63:
+            raise ValueError(f"bands must be from 1 to 63, got {bands}")
+        threads = ti.lang.impl.current_cfg().cpu_max_num_threads
+        self.n_bands = (bands or min(threads, 63)) if self.split else 1
         self.scheme = scheme
         self.np_float = np_float
         self.n = int(n_particles)

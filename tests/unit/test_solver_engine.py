@@ -230,7 +230,7 @@ def test_the_plain_add_scatters_repeat_a_run_bit_for_bit(scheme, scatter):
 
 
 def test_scatter_auto_on_a_cpu_with_few_threads_is_serial_for_small_runs_and_split_for_large_ones():
-    from solver.engine import SERIAL_SCATTER_MAX_THREADS, SPLIT_MIN_PARTICLES, resolve_scatter
+    from solver.engine import SERIAL_SCATTER_MAX_THREADS, SPLIT_MIN_PARTICLES, Engine, resolve_scatter
     import taichi as ti
 
     few = ti.lang.impl.current_cfg().cpu_max_num_threads <= SERIAL_SCATTER_MAX_THREADS
@@ -239,6 +239,8 @@ def test_scatter_auto_on_a_cpu_with_few_threads_is_serial_for_small_runs_and_spl
     assert resolve_scatter("atomic", 10) == "atomic"
     with pytest.raises(ValueError, match="unknown scatter 'fast'; allowed: auto, atomic, serial, split"):
         make_engine(scatter="fast")
+    with pytest.raises(ValueError, match="bands must be from 1 to 63, got 0"):
+        Engine(Grid((0.0, 0.0), (1.0, 1.0), 0.1), MAT, 10, "apic", np.float64, scatter="split", bands=0)
 
 
 @pytest.mark.parametrize("scheme", ["mpm", "apic-affine"])
