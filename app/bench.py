@@ -48,6 +48,7 @@ import numpy as np
 import taichi as ti
 
 from solver import runtime
+from solver.engine import SCATTERS, Engine, resolve_scatter
 from solver.config import (
     OUTPUT_FIELDS,
     SCHEMES,
@@ -66,7 +67,7 @@ log = logging.getLogger(__name__)
 YARDSTICK = "yardstick"
 #: Profile variants: apic-affine with each scatter (solver.engine.SCATTERS) the engine would not
 #: pick itself, so that the profile shows them all in one run.
-SCATTER_VARIANTS = {f"apic-affine, {s} scatter": s for s in ("atomic", "serial", "split")}
+SCATTER_VARIANTS = {f"apic-affine, {s} scatter": s for s in SCATTERS if s != "auto"}
 NOT_MEASURED_NO_GPU = "not measured: no GPU"
 
 #: The scene: the aluminium-bar collapse of Bui et al. (2008) at any particle count.
@@ -405,8 +406,6 @@ class _Variant:
             self.stress = None
         else:
             # the same construction as solver.simulation.Simulation, several engines in one runtime
-            from solver.engine import Engine
-
             grid = config.grid
             height = grid.cells[1] * grid.cell_size_m
             g = math.hypot(*config.gravity_m_s2)
@@ -624,8 +623,6 @@ def profile_step(n: int, arch: str = "cpu", precision: str = "f32", steps: int =
         if used != arch:
             return None
         note(f"profile: {arch} {precision} {n:,} particles")
-        from solver.engine import resolve_scatter
-
         chosen = resolve_scatter("auto", n)
         extra = tuple(name for name, s in SCATTER_VARIANTS.items() if s != chosen) if "apic-affine" in schemes else ()
         variants = []

@@ -2,15 +2,17 @@
 
 The measurement behind ``solver.engine.SCATTERS``. A bare quadratic B-spline scatter (mass and
 a two-component momentum to the 3 x 3 nodes of each particle, 27 adds per particle; particles on
-a lattice, 2 x 2 per cell) is timed in four forms, best of 5 rounds of 100 launches:
+a lattice, 2 x 2 per cell) is timed in three forms, best of 5 rounds of 100 launches:
 
 - ``parallel atomic``: every particle in parallel, float atomic adds (what GPUs do);
 - ``serial plain``: one thread, plain adds (``ti.loop_config(serialize=True)``);
 - ``parallel plain (racy)``: every particle in parallel with plain adds: wrong results, shown
-  only as the speed a conflict-free parallel schedule could reach at best.
+  only for speed. Taichi hands the threads interleaved blocks of particles, so neighbouring
+  threads write the same cache lines; it is no bound for a schedule that gives each thread its
+  own band of the grid, as the engine's ``split`` scatter does.
 
-The engine picks ``serial`` on a CPU with few threads because there ``serial plain`` beats
-``parallel atomic``.
+On a CPU with few threads the engine adds with plain adds (``serial``, or ``split`` for large
+runs) because there ``serial plain`` already beats ``parallel atomic``.
 """
 
 import argparse
