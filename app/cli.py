@@ -392,7 +392,7 @@ def bench(
     ] = None,
 ) -> None:
     """Measure solver throughput against a yardstick, memory, overhead and output stall."""
-    from app.bench import BenchError, rich_tables, run_bench
+    from benchmarks.bench import BenchError, rich_tables, run_bench
 
     try:
         # progress and Taichi's own messages go to standard error; the tables to standard output
@@ -420,7 +420,7 @@ def study(
 
     Exit status 0 when every stated target is met, 4 when the study ran but missed one.
     """
-    from app.studies import StudyError, run_study
+    from studies import StudyError, run_study
 
     if budget_min is not None and not budget_min > 0:
         fail(f"--budget-min must be a positive number of minutes, not {budget_min:g}")

@@ -27,7 +27,7 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "0")
     sys.path.insert(0, str(REPO))
 
-    from app.bench import profile_markdown, profile_step
+    from benchmarks.bench import profile_markdown, profile_step
 
     prof = profile_step(args.particles, args.arch, args.precision, args.steps, rounds=args.rounds,
                         note=lambda msg: print(msg, file=sys.stderr))

@@ -1,6 +1,6 @@
 """Run Runout's benchmark without the command line: ``python benchmarks/run_bench.py [--quick] [--out FILE.json]``.
 
-The same measurements as ``runout bench`` (see ``app/bench.py`` and ``docs/performance.md``);
+The same measurements as ``runout bench`` (see ``benchmarks/bench.py`` and ``docs/performance.md``);
 writes FILE.json and FILE.md (default ``benchmarks/results/bench-quick.json`` or
 ``bench-full.json``) and prints the markdown report.
 """
@@ -23,7 +23,7 @@ def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(REPO))
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", stream=sys.stderr)
 
-    from app.bench import markdown_report, run_bench
+    from benchmarks.bench import markdown_report, run_bench
 
     out = args.out or REPO / "benchmarks" / "results" / f"bench-{'quick' if args.quick else 'full'}.json"
     result = run_bench(args.quick, out)

@@ -225,9 +225,25 @@ class Engine:
         """Measure displacements from the current positions from now on."""
         self.x0.copy_from(self.x)
 
-    def state(self, names: tuple[str, ...] = ("x", "v", "s", "eps_p", "mat", "active", "x0", "rho", "m", "C")
-              ) -> dict[str, np.ndarray]:
+    #: Every particle field of the solver state (a checkpoint holds these, the counters and the
+    #: split scatter's plan; the grid is rebuilt from the particles at every step).
+    PARTICLE_STATE = ("x", "x0", "v", "C", "s", "m", "rho", "eps_p", "mat", "active", "yielded", "band")
+    COUNTER_STATE = ("lost", "unstable", "cut", "cut_axis", "band_range", "band_count")
+
+    def state(self, names: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
+        """Copies of the named state fields (default: everything a checkpoint needs)."""
+        names = self.PARTICLE_STATE + self.COUNTER_STATE if names is None else names
         return {name: getattr(self, name).to_numpy() for name in names}
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        """Restore fields saved by :meth:`state` (same particle count, scheme and precision)."""
+        for name, value in state.items():
+            if name not in self.PARTICLE_STATE + self.COUNTER_STATE:
+                raise ValueError(f"unknown state field {name!r}")
+            field = getattr(self, name)
+            if tuple(value.shape) != tuple(field.shape) and not (field.shape == () and value.shape == ()):
+                raise ValueError(f"state field {name!r} has shape {value.shape}, the engine {field.shape}")
+            field.from_numpy(np.asarray(value, dtype=field.to_numpy().dtype))
 
     # ------------------------------------------------------------------ the step recipes
     def step(self, dt: float, gravity: tuple[float, float], damping: float = 0.0) -> None:

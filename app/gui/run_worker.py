@@ -1,7 +1,7 @@
 """Runs in a worker thread: the solver (and with it the Taichi runtime) lives and dies in it.
 
 :class:`RunWorker` starts a Python thread that calls :func:`projects.runner.run_project`, so the
-Taichi runtime is initialised, used and released in that one thread (DESIGN.md, house
+Taichi runtime is initialised, used and released in that one thread (docs/DESIGN.md, house
 rule 1); a second run is a new worker and a new runtime. The GUI thread only receives signals:
 
 - progress, at most four times per second (the solver reports every few steps);

@@ -2,7 +2,7 @@
 
 5 mm cells (5 % of the block height), 2 x 2 particles per cell (3200 particles), dt = 0.1 ms
 (0.41 of the critical step), 1 s: about 10000 steps, 20-40 s on 2 CPU cores. Tolerances
-(:data:`app.studies.bui2008.COARSE_TARGETS`, justified there): RMS deviation <= 6 mm and crest in
+(:data:`studies.bui2008.COARSE_TARGETS`, justified there): RMS deviation <= 6 mm and crest in
 [0.095, 0.101] m as at the standard resolution (measured 1.9-2.6 mm and 0.0993-0.0998 m at
 5 mm); toe in [0.40, 0.56] m (a single 2.5 mm particle layer already counts as 2 mm thick, so the
 toe is the front of the thin tail, measured 0.46 m); reach (5 mm thickness) in [0.38, 0.47] m
@@ -14,8 +14,8 @@ of its peak) by 0.8 s (paper: about 0.8 s; measured 0.57 s), mass conserved, not
 import numpy as np
 import pytest
 
-from app.studies.bui2008 import COARSE_TARGETS, run_bui
-from app.studies.common import StudyError, bui_experiment
+from studies.bui2008 import COARSE_TARGETS, run_bui
+from studies.common import StudyError, bui_experiment
 
 pytestmark = pytest.mark.slow
 

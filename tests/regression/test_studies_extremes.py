@@ -7,7 +7,7 @@ A handful of rows of ``runout study extremes`` on the tiny column with apic-affi
 
 import pytest
 
-from app.studies import extremes
+from studies import extremes
 
 pytestmark = pytest.mark.slow
 

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from app.studies.common import (
+from studies.common import (
     StudyError,
     bui_experiment,
     crest_height,
@@ -19,8 +19,8 @@ from app.studies.common import (
     surface_heights,
     toe_position,
 )
-from app.studies.slope import slope_angle
-from app.studies.tradeoff import choose_presets, pareto_front
+from studies.slope import slope_angle
+from studies.tradeoff import choose_presets, pareto_front
 
 
 def lattice(x0, x1, y0, y1, s):
@@ -107,7 +107,7 @@ def test_drift_check_repeats_the_cached_run_nearest_half_a_minute(tmp_path, monk
     """The tradeoff report says how the machine's speed now compares with when cached runs were timed."""
     from types import SimpleNamespace
 
-    import app.studies.tradeoff as tradeoff
+    import studies.tradeoff as tradeoff
 
     calls = []
 

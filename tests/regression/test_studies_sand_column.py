@@ -16,8 +16,8 @@ About 20 s on 2 CPU cores.
 import numpy as np
 import pytest
 
-from app.studies.common import series_finite
-from app.studies.sand_column import critical_step, run_case
+from studies.common import series_finite
+from studies.sand_column import critical_step, run_case
 
 pytestmark = pytest.mark.slow
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from app.studies.tradeoff import PRESET_CRITERIA, full_settings, quick_settings
+from studies.tradeoff import PRESET_CRITERIA, full_settings, quick_settings
 
 PRESETS = Path(__file__).resolve().parents[2] / "projects" / "presets.json"
 

@@ -1,4 +1,4 @@
-"""The direction of dependencies (DESIGN.md): app -> projects -> {geometry, solver}.
+"""The direction of dependencies (docs/DESIGN.md): app -> projects -> {geometry, solver}.
 
 Each package is imported in a fresh interpreter and the modules it must not pull in are checked.
 """
@@ -19,6 +19,8 @@ FORBIDDEN = {
     "projects.results": ["PySide6", "app"],
     "app.render": ["PySide6"],
     "app.cli": ["PySide6", "pyvista", "taichi", "gmsh"],
+    "studies": ["PySide6", "pyvista", "app"],
+    "benchmarks.bench": ["PySide6", "pyvista", "app"],
 }
 
 

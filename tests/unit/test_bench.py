@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from app.bench import (
+from benchmarks.bench import (
     NOT_MEASURED_NO_GPU,
     YARDSTICK,
     BenchConfig,
@@ -99,7 +99,7 @@ def test_gpu_is_measured_or_marked_not_measured(bench):
 
 def test_profile_splits_the_step_into_stages_and_overhead(bench):
     (prof,) = bench[0]["profile"]
-    from app.bench import SCATTER_VARIANTS
+    from benchmarks.bench import SCATTER_VARIANTS
 
     # beside the scatter the engine picks, the profile shows apic-affine with the other ones
     chosen = prof["variants"]["apic-affine"]["scatter"]
@@ -156,7 +156,7 @@ def test_targets_and_reports(bench):
 
 
 def test_profiler_task_names_map_to_stages():
-    from app.bench import _recipe_stages, _stage_of
+    from benchmarks.bench import _recipe_stages, _stage_of
 
     records = [("_stage_kernel_c9_0_kernel_0_serial", 0.0), ("_stage_kernel_c9_0_kernel_1_range_for", 1.0),
                ("_stage_kernel_c9_1_kernel_0_range_for", 2.0), ("_stage_kernel_c9_0_kernel_0_serial", 0.0)]

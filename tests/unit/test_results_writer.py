@@ -1,4 +1,4 @@
-"""ResultsWriter and Results: the results folder contract of DESIGN.md, written and read back."""
+"""ResultsWriter and Results: the results folder contract of docs/DESIGN.md, written and read back."""
 
 from __future__ import annotations
 

@@ -3,7 +3,7 @@
 For each scheme the study sweeps the cell size, the particles per cell and the time step (as a
 fraction ``cfl`` of the critical step), runs every setting through
 :func:`projects.runner.run_project`, and records the wall time, CPU time, particle-steps and the
-deposit errors of :mod:`app.studies.bui2008`, measured
+deposit errors of :mod:`studies.bui2008`, measured
 
 - against the experiment: RMS deviation of the surface over x in [0, 0.42] m, toe and crest
   differences;
@@ -36,8 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from app.studies.bui2008 import BLOCK_HEIGHT_M, run_bui
-from app.studies.common import (
+from studies.bui2008 import BLOCK_HEIGHT_M, run_bui
+from studies.common import (
     Deposit,
     Note,
     Report,
@@ -143,7 +143,7 @@ def estimated_cost(setting: Setting) -> float:
 
 #: Preset criteria: largest allowed errors against the reference run (m). Surface RMS 5 %, 1 % and
 #: 0.5 % of the block height (0.1 m); reach (run-out of the deposit at 5 mm thickness, see
-#: :mod:`app.studies.common`) 25 %, 6 % and 4 % of the reference run-out (reach minus the block's
+#: :mod:`studies.common`) 25 %, 6 % and 4 % of the reference run-out (reach minus the block's
 #: 0.2 m, about 0.23 m); crest 5, 1 and 0.5 mm. The 2 mm toe is reported but not used: it sits on
 #: a tail a few millimetres thick. These levels were set after the sweep, to spread the three
 #: presets over the measured range: until the wall-reaction fix of apic-affine the criteria were

@@ -3,7 +3,7 @@
 Runs ``projects/examples/bui2008_aluminium_bars.toml`` with each scheme through
 :func:`projects.runner.run_project`, then compares the final free surface with the experiment
 (``bui2008_final_surface.csv``) and the kinetic energy, momentum and speed with the paper's
-Figure 7 and its Table 2 timing ratio. Deposit measures are defined in :mod:`app.studies.common`.
+Figure 7 and its Table 2 timing ratio. Deposit measures are defined in :mod:`studies.common`.
 
 Full: the paper's resolution (2 mm cells, 4 particles per cell, 20000 particles, dt = 20 us,
 1 s). Quick: 5 mm cells (3200 particles) with the time step scaled with the cell (50 us, the same
@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from app.studies.common import (
+from studies.common import (
     REACH_THICKNESS_M,
     Deposit,
     Note,
@@ -250,7 +250,7 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet,
     report.heading("Deposit and dynamics by scheme")
     report.text(f"Experiment: crest {experiment[0, 1]:.4f} m, toe (2 mm) {data['experiment_toe_m']:.3f} m, "
                 f"reach (5 mm) {data['experiment_reach_m']:.3f} m. "
-                "Measures as defined in `app/studies/common.py`: surface = highest particle top in a "
+                "Measures as defined in `studies/common.py`: surface = highest particle top in a "
                 "sliding 5 mm window (or 2 spacings if wider); toe = furthest particle edge where the local "
                 "deposit (particle tops within one spacing) is at least 2 mm thick; reach = the same at 5 mm "
                 "(the run-out of the body of the deposit, insensitive to the thin tail); front = furthest particle "

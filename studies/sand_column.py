@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from app.studies.common import (
+from studies.common import (
     Note,
     Report,
     StudyResult,

@@ -2,21 +2,21 @@
 
 Each study runs its scenes through the normal project/solver path, writes ``report.md`` with
 tables and PNG plots plus the raw numbers (CSV/JSON) into its folder and returns a
-:class:`~app.studies.common.StudyResult` whose ``verdict`` lines the command line prints.
+:class:`~studies.common.StudyResult` whose ``verdict`` lines the command line prints.
 
 =============  ===============================================================================
 name           what
 =============  ===============================================================================
 sand-column    paper section 2.4: stable particles against step for the three schemes; the
-               largest stable time step (:mod:`app.studies.sand_column`)
+               largest stable time step (:mod:`studies.sand_column`)
 bui2008        paper section 2.5: final surface against the experiment, energy curves, apic
-               against apic-affine wall time (:mod:`app.studies.bui2008`)
+               against apic-affine wall time (:mod:`studies.bui2008`)
 slope          paper section 3: initial stress, energy peak, speeds, displacement, final
-               angle beside the paper's (:mod:`app.studies.slope`)
+               angle beside the paper's (:mod:`studies.slope`)
 tradeoff       error against cost over schemes, cell sizes, particles per cell and time steps;
-               Pareto front and the presets (:mod:`app.studies.tradeoff`)
+               Pareto front and the presets (:mod:`studies.tradeoff`)
 extremes       runs at the edges of the parameter space: stable or stopped with a message,
-               never NaN, hang or traceback (:mod:`app.studies.extremes`)
+               never NaN, hang or traceback (:mod:`studies.extremes`)
 =============  ===============================================================================
 """
 
@@ -26,9 +26,9 @@ import importlib
 import shutil
 from pathlib import Path
 
-from app.studies.common import Note, StudyError, StudyResult, quiet
+from studies.common import Note, StudyError, StudyResult, quiet
 
-#: Study name -> module under ``app.studies`` with a ``run(out_dir, quick, note)`` function.
+#: Study name -> module under ``studies`` with a ``run(out_dir, quick, note)`` function.
 STUDIES: dict[str, str] = {
     "sand-column": "sand_column",
     "bui2008": "bui2008",
@@ -85,7 +85,7 @@ def run_study(name: str, out_dir: Path | None = None, quick: bool = False, note:
     if out.exists() and not out.is_dir():
         raise StudyError(f"{out} exists and is not a folder")
     out.mkdir(parents=True, exist_ok=True)
-    module = importlib.import_module(f"app.studies.{STUDIES[name]}")
+    module = importlib.import_module(f"studies.{STUDIES[name]}")
     if budget_s is not None:
         return module.run(out, quick=quick, note=note, budget_s=budget_s)
     return module.run(out, quick=quick, note=note)
