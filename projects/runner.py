@@ -86,6 +86,18 @@ class StopRequest:
         return self._event.is_set()
 
 
+def process_age_s() -> float | None:
+    """Seconds since this process started (Linux ``/proc``; None elsewhere)."""
+    try:
+        with open("/proc/self/stat", encoding="ascii") as handle:
+            start_ticks = int(handle.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime", encoding="ascii") as handle:
+            uptime_s = float(handle.read().split()[0])
+        return uptime_s - start_ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def default_results_dir(project_path: str | os.PathLike[str]) -> Path:
     """``NAME.results`` next to the project file ``NAME.toml``."""
     path = Path(project_path)
@@ -374,9 +386,13 @@ def _run(
             "wall_time_s": time.perf_counter() - started,
             "particle_steps_per_s": particles * steps / loop_s if loop_s > 0 else 0.0,
         }
+        extra = {"setup_time_s": setup_s}
+        if sim.first_step_at is not None and process_age_s() is not None:
+            # process start to the end of its first step: what a run as a process costs to start
+            extra["startup_s"] = process_age_s() - (time.perf_counter() - sim.first_step_at)
         if writer is not None:
-            summary = writer.close(status, message, **numbers, extra={"setup_time_s": setup_s})
+            summary = writer.close(status, message, **numbers, extra=extra)
         else:
-            summary = {"status": status, "message": message, **numbers, "setup_time_s": setup_s}
+            summary = {"status": status, "message": message, **numbers, **extra}
     logger.info("run %s: %s", summary["status"], summary["message"])
     return RunResult(summary["status"], summary["message"], writer.out_dir if writer else Path(), summary)

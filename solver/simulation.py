@@ -173,6 +173,8 @@ class Simulation:
         self._materials = config.materials
         self._closed = False
         self.cursor = _Cursor()
+        #: ``time.perf_counter()`` at the end of this process's first step (None before it)
+        self.first_step_at: float | None = None
         self.fingerprint = fingerprint(config, particles)
 
     # ------------------------------------------------------------------ helpers
@@ -341,6 +343,8 @@ class Simulation:
                     else:
                         gravity = g_full
                     e.step(h, (gravity[0], gravity[1]), damping)
+                    if self.first_step_at is None:  # start-up ends here (kernels compiled or loaded)
+                        self.first_step_at = time.perf_counter()
                     self.steps += 1
                     c.stage_steps += 1
                     self.time_s += h
