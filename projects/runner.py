@@ -4,12 +4,15 @@
 a results folder without a final status: whichever way the run ends (completed, cancelled,
 Ctrl-C, instability, any solver error, a results disk error) the writer is closed and
 ``summary.json`` says what happened. Problems with the input (an invalid project or one the solver
-rejects, both as :class:`~projects.schema.ProjectError`; an output folder that must not be
-replaced, :class:`~projects.results.ResultsError`) are raised before anything is written.
+rejects, a run beyond the size limits, all as :class:`~projects.schema.ProjectError`; an output
+folder that must not be used, :class:`~projects.results.ResultsError`) are raised before
+anything is written.
 
-Output folder policy: by default ``NAME.results/`` next to the project file ``NAME.toml``. An
-existing *results* folder there is deleted when the run starts (so the folder always belongs to
-one run and a killed run leaves only its own frames); any other non-empty folder is refused.
+Output folder policy (:mod:`projects.results_folder`): by default ``NAME.results/`` next to the
+project file ``NAME.toml``. A folder holding an earlier run's results is replaced only with
+``overwrite=True`` (the command line's ``--overwrite``), and then only the files that run wrote
+are removed; any other non-empty folder is refused; a folder another run is writing into is
+refused. The folder is locked while the run writes.
 """
 
 from __future__ import annotations
@@ -25,7 +28,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from projects.results import ResultsError, ResultsWriter, is_results_dir
+from projects.results import ResultsError, ResultsWriter
+from projects.results_folder import check_results_dir
 from solver.config import InstabilityError, SolverError
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -93,16 +97,9 @@ def default_results_dir(project_path: str | os.PathLike[str]) -> Path:
     return path.with_name(path.stem + RESULTS_SUFFIX)
 
 
-def _check_out_dir(out_dir: Path) -> None:
-    """Refuse early (before any solver work) an output folder that must not be replaced."""
-    if out_dir.exists():
-        if not out_dir.is_dir():
-            raise ResultsError(f"{out_dir} exists and is not a folder")
-        if any(out_dir.iterdir()) and not is_results_dir(out_dir):
-            raise ResultsError(
-                f"{out_dir} exists, is not empty and is not a results folder; "
-                "refusing to overwrite it (choose another output folder)"
-            )
+def _check_out_dir(out_dir: Path, overwrite: bool = False) -> None:
+    """Refuse early (before any solver work) an output folder that must not be used."""
+    check_results_dir(out_dir, overwrite=overwrite)
 
 
 def _solver_rejects(err: Exception) -> Exception:
@@ -112,8 +109,26 @@ def _solver_rejects(err: Exception) -> Exception:
     return ProjectError([Problem("", None, f"the solver rejects this run: {err}")])
 
 
-def check_project(project: Project, *, arch: str | None = None) -> Any:
+def check_project(
+    project: Project,
+    *,
+    arch: str | None = None,
+    force: bool = False,
+    out_dir: str | os.PathLike[str] | None = None,
+) -> Any:
     """Build a project into a run and apply the solver's input checks, without running it.
+
+    The size of the run is checked first (:func:`projects.limits.check_limits`), before any
+    memory is taken for particles.
+
+    Parameters
+    ----------
+    project : Project
+    arch : {"cpu", "gpu", "auto"}, optional
+    force : bool
+        Skip the size limits (the command line's ``--force``).
+    out_dir : path-like, optional
+        Where the results would go (for the free-disk check).
 
     Returns
     -------
@@ -128,12 +143,21 @@ def check_project(project: Project, *, arch: str | None = None) -> Any:
     from projects.build import build_simulation
     from solver.simulation import validate
 
+    check_size(project, force=force, out_dir=out_dir)
     built = build_simulation(project, arch_override=arch)
     try:
         validate(built.config, built.particles)
     except SolverError as err:
         raise _solver_rejects(err) from None
     return built
+
+
+def check_size(project: Project, *, force: bool = False, out_dir: str | os.PathLike[str] | None = None) -> None:
+    """Estimate the run's size (no allocation) and raise ProjectError beyond the limits."""
+    from projects.build import estimate
+    from projects.limits import check_limits
+
+    check_limits(estimate(project), force=force, out_dir=out_dir)
 
 
 def _meta(project: Project, built: Any, sim: Any, project_path: Path | None) -> dict[str, Any]:
@@ -175,6 +199,8 @@ def run_project(
     cancel: Callable[[], bool] | None = None,
     on_frame: Callable[[Frame], None] | None = None,
     on_progress: Callable[[Progress], None] | None = None,
+    overwrite: bool = False,
+    force: bool = False,
 ) -> RunResult:
     """Run a validated project and write its results folder as frames arrive.
 
@@ -183,8 +209,9 @@ def run_project(
     project : Project
         The validated project (overrides already applied).
     out_dir : path-like, optional
-        Results folder. Default: :func:`default_results_dir` of ``project_path``. An existing
-        results folder there is replaced; another non-empty folder is refused.
+        Results folder. Default: :func:`default_results_dir` of ``project_path``. An earlier
+        run's results there are replaced only with ``overwrite``; another non-empty folder is
+        refused.
     project_path : path-like, optional
         The project file (for the default folder and the summary).
     arch : {"cpu", "gpu", "auto"}, optional
@@ -196,6 +223,10 @@ def run_project(
         Called with every frame after it is handed to the writer (live views).
     on_progress : callable, optional
         Called with the solver's :class:`~solver.simulation.Progress`.
+    overwrite : bool
+        Replace an earlier run's results in ``out_dir`` (only that run's own files).
+    force : bool
+        Run even beyond the size limits (:mod:`projects.limits`).
 
     Returns
     -------
@@ -209,9 +240,12 @@ def run_project(
     ValueError
         Neither ``out_dir`` nor ``project_path`` given.
     projects.schema.ProjectError
-        The project cannot be built into a run, or the solver rejects the built run.
+        The project cannot be built into a run, the solver rejects the built run, or the run
+        is beyond the size limits (without ``force``).
     projects.results.ResultsError
-        ``out_dir`` exists and is not a results folder.
+        ``out_dir`` cannot be used: an earlier run's results without ``overwrite``
+        (:class:`~projects.results.ResultsExistError`), another run writing into it
+        (:class:`~projects.results.ResultsLockedError`), not a results folder, not writable.
     """
     from projects.build import build_simulation
     from projects.document import dumps_project
@@ -223,10 +257,11 @@ def run_project(
             raise ValueError("give out_dir or project_path (the results go next to the project file)")
         out_dir = default_results_dir(project_path)
     out_path = Path(out_dir).expanduser().absolute()
-    _check_out_dir(out_path)
+    _check_out_dir(out_path, overwrite)
     path = Path(project_path).absolute() if project_path is not None else None
 
     started = time.perf_counter()
+    check_size(project, force=force, out_dir=out_path)
     built = build_simulation(project, arch_override=arch)
     # importing the simulation loads Taichi: do it only when a run really starts
     from solver.simulation import Simulation
@@ -236,8 +271,9 @@ def run_project(
     except SolverError as err:
         raise _solver_rejects(err) from None
     try:
-        return _run(sim, built, project, path, out_path, dumps_project(project), started,
-                    cancel, on_frame, on_progress)
+        writer = ResultsWriter(out_path, dumps_project(project), _meta(project, built, sim, path),
+                               overwrite=overwrite)
+        return _run(sim, built, writer, started, cancel, on_frame, on_progress)
     finally:
         sim.close()
 
@@ -245,16 +281,14 @@ def run_project(
 def _run(
     sim: Any,
     built: Any,
-    project: Project,
-    project_path: Path | None,
-    out_path: Path,
-    project_text: str,
+    writer: ResultsWriter,
     started: float,
     cancel: Callable[[], bool] | None,
     on_frame: Callable[[Frame], None] | None,
     on_progress: Callable[[Progress], None] | None,
 ) -> RunResult:
-    writer = ResultsWriter(out_path, project_text, _meta(project, built, sim, project_path))
+    """Advance the run, hand its frames to the writer and close it with the final status,
+    whatever happens (the writer removes its temporary files and releases the lock)."""
     setup_s = time.perf_counter() - started
     status, message = "failed", "the run ended unexpectedly"
     loop_start = time.perf_counter()
@@ -273,10 +307,15 @@ def _run(
         status, message = "failed", str(err)
     except ResultsError as err:
         status, message = "failed", str(err)
+    except OSError as err:  # a results disk error raised outside the writer thread
+        status, message = "failed", f"writing results failed: {err.strerror or err}"
     except Exception as err:  # noqa: BLE001 - any solver failure must still close the folder
         # the traceback is for developers; users get the message in the summary
         logger.error("the run failed: %s", err, exc_info=logger.isEnabledFor(logging.DEBUG))
         status, message = "failed", f"{type(err).__name__}: {err}"
+    except BaseException as err:  # SystemExit and the like: record it, then let it go on
+        status, message = "failed", f"ended by {type(err).__name__}"
+        raise
     finally:
         loop_s = time.perf_counter() - loop_start
         particles = len(built.particles)
@@ -287,7 +326,13 @@ def _run(
             simulated_time_s=float(sim.time_s),
             wall_time_s=time.perf_counter() - started,
             particle_steps_per_s=particles * sim.steps / loop_s if loop_s > 0 else 0.0,
-            extra={"setup_time_s": setup_s},
+            extra={"setup_time_s": setup_s, **_equilibrium(sim)},
         )
     logger.info("run %s: %s", summary["status"], summary["message"])
-    return RunResult(summary["status"], summary["message"], out_path, summary)
+    return RunResult(summary["status"], summary["message"], writer.out_dir, summary)
+
+
+def _equilibrium(sim: Any) -> dict[str, Any]:
+    """The initial equilibrium check of the solver, when it made one (for ``summary.json``)."""
+    check = getattr(sim, "equilibrium", None)
+    return {"initial_equilibrium": check} if check else {}
