@@ -279,6 +279,8 @@ def run(
             model = load_or_exit(project, overrides)
             if stop.requested:
                 fail(f"stopped by {stop.reason} before the run started", _stop_code(stop))
+            if not quiet:
+                _print_warnings(model)
             # Taichi prints "[Taichi] Starting on arch=..." to stdout; keep stdout for results
             chatter = io.StringIO() if quiet else sys.stderr
             with _RunProgress(quiet) as progress, contextlib.redirect_stdout(chatter):

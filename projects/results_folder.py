@@ -404,7 +404,7 @@ def _judge_contents(folder: Path, overwrite: bool) -> dict | None:
                 "delete them yourself or choose another output folder"
             )
         raise ResultsError(
-            f"{folder} is not empty and is not a Runout results folder; refusing to write into it "
+            f"{folder} is not empty and is not a results folder; refusing to overwrite it "
             "(choose another output folder)"
         )
     if not overwrite:

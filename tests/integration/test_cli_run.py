@@ -121,7 +121,7 @@ def test_run_refuses_an_unrelated_folder(project, tmp_path):
     (precious / "notes.txt").write_text("keep")
     proc = runout("run", str(project), "--arch", "cpu", "--out", str(precious), cwd=tmp_path)
     assert proc.returncode == 1
-    assert "refusing to write into it" in proc.stderr
+    assert "refusing to overwrite" in proc.stderr
     assert "Traceback" not in proc.stderr
     assert (precious / "notes.txt").read_text() == "keep"
 

@@ -85,7 +85,7 @@ def test_bad_output_locations_are_refused_before_running(project, tmp_path):
         run_project(model)
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "data.csv").write_text("1,2")
-    with pytest.raises(ResultsError, match="refusing to write into it"):
+    with pytest.raises(ResultsError, match="refusing to overwrite"):
         run_project(model, tmp_path / "mine", arch="cpu")
     assert (tmp_path / "mine" / "data.csv").read_text() == "1,2"
 

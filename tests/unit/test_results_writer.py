@@ -204,7 +204,7 @@ def test_existing_results_folder_is_replaced_other_folders_are_refused(tmp_path,
     precious = tmp_path / "documents"
     precious.mkdir()
     (precious / "thesis.tex").write_text("do not delete")
-    with pytest.raises(ResultsError, match="not a Runout results folder"):
+    with pytest.raises(ResultsError, match="not a results folder"):
         prepare_results_dir(precious, overwrite=True)
     assert (precious / "thesis.tex").read_text() == "do not delete"
     (tmp_path / "afile").write_text("x")
