@@ -1205,11 +1205,6 @@ def report_tables(result: dict[str, Any]) -> list[tuple[str, list[str], list[lis
                 ["ratio if nothing overlapped (estimate)", _x(stall["estimated_ratio"]), "", ""]]
         tables.append((f"Output stall: {stall['arch']} {stall['precision']} {stall['particles']:,} particles, "
                        f"{stall['simulated_s']:g} s simulated", ["run", "wall s", "steps", "frames"], body))
-    for row in result.get("startup", []):
-        value = row["warm_median_s"]
-        targets.append(_target(f"process start to first step, {row['scene']} (warm cache)", f"< {row['goal_s']:g} s",
-                               value, None if value is None else value < row["goal_s"],
-                               f"CPU, {row['particles']:,} particles", f"cold cache: {row['cold_s']:.2f} s"))
     full = result.get("gpu_full_run")
     if full:
         tables.append(("GPU aluminium-bar run", ["particles", "steps", "simulated s", "wall s"],

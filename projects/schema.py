@@ -42,8 +42,9 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from geometry.polygons import distinct_vertex_count, has_zero_area, self_intersections
+from projects.units import QuantityError, parse_quantity
 from solver import config as sc
-from geometry.polygons import distinct_vertex_count, is_simple, self_intersections
 
 logger = logging.getLogger(__name__)
 
@@ -209,8 +210,13 @@ def _number_type(
     lt: float | None = None,
     le: float | None = None,
     optional: bool = False,
+    unit: str | None = None,
 ) -> Any:
-    """An annotated float with a range, its message built from the bounds (``must be > 0``)."""
+    """An annotated float with a range, its message built from the bounds (``must be > 0``).
+
+    With ``unit`` (``"Pa"``, ``"kg/m3"``) a string such as ``"5 kPa"`` is read with
+    :func:`projects.units.parse_quantity` and kept in SI.
+    """
     parts = []
     if gt is not None:
         parts.append(f"> {_fmt_bound(gt)}")
@@ -225,6 +231,11 @@ def _number_type(
     def before(value: Any) -> Any:
         if value is None and optional:
             return None
+        if unit is not None and isinstance(value, str):
+            try:
+                return parse_quantity(value, unit)
+            except QuantityError as err:
+                raise _fail(err.reason) from None
         return _to_number(value)
 
     def after(value: float | None) -> float | None:
@@ -309,7 +320,7 @@ def _simple_polygon(points: tuple[tuple[float, float], ...]) -> tuple[tuple[floa
         shown = ", ".join(f"{i} and {j}" for i, j in crossings[:3])
         more = f" (and {len(crossings) - 3} more pairs)" if len(crossings) > 3 else ""
         raise _fail(f"not a simple polygon: edges {shown} cross or touch{more}")
-    if not is_simple(arr):
+    if has_zero_area(arr):
         raise _fail("not a simple polygon: it has zero area")
     return points
 
@@ -345,6 +356,12 @@ OptAngleDeg = _number_type(ge=0.0, lt=90.0, optional=True)
 OptCfl = _number_type(gt=0.0, le=1.0, optional=True)
 OptFraction = _number_type(gt=0.0, lt=1.0, optional=True)
 DampingCoefficient = _number_type(ge=0.0, lt=1.0)
+# Stresses, moduli and densities also accept text with a unit ("5 kPa", "18 kN/m3"), kept in SI.
+PositivePa = _number_type(gt=0.0, unit="Pa")
+OptPositivePa = _number_type(gt=0.0, optional=True, unit="Pa")
+OptNonNegativePa = _number_type(ge=0.0, optional=True, unit="Pa")
+Density = _number_type(gt=0.0, unit="kg/m3")
+OptDensity = _number_type(gt=0.0, optional=True, unit="kg/m3")
 Int = Annotated[int, BeforeValidator(_to_int)]
 Str = Annotated[str, BeforeValidator(_to_str)]
 OptName = Annotated[
@@ -426,25 +443,25 @@ class Material(_Model):
     """``[materials.<name>]``: one material. The plastic keys are for Drucker-Prager only."""
 
     model: Annotated[Literal[MATERIAL_MODELS], _choice(MATERIAL_MODELS)]
-    density_kg_m3: Positive
-    youngs_modulus_pa: Positive
+    density_kg_m3: Density
+    youngs_modulus_pa: PositivePa
     poisson_ratio: PoissonRatio
-    cohesion_pa: OptNonNegative = None
+    cohesion_pa: OptNonNegativePa = None
     friction_angle_deg: OptAngleDeg = None
     dilatancy_angle_deg: OptAngleDeg = None
-    tensile_strength_pa: OptNonNegative = None
+    tensile_strength_pa: OptNonNegativePa = None
 
 
 class MaterialChange(_Model):
     """``[stages.material_changes.<name>]``: new values of a material's numeric keys."""
 
-    density_kg_m3: OptPositive = None
-    youngs_modulus_pa: OptPositive = None
+    density_kg_m3: OptDensity = None
+    youngs_modulus_pa: OptPositivePa = None
     poisson_ratio: _number_type(ge=0.0, lt=0.5, optional=True) = None
-    cohesion_pa: OptNonNegative = None
+    cohesion_pa: OptNonNegativePa = None
     friction_angle_deg: OptAngleDeg = None
     dilatancy_angle_deg: OptAngleDeg = None
-    tensile_strength_pa: OptNonNegative = None
+    tensile_strength_pa: OptNonNegativePa = None
 
 
 class Body(_Model):
