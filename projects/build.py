@@ -167,6 +167,8 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
         arch=arch,
     )
     output = sc.Output(interval_s=project.output.interval_s, fields=tuple(project.output.fields))
+    from projects.hazard import envelope_config
+
     return sc.SimulationConfig(
         grid=grid,
         materials=materials,
@@ -174,6 +176,7 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
         gravity_m_s2=domain.gravity_m_s2,
         numerics=solver_numerics,
         output=output,
+        envelopes=envelope_config(project),
     )
 
 

@@ -255,12 +255,16 @@ def _run(
     on_progress: Callable[[Progress], None] | None,
 ) -> RunResult:
     writer = ResultsWriter(out_path, project_text, _meta(project, built, sim, project_path))
+    from projects.hazard import HazardOutput, settings
+
+    hazard = HazardOutput(writer.out_dir, sim, settings(project), writer.submit)
     setup_s = time.perf_counter() - started
     status, message = "failed", "the run ended unexpectedly"
     loop_start = time.perf_counter()
     try:
         for frame in sim.run(cancel=cancel, on_progress=on_progress):
             writer.write_frame(frame)
+            hazard.write()  # the envelopes with every frame: a killed run keeps them
             if on_frame is not None:
                 on_frame(frame)
         status = sim.status if sim.status in ("completed", "stopped") else "completed"
@@ -278,6 +282,11 @@ def _run(
         logger.error("the run failed: %s", err, exc_info=logger.isEnabledFor(logging.DEBUG))
         status, message = "failed", f"{type(err).__name__}: {err}"
     finally:
+        if status in ("completed", "stopped"):
+            try:
+                hazard.write(status)
+            except Exception as err:  # noqa: BLE001 - the run's own outcome stands; say what is missing
+                logger.error("writing the hazard files failed: %s", err)
         loop_s = time.perf_counter() - loop_start
         particles = len(built.particles)
         summary = writer.close(

@@ -138,6 +138,13 @@ class Simulation:
         self.message = ""
         self.last_frame: Frame | None = None
         self._materials = config.materials
+        # hazard envelopes (solver.envelopes): started at the first dynamic stage, updated every few
+        # steps and at every frame
+        self.envelopes = None
+        if config.envelopes is not None:
+            from solver.envelopes import Envelopes
+
+            self.envelopes = Envelopes(self.engine, config.envelopes, config.grid)
         self._closed = False
 
     # ------------------------------------------------------------------ helpers
@@ -171,6 +178,8 @@ class Simulation:
             momentum_y=d["momentum_y"], max_speed_m_s=d["max_speed"], unstable_particles=d["unstable"],
             lost_particles=d["lost"], total_mass_kg_per_m=d["mass"], yielding_particles=d["yielding"],
         )
+        if self.envelopes is not None:
+            self.envelopes.sync(self.time_s)  # envelopes are never below a frame's values
         want = self.config.output.fields
         e = self.engine
         fields: dict[str, np.ndarray] = {"positions": e.x.to_numpy(), "active": e.active.to_numpy().astype(bool)}
@@ -246,6 +255,8 @@ class Simulation:
                                        cfg.grid.cell_size_m, stage.k0, e.active.to_numpy().astype(bool),
                                        e.x.to_numpy()))
                 continue
+            if stage.kind == "dynamic" and self.envelopes is not None and not self.envelopes.started:
+                self.envelopes.start(self.time_s)  # the release: ground surface and initial state
             if next_output <= self.time_s + 1e-12 and last_output_step != self.steps:
                 d = e.diagnostics()
                 yield self._frame(stage, index, 0.0, dt, d)
@@ -270,6 +281,8 @@ class Simulation:
                 self.steps += 1
                 stage_steps += 1
                 self.time_s += h
+                if self.envelopes is not None:
+                    self.envelopes.after_step(self.time_s)
                 at_output = self.time_s >= next_output - 1e-9 * interval
                 if stage_steps % CHECK_EVERY == 0 or at_output:
                     d = e.diagnostics()
