@@ -313,11 +313,19 @@ class Envelopes:
         return ti.min(ti.max(j, 0), self.shape[1] - 1)
 
     @ti.func
+    def _raise(self, field: ti.template(), I, value):
+        if value > field[I]:
+            ti.atomic_max(field[I], value)
+
+    @ti.func
     def _clear_current(self):
+        # small loops run in one thread: on a CPU with few threads waking the pool costs more
+        ti.loop_config(serialize=True)
         for i in range(self.shape[0]):
             self.top[i] = -_BIG
             self.edge_hi[i] = -_BIG
             self.edge_lo[i] = _BIG
+        ti.loop_config(serialize=True)
         for k in range(self.n_targets):
             self.t_top[k] = -_BIG
             self.t_now[k] = ti.Vector.zero(float, 3)
@@ -362,16 +370,21 @@ class Envelopes:
                 speed = ti.sqrt(v2)
                 i = self._column(xp)
                 j = self._row(xp)
-                ti.atomic_max(self.top[i], xp[1] + half)
-                ti.atomic_max(self.edge_hi[i], xp[0] + half)
-                ti.atomic_min(self.edge_lo[i], xp[0] - half)
-                ti.atomic_max(self.max_speed[i, j], speed)
-                ti.atomic_max(self.max_energy[i, j], 0.5 * r * v2)
-                ti.atomic_max(self.max_pressure[i, j], r * v2)
+                # read before the atomic: on a CPU an atomic max is a compare-and-swap loop, and most
+                # particles do not raise a running maximum
+                self._raise(self.top, i, xp[1] + half)
+                self._raise(self.edge_hi, i, xp[0] + half)
+                if xp[0] - half < self.edge_lo[i]:
+                    ti.atomic_min(self.edge_lo[i], xp[0] - half)
+                ij = ti.Vector([i, j])
+                self._raise(self.max_speed, ij, speed)
+                self._raise(self.max_energy, ij, 0.5 * r * v2)
+                self._raise(self.max_pressure, ij, r * v2)
                 if self.cell_arrival[i, j] < 0.0:
                     self.cell_arrival[i, j] = t  # every writer writes the same value
                 self.energy[None] += 0.5 * m[p] * v2
-                ti.atomic_max(self.speed_now[None], speed)
+                if speed > self.speed_now[None]:
+                    ti.atomic_max(self.speed_now[None], speed)
                 for k in range(self.n_targets):
                     txy = self.t_xy[k]
                     if ti.abs(xp[0] - txy[0]) <= half:
@@ -380,6 +393,7 @@ class Envelopes:
                             ti.atomic_max(self.t_now[k][1], speed)
                             ti.atomic_max(self.t_now[k][2], r * v2)
                             self.t_hit[k] = 1
+        ti.loop_config(serialize=True)
         for i in range(self.shape[0]):
             h = ti.max(self.top[i] - self.ground[i], 0.0)
             ti.atomic_max(self.peak_height[i], h)
@@ -388,6 +402,7 @@ class Envelopes:
                     self.arrival[i] = t
                 ti.atomic_max(self.front[0], self.edge_hi[i])
                 ti.atomic_min(self.front[1], self.edge_lo[i])
+        ti.loop_config(serialize=True)
         for k in range(self.n_targets):
             h = ti.max(self.t_top[k] - self.t_ground[k], 0.0)
             self.t_now[k][0] = h
@@ -401,6 +416,7 @@ class Envelopes:
         self.rows[slot, 0] = t
         self.rows[slot, 1] = self.energy[None]
         self.rows[slot, 2] = self.speed_now[None]
+        ti.loop_config(serialize=True)
         for k in range(self.n_targets):
             for q in ti.static(range(3)):
                 self.rows[slot, 3 + 3 * k + q] = self.t_now[k][q]

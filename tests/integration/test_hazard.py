@@ -5,13 +5,19 @@
   block's speed, peak height its height, the deposit its footprint, the run-out its front.
 - A column collapse: the run-out equals the toe measured from the last frame within a raster
   cell, and the envelopes are never below the values of any output frame.
+- A killed run keeps the hazard files of its last frames, complete and readable.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -199,3 +205,39 @@ def test_column_collapse_runout_and_envelopes_bound_every_frame(tiny_project, tm
     speed_map = vtk_to_numpy(image.GetCellData().GetArray("max_speed_m_s")).reshape(doc["raster"]["shape"][1], nx)
     np.testing.assert_allclose(speed_map.max(axis=0), prof["max_speed_m_s"], rtol=1e-6)
     assert json.loads((result.out_dir / HAZARD_JSON).read_text())["status"] == "completed"
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGKILL")
+def test_envelopes_survive_a_killed_run(tiny_project, tmp_path):
+    out = tmp_path / "killed.results"
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "app.cli", "run", str(tiny_project), "--arch", "cpu", "-q", "--out", str(out),
+         "--set", "stages.1.duration_s=1000", "--set", "output.interval_s=0.01"],
+        cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+    )
+    try:
+        deadline = time.monotonic() + 180
+        while time.monotonic() < deadline and proc.poll() is None:
+            try:  # wait for the hazard files of the fourth frame
+                if json.loads((out / HAZARD_JSON).read_text()).get("time_s", 0) >= 0.03:
+                    break
+            except (OSError, ValueError):
+                pass
+            time.sleep(0.05)
+        assert proc.poll() is None, proc.communicate()[1]
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    res = Results(out)
+    assert res.status == "interrupted"
+    doc = read_hazard(out)  # every file complete and readable
+    assert doc["status"] == "running"
+    # the envelopes are those of a frame that was written (or of the one being written)
+    assert doc["time_s"] >= 0.03
+    assert min(abs(t - doc["time_s"]) for t in [*res.times, res.times[-1] + 0.01]) < 1e-6
+    assert len(doc["series"]["time_s"]) >= 4 and doc["series"]["time_s"][-1] == pytest.approx(doc["time_s"])
+    assert doc["max_speed_m_s"] > 0 and np.all(np.isfinite(doc["profile"]["peak_flow_height_m"]))
