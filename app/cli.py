@@ -1,6 +1,6 @@
 """The ``runout`` command line (typer + rich).
 
-Commands: ``run``, ``validate``, ``render``, ``animate`` and ``gui``. Results and summaries go to
+Commands: ``run``, ``validate``, ``render``, ``report``, ``animate`` and ``gui``. Results and summaries go to
 standard output, progress bars and errors to standard error. Bad input (an invalid project, a
 missing results folder, an unknown field) is reported as one line per problem, never as a
 traceback; ``--verbose`` shows the log, with tracebacks of solver failures.
@@ -410,6 +410,24 @@ def render(
     res = _open_results(results)
     try:
         path = render_frame(res, index, field, output, size=width_height)
+    except (ValueError, ResultsError) as exc:
+        fail(str(exc))
+    out.print(str(path), markup=False)
+
+
+@cli.command()
+def report(
+    results: Annotated[Path, typer.Argument(help="Results folder (or its project file).", show_default=False)],
+    output: Annotated[Path | None, typer.Option("-o", "--output", help="Folder for report.html and its "
+                                                "pictures (default: RESULTS/report).")] = None,
+) -> None:
+    """Write the hazard report of a run: HTML with the measures, envelopes, targets and pictures."""
+    from app.report import write_report
+    from projects.results import ResultsError
+
+    res = _open_results(results)
+    try:
+        path = write_report(res.path, output)
     except (ValueError, ResultsError) as exc:
         fail(str(exc))
     out.print(str(path), markup=False)

@@ -147,6 +147,8 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
         scatter=numerics.advanced.scatter,
     )
     output = sc.Output(interval_s=project.output.interval_s, fields=tuple(project.output.fields))
+    from projects.hazard import envelope_config
+
     return sc.SimulationConfig(
         grid=grid,
         materials=materials,
@@ -154,6 +156,7 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
         gravity_m_s2=domain.gravity_m_s2,
         numerics=solver_numerics,
         output=output,
+        envelopes=envelope_config(project),
     )
 
 

@@ -249,6 +249,13 @@ def dumps_project(project: Project) -> str:
     doc["stages"] = stages
 
     doc["output"] = _table(data["output"])
+    if data.get("hazard"):
+        doc["hazard"] = _table(data["hazard"])
+    if data.get("targets"):
+        targets = tomlkit.aot()
+        for target in data["targets"]:
+            targets.append(_table(target))
+        doc["targets"] = targets
     return tomlkit.dumps(doc)
 
 

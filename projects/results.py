@@ -40,7 +40,7 @@ import threading
 import time
 import zlib
 from collections import OrderedDict
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -722,6 +722,13 @@ class ResultsWriter:
         self._submitted += 1
         self._queue.put((index, frame.diagnostics, dict(frame.fields)))
 
+    def submit(self, job: Callable[[], None]) -> None:
+        """Queue ``job()`` to run in the writer thread after the frames queued before it (files that
+        accompany the frames, e.g. the hazard envelopes); its errors fail the writer like a frame's."""
+        if self._closed:
+            raise ResultsError("the results writer is closed")
+        self._queue.put(job)
+
     def flush(self) -> None:
         """Wait until every queued frame is on disk."""
         self._queue.join()
@@ -860,7 +867,10 @@ class ResultsWriter:
                 if item is _Stop:
                     return
                 if self._error is None:
-                    self._write_one(*item)
+                    if callable(item):
+                        item()
+                    else:
+                        self._write_one(*item)
             except Exception as err:  # noqa: BLE001 - reported to the caller via write_frame/close
                 logger.error("writing a results frame failed: %s", err,
                              exc_info=logger.isEnabledFor(logging.DEBUG))

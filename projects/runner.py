@@ -363,8 +363,17 @@ def _run(
     on_frame: Callable[[Frame], None] | None,
     on_progress: Callable[[Progress], None] | None,
 ) -> RunResult:
+    from projects.hazard import HazardOutput, settings
     from projects.results import write_checkpoint
 
+    hazard = None
+    if writer is not None:
+        from projects import hazard as hazard_files
+
+        for name in (hazard_files.HAZARD_JSON, hazard_files.PROFILE_CSV, hazard_files.TARGETS_CSV,
+                     hazard_files.HAZARD_VTI):
+            writer.own(name)
+        hazard = HazardOutput(writer.out_dir, sim, settings(resolved.project), writer.submit)
     setup_s = time.perf_counter() - started
     status, message = "failed", "the run ended unexpectedly"
     loop_start = time.perf_counter()
@@ -381,6 +390,7 @@ def _run(
         for frame in sim.run(cancel=cancel, on_progress=on_progress):
             if writer is not None:
                 writer.write_frame(frame)
+                hazard.write()  # the envelopes with every frame: a killed run keeps them
             if on_frame is not None:
                 on_frame(frame)
             t = frame.diagnostics.time_s
@@ -410,6 +420,11 @@ def _run(
         status, message = "failed", f"ended by {type(err).__name__}"
         raise
     finally:
+        if hazard is not None and status in ("completed", "stopped"):
+            try:
+                hazard.write(status)
+            except Exception as err:  # noqa: BLE001 - the run's own outcome stands; say what is missing
+                logger.error("writing the hazard files failed: %s", err)
         loop_s = time.perf_counter() - loop_start
         particles = resolved.particle_count
         steps = sim.steps - steps0

@@ -78,7 +78,8 @@ DEFAULT_CFL = sc.DEFAULT_CFL
 #: Damping coefficient of a gravity stage that gives none.
 DEFAULT_GRAVITY_DAMPING = 0.7
 
-_SECTION_ORDER = ("runout", "domain", "materials", "bodies", "particles", "numerics", "stages", "output")
+_SECTION_ORDER = ("runout", "domain", "materials", "bodies", "particles", "numerics", "stages", "output",
+                  "hazard", "targets")
 _BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
 _VALUE_WIDTH = 60
 # Context flag: the caller runs the multi-key rules itself (on the raw input).
@@ -560,6 +561,51 @@ def _raise_array() -> Any:
     raise _fail("must be an array")
 
 
+def _to_bool(value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise _fail("must be true or false")
+    return value
+
+
+class Hazard(_Model):
+    """``[hazard]``: envelopes, run-out measures and their thresholds (see projects/hazard.py).
+
+    Keys left out take scene-scaled defaults when the run is built (projects.hazard.settings).
+    """
+
+    enabled: Annotated[bool, BeforeValidator(_to_bool)] = True
+    cell_size_m: OptPositive = None
+    update_every_steps: Annotated[
+        int, BeforeValidator(_to_int), AfterValidator(lambda v: _in_int_range(v, 1, 100000))
+    ] = 10
+    flow_height_threshold_m: OptPositive = None
+    deposit_threshold_m: OptPositive = None
+    mobilised_displacement_m: OptPositive = None
+    kinetic_energy_fraction: _number_type(gt=0.0, lt=1.0) = 0.01
+
+
+class Target(_Model):
+    """``[[targets]]``: a named place whose hazard is recorded: a vertical line ``x_m`` or a point
+    ``point_m``."""
+
+    name: MaterialName
+    x_m: _number_type(optional=True) = None
+    point_m: Annotated[tuple[float, float] | None, BeforeValidator(lambda v: v if v is None else _to_pair(v))] = None
+
+    @model_validator(mode="after")
+    def _one_place(self) -> Target:
+        if (self.x_m is None) == (self.point_m is None):
+            raise _fail("give x_m (a vertical line) or point_m (a point [x, y]), exactly one of them")
+        return self
+
+    @property
+    def xy(self) -> tuple[float, float | None]:
+        """(x, y) of a point target, (x, None) of a line."""
+        if self.point_m is not None:
+            return (self.point_m[0], self.point_m[1])
+        return (float(self.x_m), None)
+
+
 class Project(_Model):
     """A whole project file (schema version 1).
 
@@ -575,6 +621,8 @@ class Project(_Model):
     numerics: Numerics = Numerics()
     stages: Annotated[list[Stage], _nonempty_list("stage ([[stages]])")]
     output: Output = Output()
+    hazard: Hazard = Hazard()
+    targets: list[Target] = []
 
     @model_validator(mode="after")
     def _rules(self, info: ValidationInfo) -> Project:
@@ -801,6 +849,38 @@ def _rule_problems(data: Mapping[str, Any]) -> list[Problem]:
     problems += _body_rules(_array(data.get("bodies")), materials, domain)
     problems += _numerics_rules(_table(data.get("numerics")))
     problems += _stage_rules(_array(data.get("stages")), materials)
+    problems += _hazard_rules(_table(data.get("hazard")), _array(data.get("targets")), domain)
+    return problems
+
+
+def _hazard_rules(hazard: Mapping[str, Any], targets: list[Any], domain: Mapping[str, Any]) -> list[Problem]:
+    """Hazard raster no larger than the domain; targets inside the domain, names unique."""
+    problems = []
+    origin = _pair(domain.get("origin_m", (0.0, 0.0)))
+    size = _pair(domain.get("size_m"))
+    cell = _num(hazard.get("cell_size_m"))
+    if size and cell and min(size) > 0.0 and cell > min(size):
+        problems.append(Problem("hazard.cell_size_m", cell, f"larger than the domain ({size[0]:g} x {size[1]:g} m)"))
+    seen: set[str] = set()
+    for i, target in enumerate(targets):
+        if not isinstance(target, Mapping):
+            continue
+        name = target.get("name")
+        if isinstance(name, str):
+            if name in seen:
+                problems.append(Problem(f"targets.{i}.name", name, "another target has this name; names must be unique"))
+            seen.add(name)
+        if not (origin and size):
+            continue
+        x = _num(target.get("x_m"))
+        if x is not None and not origin[0] <= x <= origin[0] + size[0]:
+            problems.append(Problem(f"targets.{i}.x_m", x, f"must lie in the domain, x from {origin[0]:g} "
+                                    f"to {origin[0] + size[0]:g} m"))
+        point = _pair(target.get("point_m"))
+        if point is not None and not (origin[0] <= point[0] <= origin[0] + size[0]
+                                      and origin[1] <= point[1] <= origin[1] + size[1]):
+            problems.append(Problem(f"targets.{i}.point_m", list(point), "must lie in the domain "
+                                    f"[{origin[0]:g}, {origin[0] + size[0]:g}] x [{origin[1]:g}, {origin[1] + size[1]:g}] m"))
     return problems
 
 

@@ -193,6 +193,13 @@ class Simulation:
         #: the initial equilibrium check of the k0 or gravity stage (empty without one)
         self.equilibrium: dict[str, Any] = {}
         self._materials = config.materials
+        # hazard envelopes (solver.envelopes): started at the first dynamic stage, updated every few
+        # steps and at every frame
+        self.envelopes = None
+        if config.envelopes is not None:
+            from solver.envelopes import Envelopes
+
+            self.envelopes = Envelopes(self.engine, config.envelopes, config.grid)
         self._closed = False
         self.cursor = _Cursor()
         #: ``time.perf_counter()`` at the end of this process's first step (None before it)
@@ -230,6 +237,8 @@ class Simulation:
             momentum_y=d["momentum_y"], max_speed_m_s=d["max_speed"], unstable_particles=d["unstable"],
             lost_particles=d["lost"], total_mass_kg_per_m=d["mass"], yielding_particles=d["yielding"],
         )
+        if self.envelopes is not None:
+            self.envelopes.sync(self.time_s)  # envelopes are never below a frame's values
         want = self.config.output.fields
         e = self.engine
         relative = e.x.to_numpy()
@@ -294,13 +303,19 @@ class Simulation:
             raise SolverError(f"no checkpoint can be taken in phase {self.cursor.phase!r}")
         run = {"time_s": self.time_s, "steps": self.steps, "total_time_s": self.total_time_s,
                "message": self.message, "cursor": dataclasses.asdict(self.cursor)}
-        return Checkpoint(run=run, arrays=self.engine.state(), fingerprint=self.fingerprint)
+        arrays = self.engine.state()
+        if self.envelopes is not None:  # a resumed run continues its envelopes
+            arrays.update({f"envelopes/{k}": v for k, v in self.envelopes.state().items()})
+        return Checkpoint(run=run, arrays=arrays, fingerprint=self.fingerprint)
 
     def restore(self, checkpoint: Checkpoint) -> None:
         """Continue from ``checkpoint`` (taken from a run of the same configuration and particles)."""
         if checkpoint.fingerprint != self.fingerprint:
             raise SolverError("the checkpoint belongs to another configuration or particle set")
-        self.engine.load_state(checkpoint.arrays)
+        self.engine.load_state({k: v for k, v in checkpoint.arrays.items() if "/" not in k})
+        if self.envelopes is not None:
+            self.envelopes.load_state({k.split("/", 1)[1]: v for k, v in checkpoint.arrays.items()
+                                       if k.startswith("envelopes/")})
         run = checkpoint.run
         self.time_s = float(run["time_s"])
         self.steps = int(run["steps"])
@@ -399,6 +414,8 @@ class Simulation:
                                            e.x.to_numpy()))
                     self.equilibrium = self.equilibrium_check(stage, c.dt_s, float(e.diagnostics()["max_speed"]))
                     continue
+                if stage.kind == "dynamic" and self.envelopes is not None and not self.envelopes.started:
+                    self.envelopes.start(self.time_s)  # the release: ground surface and initial state
                 c.phase, c.stage_start_s, c.stage_steps, c.peak_ke, c.reason = "loop", self.time_s, 0, 0.0, ""
                 if c.next_output_s <= self.time_s + 1e-12 and c.last_output_step != self.steps:
                     frame = self._frame(stage, index, 0.0, c.dt_s, e.diagnostics())
@@ -423,6 +440,8 @@ class Simulation:
                     self.steps += 1
                     c.stage_steps += 1
                     self.time_s += h
+                    if self.envelopes is not None:
+                        self.envelopes.after_step(self.time_s)
                     at_output = self.time_s >= c.next_output_s - 1e-9 * interval
                     if c.stage_steps % CHECK_EVERY == 0 or at_output:
                         d = e.diagnostics()
