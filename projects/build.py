@@ -134,6 +134,8 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
 
     stages = []
     for stage, table in zip(project.stages, material_tables(project)):
+        if stage.type == "strength-reduction":
+            continue  # driven by projects.strength between the solver's stages
         stage_materials = None
         if stage.material_changes:
             stage_materials = tuple(solver_material(n, table[n]) for n in names)

@@ -229,15 +229,17 @@ def run_project(
     started = time.perf_counter()
     built = build_simulation(project, arch_override=arch)
     # importing the simulation loads Taichi: do it only when a run really starts
+    from projects.strength import strength_reduction
     from solver.simulation import Simulation
 
+    driver = strength_reduction(project, built)  # None unless there is a strength-reduction stage
     try:
-        sim = Simulation(built.config, built.particles)
+        sim = Simulation(built.config, built.particles, damping_support=driver is not None)
     except SolverError as err:
         raise _solver_rejects(err) from None
     try:
         return _run(sim, built, project, path, out_path, dumps_project(project), started,
-                    cancel, on_frame, on_progress)
+                    cancel, on_frame, on_progress, driver)
     finally:
         sim.close()
 
@@ -253,13 +255,16 @@ def _run(
     cancel: Callable[[], bool] | None,
     on_frame: Callable[[Frame], None] | None,
     on_progress: Callable[[Progress], None] | None,
+    driver: Any = None,
 ) -> RunResult:
     writer = ResultsWriter(out_path, project_text, _meta(project, built, sim, project_path))
     setup_s = time.perf_counter() - started
     status, message = "failed", "the run ended unexpectedly"
     loop_start = time.perf_counter()
     try:
-        for frame in sim.run(cancel=cancel, on_progress=on_progress):
+        frames = (sim.run(cancel=cancel, on_progress=on_progress) if driver is None
+                  else driver.run(sim, cancel=cancel, on_progress=on_progress))
+        for frame in frames:
             writer.write_frame(frame)
             if on_frame is not None:
                 on_frame(frame)
@@ -287,7 +292,16 @@ def _run(
             simulated_time_s=float(sim.time_s),
             wall_time_s=time.perf_counter() - started,
             particle_steps_per_s=particles * sim.steps / loop_s if loop_s > 0 else 0.0,
-            extra={"setup_time_s": setup_s},
+            extra={"setup_time_s": setup_s, **(_strength_results(driver, writer) if driver else {})},
         )
     logger.info("run %s: %s", summary["status"], summary["message"])
     return RunResult(summary["status"], summary["message"], out_path, summary)
+
+
+def _strength_results(driver: Any, writer: ResultsWriter) -> dict[str, Any]:
+    """The strength-reduction entries of the summary; writes ``fos_trials.csv``."""
+    try:
+        driver.write_files(writer.out_dir)
+    except OSError as err:
+        logger.error("could not write the strength-reduction trials: %s", err)
+    return driver.summary()

@@ -33,6 +33,7 @@ from solver.config import (
     Diagnostics,
     Frame,
     InstabilityError,
+    Material,
     Particles,
     SimulationConfig,
     SolverError,
@@ -113,7 +114,9 @@ def validate(config: SimulationConfig, particles: Particles) -> None:
 class Simulation:
     """One analysis: builds the engine in the calling thread and advances it stage by stage."""
 
-    def __init__(self, config: SimulationConfig, particles: Particles):
+    def __init__(self, config: SimulationConfig, particles: Particles, *, damping_support: bool = False):
+        """``damping_support`` builds the engine for local damping even when no stage of the
+        configuration uses it (the steps of :meth:`advance` may)."""
         validate(config, particles)
         self.config = config
         self.particles = particles
@@ -127,7 +130,7 @@ class Simulation:
         self.engine = Engine(
             config.grid, config.materials, len(particles), config.numerics.scheme, np_float,
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
-            damping=any(st.damping > 0 for st in config.stages),
+            damping=damping_support or any(st.damping > 0 for st in config.stages),
         )
         self.engine.load_particles(particles.positions_m, particles.volumes_m2, particles.material_ids,
                                    particles.velocities_m_s)
@@ -217,11 +220,14 @@ class Simulation:
 
     # ------------------------------------------------------------------ the run
     def run(self, cancel: Callable[[], bool] | None = None,
-            on_progress: Callable[[Progress], None] | None = None) -> Iterator[Frame]:
+            on_progress: Callable[[Progress], None] | None = None, *,
+            stages: tuple[Stage, ...] | None = None, first_index: int = 0) -> Iterator[Frame]:
         """Yield frames at t = 0, every output interval and the end of each stage.
 
         Raises InstabilityError when the guard fires; the frames yielded before are good.
         ``cancel()`` returning True ends the run after one last frame (status "stopped").
+        ``stages`` runs these stages (numbered from ``first_index``) from the current state
+        instead of the configuration's (a driver that runs a project in parts).
         """
         runtime.check_owner()
         cfg = self.config
@@ -236,7 +242,8 @@ class Simulation:
         last_output_step = -1
         d = e.diagnostics()
         dt = self._time_step(d["max_speed"])
-        for index, stage in enumerate(cfg.stages):
+        run_stages = cfg.stages if stages is None else tuple(stages)
+        for index, stage in enumerate(run_stages, start=first_index):
             if stage.materials is not None and stage.materials != self._materials:
                 e.materials.load(stage.materials)
                 self._materials = stage.materials
@@ -313,14 +320,69 @@ class Simulation:
                 break
         if last_output_step != self.steps or self.last_frame is None:
             # e.g. a project with only a k0 stage
-            st = cfg.stages[-1]
+            st = run_stages[-1]
             d = e.diagnostics()
-            yield self._frame(st, len(cfg.stages) - 1, 0.0, dt, d)
+            yield self._frame(st, first_index + len(run_stages) - 1, 0.0, dt, d)
         self.status = "stopped" if cancelled else "completed"
         if cancelled:
             self.message = f"cancelled at t = {self.time_s:.4g} s"
         elif not self.message:
             self.message = f"completed {self.steps} steps, t = {self.time_s:.4g} s"
+
+    # ------------------------------------------------------------------ driving from outside
+    def advance(self, duration_s: float, *, damping: float = 0.0,
+                check: Callable[[float, dict], str | None] | None = None,
+                cancel: Callable[[], bool] | None = None) -> str:
+        """Step the current state for up to ``duration_s`` with full gravity, yielding no frames.
+
+        Every :data:`CHECK_EVERY` steps the stability guard runs and ``check(elapsed_s,
+        diagnostics)`` is called; a non-empty string it returns ends the advance early and is
+        returned. ``cancel()`` returning True ends it with ``"cancelled"``. Returns ``""`` when the
+        whole duration ran. The clock (``time_s``, ``steps``) advances; callers that restore a
+        checkpoint restore it too. Raises InstabilityError like :meth:`run`.
+        """
+        runtime.check_owner()
+        e = self.engine
+        g = tuple(float(v) for v in self.config.gravity_m_s2)
+        d = e.diagnostics()
+        dt = self._time_step(d["max_speed"])
+        elapsed = 0.0
+        count = 0
+        while elapsed < duration_s - 1e-12 * max(1.0, duration_s):
+            h = min(dt, duration_s - elapsed)
+            e.step(h, g, damping)
+            self.steps += 1
+            count += 1
+            elapsed += h
+            self.time_s += h
+            if count % CHECK_EVERY == 0:
+                d = e.diagnostics()
+                self._check(dt, d)
+                if self.config.numerics.time_step_s is None:
+                    dt = self._time_step(d["max_speed"])
+                if check is not None:
+                    reason = check(elapsed, d)
+                    if reason:
+                        return reason
+                if cancel is not None and cancel():
+                    return "cancelled"
+        d = e.diagnostics()
+        self._check(dt, d)
+        if check is not None:
+            return check(elapsed, d) or ""
+        return ""
+
+    def set_materials(self, materials: tuple[Material, ...]) -> None:
+        """Replace the material table now (one row per material of the configuration)."""
+        if len(materials) != len(self.config.materials):
+            raise SolverError(f"the material table must have {len(self.config.materials)} rows")
+        self.engine.materials.load(materials)
+        self._materials = tuple(materials)
+
+    def snapshot(self, stage: Stage, index: int, stage_time_s: float = 0.0) -> Frame:
+        """A frame of the current state, labelled with ``stage`` (number ``index``)."""
+        d = self.engine.diagnostics()
+        return self._frame(stage, index, stage_time_s, self._time_step(d["max_speed"]), d)
 
     # ------------------------------------------------------------------ lifetime
     def close(self) -> None:
