@@ -52,7 +52,7 @@ import numpy as np
 from solver import config as sc
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from projects.build import BuiltRun
+    from projects.build import ResolvedRun
     from projects.schema import Project
     from solver.config import Frame
     from solver.simulation import Progress, Simulation
@@ -297,7 +297,7 @@ class StrengthReduction:
     """
 
     project: Project
-    built: BuiltRun
+    built: ResolvedRun
     settings: Settings
     trials: list[Trial] = field(default_factory=list)
     lower: float | None = None
@@ -364,7 +364,7 @@ class StrengthReduction:
                 logger.warning("limit equilibrium: %s", err)
         # 1. the initial stress, once
         wall = time.perf_counter()
-        for frame in sim.run(cancel=cancel, on_progress=on_progress, stages=self.initial_stages):
+        for frame in sim.run(cancel=cancel, on_progress=on_progress, stop_before=self.solver_split):
             yield self._yield(frame)
         self.initial_stress_runs += 1
         self.equilibrium_wall_time_s = time.perf_counter() - wall
@@ -472,23 +472,27 @@ class StrengthReduction:
             return
         project_stage = self.project.stages[s.stage_index + 1]
         self.runout_factor = project_stage.strength_factor or self.upper
-        table = self._runout_materials(base, runout, project_stage)
-        sim.set_materials(table)
-        for frame in sim.run(cancel=cancel, on_progress=on_progress, stages=(replace(runout, materials=None),),
-                             first_index=label_index):
+        sim.set_materials(self._runout_materials(base, project_stage))
+        # the solver goes on with the run-out stage from this state (a frame at its start first)
+        c = sim.cursor
+        c.stage_index, c.phase, c.next_output_s, c.last_output_step = self.solver_split, "start", sim.time_s, -1
+        for frame in sim.run(cancel=cancel, on_progress=on_progress):
             yield self._yield(frame)
 
-    def _runout_materials(self, base, runout: sc.Stage, project_stage) -> tuple[sc.Material, ...]:
+    def _runout_materials(self, base, project_stage) -> tuple[sc.Material, ...]:
         """Strengths reduced by the run-out factor, with the stage's material changes as given."""
+        from projects.build import material_tables, solver_material
+
         table = list(reduced_materials(base, self.settings.materials, self.runout_factor))
         names = self.built.material_names
+        file_table = material_tables(self.project)[self.settings.stage_index + 1]
         to_solver = {"cohesion_pa": "cohesion_pa", "friction_angle_deg": "friction_angle_rad",
                      "dilatancy_angle_deg": "dilatancy_angle_rad", "tensile_strength_pa": "tensile_strength_pa",
                      "density_kg_m3": "density_kg_m3", "youngs_modulus_pa": "youngs_modulus_pa",
                      "poisson_ratio": "poisson_ratio"}
         for name, change in project_stage.material_changes.items():
             i = names.index(name)
-            given = runout.materials[i]  # the build's table: the file's values with the changes
+            given = solver_material(name, file_table[name])  # the file's values with the changes
             keys = [to_solver[k] for k in change.model_dump(exclude_none=True)]
             m = replace(table[i], **{k: getattr(given, k) for k in keys})
             table[i] = replace(m, dilatancy_angle_rad=min(m.dilatancy_angle_rad, m.friction_angle_rad))
@@ -600,7 +604,7 @@ class _Cancelled(Exception):
     pass
 
 
-def strength_reduction(project: Project, built: BuiltRun) -> StrengthReduction | None:
-    """The driver of a project with a strength-reduction stage, or None."""
-    settings = settings_of(project)
-    return None if settings is None else StrengthReduction(project, built, settings)
+def strength_reduction(resolved: ResolvedRun) -> StrengthReduction | None:
+    """The driver of a resolved run with a strength-reduction stage, or None."""
+    settings = settings_of(resolved.project)
+    return None if settings is None else StrengthReduction(resolved.project, resolved, settings)
