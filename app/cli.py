@@ -233,6 +233,24 @@ def _summary_line(result: RunResult) -> str:
     )
 
 
+def _factor_line(result: RunResult) -> str:
+    """The factor of safety of a strength-reduction run, with Bishop's beside it ("" otherwise)."""
+    fos = result.summary.get("factor_of_safety")
+    if not fos:
+        return ""
+    if fos.get("value") is None:
+        line = f"factor of safety: not bracketed ({fos.get('message', '')})"
+    else:
+        line = (f"factor of safety {fos['value']:.3f} (strength reduction, bracket [{fos['lower']:.3f}, "
+                f"{fos['upper']:.3f}], {fos.get('criterion', '')}, {len(fos.get('trials', []))} trials)")
+    le = result.summary.get("limit_equilibrium") or {}
+    if le.get("factor_of_safety") is not None:
+        line += f"; Bishop {le['factor_of_safety']:.3f}"
+    if fos.get("runout_max_displacement_m") is not None:
+        line += f"; if it fails it runs out {fos['runout_max_displacement_m']:.3g} m (largest displacement)"
+    return line
+
+
 @cli.command()
 def run(
     project: Annotated[
@@ -299,6 +317,9 @@ def run(
     if result.status == "completed":
         if not quiet:
             out.print(_summary_line(result), markup=False)
+            fos = _factor_line(result)
+            if fos:
+                out.print(fos, markup=False)
         return
     where = f"(results so far in {result.out_dir})"
     if result.status == "stopped":
@@ -347,16 +368,21 @@ def render(
     field: Annotated[str, typer.Option("--field", help="Field to colour by.")] = "displacement",
     output: Annotated[Path | None, typer.Option("-o", "--output", help="PNG file (default: in the results folder).")] = None,
     size: Annotated[str, typer.Option("--size", help="Image size WIDTHxHEIGHT in pixels.")] = "1600x900",
+    mechanism: Annotated[bool, typer.Option(
+        "--mechanism", help="A strength-reduction run's mechanism with Bishop's circle and the trials.")] = False,
 ) -> None:
     """Render one frame to a PNG (offscreen)."""
-    from app.render import render_frame
+    from app.render import render_frame, render_mechanism
     from projects.results import ResultsError
 
     index = _parse_frame(frame)
     width_height = _parse_size(size)
     res = _open_results(results)
     try:
-        path = render_frame(res, index, field, output, size=width_height)
+        if mechanism:
+            path = render_mechanism(res, output, size=width_height)
+        else:
+            path = render_frame(res, index, field, output, size=width_height)
     except (ValueError, ResultsError) as exc:
         fail(str(exc))
     out.print(str(path), markup=False)

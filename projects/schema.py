@@ -515,9 +515,18 @@ def _first_trial(value: Any) -> Any:
     return float(value)
 
 
+FAILURE_CRITERIA: tuple[str, ...] = ("displacement", "kinetic-energy")
+
+
 class Failure(_Model):
     """``failure = {..}`` of a strength-reduction stage: when a trial has failed."""
 
+    criteria: Annotated[
+        tuple[Annotated[str, _choice(FAILURE_CRITERIA)], ...],
+        BeforeValidator(lambda v: v if isinstance(v, (list, tuple)) else _raise_array()),
+        AfterValidator(_unique_fields),
+        _nonempty_list("criterion"),
+    ] = FAILURE_CRITERIA
     kinetic_energy_ratio: OptFraction = None
     displacement_m: OptPositive = None
     monitor_point_m: Vec2 | None = None

@@ -169,6 +169,7 @@ class Settings:
     displacement_m: float | None = None  # None: DEFAULT_DISPLACEMENT_FRACTION of the model height
     monitor_point_m: tuple[float, float] | None = None  # None: the crest
     min_settle_fraction: float = DEFAULT_MIN_SETTLE
+    criteria: tuple[str, ...] = ("displacement", "kinetic-energy")
 
 
 def settings_of(project: Project) -> Settings | None:
@@ -203,6 +204,7 @@ def settings_of(project: Project) -> Settings | None:
         monitor_point_m=failure.monitor_point_m if failure else None,
         min_settle_fraction=(failure.min_settle_fraction if failure and failure.min_settle_fraction
                              else DEFAULT_MIN_SETTLE),
+        criteria=tuple(failure.criteria) if failure else ("displacement", "kinetic-energy"),
     )
 
 
@@ -310,7 +312,9 @@ class StrengthReduction:
     monitor_particle: int | None = None
     displacement_limit_m: float | None = None
     runout_factor: float | None = None
+    runout_max_displacement_m: float | None = None
     search_wall_time_s: float = 0.0
+    equilibrium_steps: int = 0
     equilibrium_wall_time_s: float = 0.0
     message: str = ""
     _frames: int = 0
@@ -364,12 +368,34 @@ class StrengthReduction:
                 logger.warning("limit equilibrium: %s", err)
         # 1. the initial stress, once
         wall = time.perf_counter()
+        steps0 = sim.steps
         for frame in sim.run(cancel=cancel, on_progress=on_progress, stop_before=self.solver_split):
             yield self._yield(frame)
         self.initial_stress_runs += 1
-        self.equilibrium_wall_time_s = time.perf_counter() - wall
         if sim.status == "stopped":
             return
+        # settle at full gravity and the file's strengths (a gravity stage ends while its ramp
+        # is still loading, a k0 stress is not in equilibrium on a slope), then from rest
+        e_settle = 0.5 * float(np.sum(sim.engine.m.to_numpy()[sim.engine.active.to_numpy().astype(bool)])) * (
+            cfg.grid.cell_size_m / s.trial_duration_s) ** 2
+        peak0 = [0.0]
+
+        def settled(elapsed: float, d: dict) -> str | None:
+            peak0[0] = max(peak0[0], d["kinetic_energy"])
+            if elapsed >= s.min_settle_fraction * s.trial_duration_s and \
+                    d["kinetic_energy"] < s.kinetic_energy_ratio * max(peak0[0], e_settle):
+                return "settled"
+            return None
+
+        sim.set_materials(cfg.materials)
+        if sim.advance(s.trial_duration_s, damping=s.damping, check=settled, cancel=cancel) == "cancelled":
+            sim.status = "stopped"
+            self.message = "cancelled while settling the initial stress"
+            return
+        sim.engine.set_velocity(np.zeros((sim.engine.n, 2)))
+        sim.engine.reset_reference()
+        self.equilibrium_wall_time_s = time.perf_counter() - wall
+        self.equilibrium_steps = sim.steps - steps0
         checkpoint = sim.engine.state()
         t0, label_index = sim.time_s, len(self.initial_stages)
         x_eq = checkpoint["x"].astype(np.float64)
@@ -392,6 +418,8 @@ class StrengthReduction:
             d_lim = max(DEFAULT_DISPLACEMENT_FRACTION * float(heights.max() - heights.min()), cfg.grid.cell_size_m)
         self.displacement_limit_m = d_lim
         e_ref = 0.5 * mass * (d_lim / s.trial_duration_s) ** 2
+        use_displacement = "displacement" in s.criteria
+        use_energy = "kinetic-energy" in s.criteria
         base = cfg.materials
         states: dict[float, dict] = {}
 
@@ -407,9 +435,9 @@ class StrengthReduction:
                 ke = d["kinetic_energy"]
                 peak[0] = max(peak[0], ke)
                 pos = sim.engine.x[idx]
-                if math.hypot(float(pos[0]) - x_m[0], float(pos[1]) - x_m[1]) > d_lim:
+                if use_displacement and math.hypot(float(pos[0]) - x_m[0], float(pos[1]) - x_m[1]) > d_lim:
                     return "displacement"
-                if elapsed >= s.min_settle_fraction * s.trial_duration_s and \
+                if use_energy and elapsed >= s.min_settle_fraction * s.trial_duration_s and \
                         ke < s.kinetic_energy_ratio * max(peak[0], e_ref):
                     return "settled"
                 return None
@@ -425,6 +453,8 @@ class StrengthReduction:
                 verdict, criterion = "failed", "displacement"
             elif reason == "settled":
                 verdict, criterion = "stable", "settled"
+            elif not use_energy:  # the budget ran out and the monitor stayed within its limit
+                verdict, criterion = "stable", "displacement"
             else:
                 verdict, criterion = "failed", "kinetic-energy"
             result = Trial(float(factor), verdict, criterion, float(disp[idx]),
@@ -476,8 +506,13 @@ class StrengthReduction:
         # the solver goes on with the run-out stage from this state (a frame at its start first)
         c = sim.cursor
         c.stage_index, c.phase, c.next_output_s, c.last_output_step = self.solver_split, "start", sim.time_s, -1
+        last = None
         for frame in sim.run(cancel=cancel, on_progress=on_progress):
+            last = frame
             yield self._yield(frame)
+        if last is not None:
+            moved = np.linalg.norm(last.fields["positions"].astype(np.float64) - x_eq, axis=1)
+            self.runout_max_displacement_m = float(moved[last.fields["active"]].max(initial=0.0))
 
     def _runout_materials(self, base, project_stage) -> tuple[sc.Material, ...]:
         """Strengths reduced by the run-out factor, with the stage's material changes as given."""
@@ -569,9 +604,12 @@ class StrengthReduction:
             "damping": s.damping,
             "mechanism_frame": self.mechanism_frame,
             "runout_factor": self.runout_factor,
+            "runout_max_displacement_m": self.runout_max_displacement_m,
             "initial_stress_runs": self.initial_stress_runs,
             "equilibrium_wall_time_s": self.equilibrium_wall_time_s,
             "search_wall_time_s": self.search_wall_time_s,
+            "equilibrium_steps": self.equilibrium_steps,
+            "search_steps": int(sum(t.steps for t in self.trials)),
             "trials_file": TRIALS_NAME,
         }
         out: dict[str, Any] = {"factor_of_safety": fos}
