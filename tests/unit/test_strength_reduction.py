@@ -156,3 +156,11 @@ def test_a_small_run_end_to_end(tmp_path, monkeypatch):
     mechanism = read_vtp(frames[fos["mechanism_frame"]])
     assert mechanism["plastic_strain"].max() > 0.0
     assert fos["runout_factor"] == fos["upper"]
+    # the faces: the command line's line and the mechanism picture
+    from app.cli import _factor_line
+    from app.render import render_mechanism
+
+    line = _factor_line(result)
+    assert line.startswith(f"factor of safety {fos['value']:.3f}") and "Bishop" in line and "runs out" in line
+    picture = render_mechanism(tmp_path / "out")
+    assert picture.is_file() and picture.stat().st_size > 10_000
