@@ -315,6 +315,7 @@ class StrengthReduction:
     runout_max_displacement_m: float | None = None
     search_wall_time_s: float = 0.0
     equilibrium_steps: int = 0
+    initial_stress_steps: int = 0
     equilibrium_wall_time_s: float = 0.0
     message: str = ""
     _frames: int = 0
@@ -372,6 +373,7 @@ class StrengthReduction:
         for frame in sim.run(cancel=cancel, on_progress=on_progress, stop_before=self.solver_split):
             yield self._yield(frame)
         self.initial_stress_runs += 1
+        self.initial_stress_steps = sim.steps - steps0
         if sim.status == "stopped":
             return
         # settle at full gravity and the file's strengths (a gravity stage ends while its ramp
@@ -609,6 +611,7 @@ class StrengthReduction:
             "equilibrium_wall_time_s": self.equilibrium_wall_time_s,
             "search_wall_time_s": self.search_wall_time_s,
             "equilibrium_steps": self.equilibrium_steps,
+            "initial_stress_steps": self.initial_stress_steps,
             "search_steps": int(sum(t.steps for t in self.trials)),
             "trials_file": TRIALS_NAME,
         }
