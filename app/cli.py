@@ -354,7 +354,7 @@ def validate(
     preset = f" (preset {resolved.project.numerics.preset})" if resolved.project.numerics.preset else ""
     out.print(
         f"ok: {resolved.particle_count:,} particles, {len(resolved.config.materials)} materials, "
-        f"{len(resolved.body_names)} bodies, {len(resolved.config.stages)} stages, "
+        f"{len(resolved.body_names)} bodies, {len(resolved.project.stages)} stages, "
         f"grid {nx} x {ny} cells of {grid.cell_size_m:g} m, {numerics.scheme} {step}{preset}, "
         f"about {resolved.estimate['steps']:,} steps",
         markup=False,
