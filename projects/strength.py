@@ -378,14 +378,22 @@ class StrengthReduction:
             return
         # settle at full gravity and the file's strengths (a gravity stage ends while its ramp
         # is still loading, a k0 stress is not in equilibrium on a slope), then from rest
-        e_settle = 0.5 * float(np.sum(sim.engine.m.to_numpy()[sim.engine.active.to_numpy().astype(bool)])) * (
-            cfg.grid.cell_size_m / s.trial_duration_s) ** 2
+        active = sim.engine.active.to_numpy().astype(bool)
+        mass = float(np.sum(sim.engine.m.to_numpy()[active]))
+        if s.displacement_m is not None:
+            d_lim = s.displacement_m
+        else:
+            _, up = _gravity_frame(cfg.gravity_m_s2)
+            heights = sim.engine.x.to_numpy()[active].astype(np.float64) @ up
+            d_lim = max(DEFAULT_DISPLACEMENT_FRACTION * float(heights.max() - heights.min()), cfg.grid.cell_size_m)
+        self.displacement_limit_m = d_lim
+        e_ref = 0.5 * mass * (d_lim / s.trial_duration_s) ** 2
         peak0 = [0.0]
 
         def settled(elapsed: float, d: dict) -> str | None:
             peak0[0] = max(peak0[0], d["kinetic_energy"])
             if elapsed >= s.min_settle_fraction * s.trial_duration_s and \
-                    d["kinetic_energy"] < s.kinetic_energy_ratio * max(peak0[0], e_settle):
+                    d["kinetic_energy"] < s.kinetic_energy_ratio * max(peak0[0], e_ref):
                 return "settled"
             return None
 
@@ -402,7 +410,6 @@ class StrengthReduction:
         t0, label_index = sim.time_s, len(self.initial_stages)
         x_eq = checkpoint["x"].astype(np.float64)
         active = checkpoint["active"].astype(bool)
-        mass = float(np.sum(checkpoint["m"][active]))
         spacing = float(np.sqrt(np.median(self.built.particles.volumes_m2)))
         if s.monitor_point_m is not None:
             point = np.asarray(s.monitor_point_m, dtype=float)
@@ -412,14 +419,6 @@ class StrengthReduction:
         idx = int(candidates[np.argmin(np.linalg.norm(x_eq[candidates] - point, axis=1))])
         self.monitor_point_m = (float(x_eq[idx, 0]), float(x_eq[idx, 1]))
         self.monitor_particle = idx
-        if s.displacement_m is not None:
-            d_lim = s.displacement_m
-        else:
-            _, up = _gravity_frame(cfg.gravity_m_s2)
-            heights = x_eq[active] @ up
-            d_lim = max(DEFAULT_DISPLACEMENT_FRACTION * float(heights.max() - heights.min()), cfg.grid.cell_size_m)
-        self.displacement_limit_m = d_lim
-        e_ref = 0.5 * mass * (d_lim / s.trial_duration_s) ** 2
         use_displacement = "displacement" in s.criteria
         use_energy = "kinetic-energy" in s.criteria
         base = cfg.materials
@@ -471,8 +470,8 @@ class StrengthReduction:
             if on_progress is not None:
                 from solver.simulation import Progress
                 rate = result.steps / result.wall_time_s if result.wall_time_s > 0 else 0.0
-                on_progress(Progress(t0, sim.total_time_s, f"{s.label}: F = {factor:.3f} {verdict}", sim.steps,
-                                     rate, rate * len(self.built.particles)))
+                on_progress(Progress(t0, max(sim.total_time_s, t0), f"{s.label}: F = {factor:.3f} {verdict}",
+                                     sim.steps, rate, rate * len(self.built.particles)))
             return result
 
         wall = time.perf_counter()
