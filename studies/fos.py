@@ -15,8 +15,11 @@ Scenes:
   ``F = c / (gamma z cos^2 b tan b) + tan(phi) / tan(b)`` (z the vertical depth), for a
   cohesive-frictional and a purely frictional case.
 
-Targets: the example's factor within 10 % of Bishop's at the finest cell; the cost of a factor to
-0.01 at most 8 equilibrium runs; the infinite slope within 3 % (reported, with the gap, when not).
+- ACADS benchmark 1(a) (Giam and Donald 1989; referee factor 1.00) at 0.5 m cells.
+
+Targets: the example's factor within 10 % of Bishop's at the finest cell and ACADS 1(a) within
+10 % of its referee factor; the cost of a factor to 0.01 at most 8 equilibrium runs; the
+infinite slope within 3 % (reported, with the gap, when not).
 
 Quick: cells of 1.0 and 0.5 m for the example; the infinite slope with 0.25 m cells.
 Full: cells of 1.0, 0.5 and 0.25 m; the infinite slope with 0.25 and 0.125 m cells.
@@ -89,6 +92,31 @@ def infinite_slope(beta_deg: float, cohesion_pa: float, phi_deg: float, *, cell_
     return validate_project(data), exact
 
 
+def acads_1a(cell_m: float = 0.5) -> Any:
+    """ACADS benchmark 1(a) (Giam and Donald 1989): a 10 m high 2:1 slope on a 5 m foundation,
+    c' = 3 kPa, phi' = 19.6 deg, gamma = 20 kN/m3, dry; referee factor 1.00."""
+    from projects.schema import validate_project
+
+    return validate_project({
+        "runout": {"schema_version": 1, "title": "ACADS 1(a)"},
+        "domain": {"origin_m": [20.0, 20.0], "size_m": [50.0, 17.0], "cell_size_m": cell_m,
+                   "boundaries": {"left": "slip", "right": "slip", "bottom": "fixed", "top": "open"}},
+        "materials": {"soil": {"model": "drucker-prager", "density_kg_m3": 20e3 / 9.81, "youngs_modulus_pa": 10e6,
+                               "poisson_ratio": 0.3, "cohesion_pa": 3000.0, "friction_angle_deg": 19.6,
+                               "dilatancy_angle_deg": 0.0}},
+        "bodies": [{"name": "slope", "material": "soil",
+                    "polygon_m": [[20.0, 20.0], [70.0, 20.0], [70.0, 35.0], [50.0, 35.0], [30.0, 25.0],
+                                  [20.0, 25.0]]}],
+        "numerics": {"cfl": 0.5, "arch": "cpu"},
+        "stages": [{"type": "gravity", "duration_s": 3.0},
+                   {"type": "strength-reduction", "trial_duration_s": 3.0}],
+        "output": {"interval_s": 1.0, "fields": ["displacement", "plastic_strain"]},
+    })
+
+
+ACADS_REFEREE = 1.00
+
+
 def _run(project: Any, out: Path) -> dict[str, Any]:
     from projects.runner import run_project
 
@@ -135,6 +163,12 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet) -> StudyResult:
         mesh_rows.append(row)
         note(f"fos: {cell:g} m: F = {fmt(row['fos'])} (Bishop {fmt(row['bishop'])}), "
              f"{row['trials']} trials, cost {fmt(row['cost_equilibrium_runs'])} equilibrium runs")
+    note("fos: ACADS 1(a), 0.5 m cells")
+    acads = _run(acads_1a(0.5), out_dir / "acads-1a")
+    write_csv(out_dir / "trials-acads-1a.csv", acads.pop("trial_rows"))
+    acads["referee"] = ACADS_REFEREE
+    acads["error"] = acads["fos"] / ACADS_REFEREE - 1.0 if acads["fos"] else None
+    note(f"fos: ACADS 1(a): F = {fmt(acads['fos'])} (referee 1.00, Bishop {fmt(acads['bishop'])})")
     inf_cases = [(30.0, 6000.0, 20.0), (25.0, 0.0, 35.0)]
     inf_cells = [0.25] if quick else [0.25, 0.125]
     inf_rows = []
@@ -155,11 +189,12 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet) -> StudyResult:
     cost_ok = all(r["cost_equilibrium_runs"] is not None and r["cost_equilibrium_runs"] <= COST_LIMIT
                   for r in mesh_rows)
     inf_ok = all(r["error"] is not None and abs(r["error"]) <= INFINITE_TOLERANCE for r in inf_rows)
-    passed = bishop_ok and cost_ok and inf_ok
-    data = {"quick": quick, "mesh": mesh_rows, "infinite": inf_rows, "targets": {
+    acads_ok = acads["error"] is not None and abs(acads["error"]) <= BISHOP_TOLERANCE
+    passed = bishop_ok and cost_ok and inf_ok and acads_ok
+    data = {"quick": quick, "mesh": mesh_rows, "acads_1a": acads, "infinite": inf_rows, "targets": {
         "bishop_tolerance": BISHOP_TOLERANCE, "cost_limit_equilibrium_runs": COST_LIMIT,
         "infinite_tolerance": INFINITE_TOLERANCE}, "passed": {"bishop": bishop_ok, "cost": cost_ok,
-                                                              "infinite": inf_ok}}
+                                                              "infinite": inf_ok, "acads_1a": acads_ok}}
     write_json(out_dir / "fos.json", data)
 
     report = Report(out_dir, "Study fos: factor of safety by strength reduction")
@@ -181,6 +216,15 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet) -> StudyResult:
                 "settling at full gravity (the same model, so steps measure cost whatever the machine's load); "
                 "also over the gravity stage alone. The equilibrium wall time includes Taichi's kernel "
                 "compilation on the first run.")
+    report.heading("ACADS benchmark 1(a)")
+    report.text("Giam and Donald (1989): 10 m high 2:1 slope, c' = 3 kPa, phi' = 19.6 deg, gamma = 20 kN/m3, "
+                "dry; referee factor of safety 1.00. Here with 0.5 m cells (20 over the height), psi = 0, "
+                "E = 10 MPa, nu = 0.3.")
+    report.table(["referee", "F (SRM)", "bracket", "SRM / referee - 1", "Bishop (here)", "trials",
+                  "cost (equilibrium runs)", "particles"],
+                 [[ACADS_REFEREE, fmt(acads["fos"], 4), f"[{fmt(acads['lower'], 4)}, {fmt(acads['upper'], 4)}]",
+                   fmt(acads["error"]), fmt(acads["bishop"], 4), acads["trials"], fmt(acads["cost_equilibrium_runs"]),
+                   acads["particles"]]])
     report.heading("Infinite slope")
     report.table(["beta (deg)", "c (Pa)", "phi (deg)", "cell (m)", "closed form", "F (SRM)", "bracket", "error",
                   "trials", "run"],
@@ -201,11 +245,13 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet) -> StudyResult:
     ax.invert_xaxis()
     ax.legend()
     report.figure(fig, "mesh", "Factor of safety of the example slope against the cell size.")
-    report.text("Raw data: `mesh.csv`, `infinite.csv`, `trials-*.csv`, `fos.json`; results folders beside them.")
+    report.text("Raw data: `mesh.csv`, `infinite.csv`, `trials-*.csv` (also `trials-acads-1a.csv`), `fos.json`; "
+                "results folders beside them.")
     path = report.write()
     verdict = [
         ("PASS" if passed else "FAIL") + f": F = {fmt(finest['fos'])} at {finest['cell_size_m']:g} m cells "
         f"(Bishop {fmt(finest['bishop'])}), cost {fmt(finest['cost_equilibrium_runs'])} equilibrium runs",
+        f"ACADS 1(a): F = {fmt(acads['fos'])} against the referee 1.00 (Bishop here {fmt(acads['bishop'])})",
         *(f"infinite slope beta {r['beta_deg']:g} c {r['cohesion_pa']:g} phi {r['phi_deg']:g} at {r['cell_size_m']:g} m: "
           f"F = {fmt(r['fos'])} against {fmt(r['exact'])} ({fmt(r['error'])})" for r in inf_rows),
     ]
