@@ -164,3 +164,21 @@ def test_a_small_run_end_to_end(tmp_path, monkeypatch):
     assert line.startswith(f"factor of safety {fos['value']:.3f}") and "Bishop" in line and "runs out" in line
     picture = render_mechanism(tmp_path / "out")
     assert picture.is_file() and picture.stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("gravity_angle_deg", [0.0, 20.0])
+def test_crest_is_the_top_of_the_slope_face(gravity_angle_deg):
+    """The default monitor point: a slope drawn in a frame where gravity points down, rotated."""
+    import numpy as np
+
+    from geometry.seeding import seed_lattice
+    from projects.strength import crest_point
+
+    polygon = np.array([[0.0, 0.0], [30.0, 0.0], [30.0, 3.0], [14.0, 3.0], [8.0, 9.0], [0.0, 9.0]])
+    seeds = seed_lattice([polygon], (0.0, 0.0), 0.5, 2)
+    a = math.radians(gravity_angle_deg)
+    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    points = seeds.positions_m @ rot.T
+    gravity = rot @ np.array([0.0, -9.81])
+    crest = np.linalg.solve(rot, crest_point(points, gravity, 0.5))
+    assert crest[0] == pytest.approx(8.0, abs=1.0) and crest[1] == pytest.approx(9.0, abs=0.5)
