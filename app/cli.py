@@ -244,6 +244,24 @@ def _summary_line(result: RunResult) -> str:
     )
 
 
+def _factor_line(result: RunResult) -> str:
+    """The factor of safety of a strength-reduction run, with Bishop's beside it ("" otherwise)."""
+    fos = result.summary.get("factor_of_safety")
+    if not fos:
+        return ""
+    if fos.get("value") is None:
+        line = f"factor of safety: not bracketed ({fos.get('message', '')})"
+    else:
+        line = (f"factor of safety {fos['value']:.3f} (strength reduction, bracket [{fos['lower']:.3f}, "
+                f"{fos['upper']:.3f}], {fos.get('criterion', '')}, {len(fos.get('trials', []))} trials)")
+    le = result.summary.get("limit_equilibrium") or {}
+    if le.get("factor_of_safety") is not None:
+        line += f"; Bishop {le['factor_of_safety']:.3f}"
+    if fos.get("runout_max_displacement_m") is not None:
+        line += f"; if it fails it runs out {fos['runout_max_displacement_m']:.3g} m (largest displacement)"
+    return line
+
+
 @cli.command()
 def run(
     project: Annotated[
@@ -325,6 +343,9 @@ def run(
     if result.status == "completed":
         if not quiet:
             out.print(_summary_line(result), markup=False)
+            fos = _factor_line(result)
+            if fos:
+                out.print(fos, markup=False)
         return
     where = f"(results so far in {result.out_dir})"
     if result.status == "stopped":
@@ -385,7 +406,7 @@ def validate(
     preset = f" (preset {resolved.project.numerics.preset})" if resolved.project.numerics.preset else ""
     out.print(
         f"ok: {resolved.particle_count:,} particles, {len(resolved.config.materials)} materials, "
-        f"{len(resolved.body_names)} bodies, {len(resolved.config.stages)} stages, "
+        f"{len(resolved.body_names)} bodies, {len(resolved.project.stages)} stages, "
         f"grid {nx} x {ny} cells of {grid.cell_size_m:g} m, {numerics.scheme} {step}{preset}, "
         f"about {resolved.estimate['steps']:,} steps",
         markup=False,
@@ -400,16 +421,21 @@ def render(
     output: Annotated[Path | None, typer.Option(
         "-o", "--output", help="PNG file (default: beside the results folder, NAME_FIELD_FRAME.png).")] = None,
     size: Annotated[str, typer.Option("--size", help="Image size WIDTHxHEIGHT in pixels.")] = "1600x900",
+    mechanism: Annotated[bool, typer.Option(
+        "--mechanism", help="A strength-reduction run's mechanism with Bishop's circle and the trials.")] = False,
 ) -> None:
     """Render one frame to a PNG (offscreen)."""
-    from app.render import render_frame
+    from app.render import render_frame, render_mechanism
     from projects.results import ResultsError
 
     index = _parse_frame(frame)
     width_height = _parse_size(size)
     res = _open_results(results)
     try:
-        path = render_frame(res, index, field, output, size=width_height)
+        if mechanism:
+            path = render_mechanism(res, output, size=width_height)
+        else:
+            path = render_frame(res, index, field, output, size=width_height)
     except (ValueError, ResultsError) as exc:
         fail(str(exc))
     out.print(str(path), markup=False)
@@ -504,7 +530,7 @@ def bench(
 
 @cli.command()
 def study(
-    name: Annotated[str, typer.Argument(help="sand-column | bui2008 | slope | tradeoff | extremes", show_default=False)],
+    name: Annotated[str, typer.Argument(help="sand-column | bui2008 | slope | tradeoff | extremes | fos", show_default=False)],
     out_dir: Annotated[Path | None, typer.Option("--out", help="Report folder (default: study-results/NAME).")] = None,
     quick: Annotated[bool, typer.Option("--quick", help="The reduced version: a few minutes on two CPU cores.")] = False,
     budget_min: Annotated[float | None, typer.Option(

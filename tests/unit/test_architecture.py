@@ -1,4 +1,4 @@
-"""The direction of dependencies (docs/DESIGN.md): app -> projects -> {geometry, solver}.
+"""The direction of dependencies (docs/DESIGN.md): app -> projects -> {geometry, solver, stability}.
 
 Each package is imported in a fresh interpreter and the modules it must not pull in are checked.
 """
@@ -24,6 +24,8 @@ FORBIDDEN = {
     "app.cli": ["PySide6", "pyvista", "taichi", "gmsh"],
     "studies": ["PySide6", "pyvista", "app"],
     "benchmarks.bench": ["PySide6", "pyvista", "app"],
+    "stability": ["PySide6", "pyvista", "vtk", "gmsh", "taichi", "solver", "geometry", "projects", "app",
+                  "scipy", "shapely"],
 }
 
 
