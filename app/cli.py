@@ -56,6 +56,11 @@ class Arch(str, Enum):
     gpu = "gpu"
 
 
+class ProgressMode(str, Enum):
+    rich = "rich"
+    jsonl = "jsonl"
+
+
 # --------------------------------------------------------------------------------------------
 # shared helpers (also for commands defined in other modules)
 
@@ -223,6 +228,75 @@ class _RunProgress:
         )
 
 
+class _JsonProgress:
+    """Machine-readable progress of ``runout run --progress jsonl``: one JSON object per line.
+
+    Events (key ``event``), in this order:
+
+    - ``started``: ``out_dir`` (the results folder), ``particles``, ``total_time_s``; sent once
+      the results folder exists (before the first progress or frame event);
+    - ``progress``: ``time_s``, ``total_time_s`` (s), ``stage``, ``step``, ``steps_per_s``,
+      ``particle_steps_per_s``; at most every :attr:`INTERVAL_S` seconds;
+    - ``frame``: ``index`` and ``time_s`` of a frame handed to the results writer (it is on disk,
+      listed in ``particles.pvd``, shortly after);
+    - ``finished``: ``status`` ("completed", "stopped", "failed", or "error" when the run could
+      not start: invalid project, refused folder), ``message``, ``out_dir`` and the final
+      ``summary`` (absent for "error").
+
+    Consumers (the workbench) read the frames themselves from the results folder; this stream
+    only says when to look.
+    """
+
+    INTERVAL_S = 0.1
+
+    def __init__(self, stream: Any, out_dir: Path) -> None:
+        self.stream = stream
+        self.out_dir = out_dir
+        self.frames = 0
+        self._started = False
+        self._last = 0.0
+
+    def emit(self, event: str, **fields: Any) -> None:
+        import json
+
+        line = json.dumps({"event": event, **fields}, default=str)
+        try:
+            self.stream.write(line + "\n")
+            self.stream.flush()
+        except (OSError, ValueError):  # the reader went away: the run goes on regardless
+            pass
+
+    def _start(self) -> None:
+        if self._started:
+            return
+        import json
+
+        self._started = True
+        summary: dict[str, Any] = {}
+        try:
+            summary = json.loads((self.out_dir / "summary.json").read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            pass
+        self.emit("started", out_dir=str(self.out_dir), particles=summary.get("particles"),
+                  total_time_s=summary.get("total_time_s"))
+
+    def progress(self, p: Any) -> None:
+        import time
+
+        self._start()
+        now = time.perf_counter()
+        if now - self._last < self.INTERVAL_S:
+            return
+        self._last = now
+        self.emit("progress", time_s=p.time_s, total_time_s=p.total_time_s, stage=p.stage, step=p.step,
+                  steps_per_s=p.steps_per_s, particle_steps_per_s=p.particle_steps_per_s)
+
+    def frame(self, frame: Any) -> None:
+        self._start()
+        self.emit("frame", index=self.frames, time_s=float(frame.diagnostics.time_s))
+        self.frames += 1
+
+
 def _summary_line(result: RunResult) -> str:
     s = result.summary
     return (
@@ -246,37 +320,54 @@ def run(
     ] = None,
     arch: Annotated[Arch | None, typer.Option("--arch", help="Run on the CPU or the GPU.")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress or summary; errors only.")] = False,
+    progress_mode: Annotated[
+        ProgressMode,
+        typer.Option("--progress", help="rich: a progress bar on standard error; jsonl: one JSON object "
+                     "per line on standard output (started, progress, frame, finished) for programs."),
+    ] = ProgressMode.rich,
 ) -> None:
     """Run a project and write its results folder."""
     from projects.results import ResultsError
-    from projects.runner import StopRequest, run_project
+    from projects.runner import StopRequest, default_results_dir, run_project
     from projects.schema import ProjectError
 
-    if quiet:
+    jsonl = progress_mode is ProgressMode.jsonl
+    if quiet or jsonl:
         _setup_logging(verbose=False, quiet=True)
+    where_to = out_dir if out_dir is not None else default_results_dir(project)
+    events = _JsonProgress(sys.stdout, Path(where_to).expanduser().absolute()) if jsonl else None
     stop = StopRequest()
     with stop_on_signals(stop):
         try:
-            model = load_or_exit(project, overrides)
+            model = load_or_exit(project, overrides) if events is None else _load_or_report(project, overrides, events)
             # Taichi prints "[Taichi] Starting on arch=..." to stdout; keep stdout for results
             chatter = io.StringIO() if quiet else sys.stderr
-            with _RunProgress(quiet) as progress, contextlib.redirect_stdout(chatter):
+            with _RunProgress(quiet or jsonl) as progress, contextlib.redirect_stdout(chatter):
                 result = run_project(
                     model,
                     out_dir,
                     project_path=project,
                     arch=arch.value if arch is not None else None,
                     cancel=stop,
-                    on_progress=progress.update,
+                    on_progress=progress.update if events is None else events.progress,
+                    on_frame=None if events is None else events.frame,
                 )
                 if result.status == "completed":
                     progress.finish()
         except (ProjectError, ResultsError) as exc:
+            if events is not None:
+                events.emit("finished", status="error", message=str(exc), out_dir=str(events.out_dir))
             fail(str(exc))
         except KeyboardInterrupt:
+            if events is not None:
+                events.emit("finished", status="error", message="stopped before the run started",
+                            out_dir=str(events.out_dir))
             fail("stopped before the run started", EXIT_SIGINT)
+    if events is not None:
+        events.emit("finished", status=result.status, message=result.message, out_dir=str(result.out_dir),
+                    summary=result.summary)
     if result.status == "completed":
-        if not quiet:
+        if not quiet and not jsonl:
             out.print(_summary_line(result), markup=False)
         return
     where = f"(results so far in {result.out_dir})"
@@ -286,6 +377,18 @@ def run(
         raise typer.Exit(code)
     err.print(f"failed: {result.message} {where}", markup=False)
     raise typer.Exit(EXIT_FAILED)
+
+
+def _load_or_report(path: Path, overrides: list[str] | None, events: _JsonProgress) -> Project:
+    """:func:`load_or_exit` that also sends a ``finished`` event with status "error"."""
+    from projects.document import load_project
+    from projects.schema import ProjectError
+
+    try:
+        return load_project(path, overrides or ())
+    except ProjectError as exc:
+        events.emit("finished", status="error", message=str(exc), out_dir=str(events.out_dir))
+        fail(str(exc))
 
 
 @cli.command()

@@ -118,14 +118,16 @@ class SeriesCurves(_Canvas):
             self.data[key].append(float(getattr(diagnostics, attr)))
         self._push()
 
-    def set_series(self, series: dict[str, np.ndarray]) -> None:
-        """Show the columns of a results folder's ``series.csv``."""
+    def set_series(self, series: dict[str, np.ndarray], now: bool = True) -> None:
+        """Show the columns of a results folder's ``series.csv`` (redrawn at once, or with the
+        next scheduled redraw when ``now`` is False: a run under way)."""
         self.data = {"time_s": [float(v) for v in series.get("time_s", [])]}
         for key, *_ in SERIES_CURVES:
             column = series.get(key, [])
             self.data[key] = [float(v) for v in column] if len(column) == len(self.data["time_s"]) else []
         self._push()
-        self.redraw_now()
+        if now:
+            self.redraw_now()
 
     def _push(self) -> None:
         t = self.data["time_s"]

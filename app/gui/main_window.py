@@ -44,7 +44,7 @@ from app.gui.panels import (
 )
 from app.gui.results_view import CompareView, ResultsView
 from app.gui.run_panel import RunPanel
-from app.gui.run_worker import RunWorker
+from app.gui.run_process import RunOutcome, RunProcess
 from app.gui.scene_view import SceneView
 from app.gui.settings import MaterialLibrary, Settings
 from projects.schema import ProjectError
@@ -55,6 +55,8 @@ APP_NAME = "Runout"
 PROJECT_FILTER = "Runout project (*.toml);;All files (*)"
 #: Shortest time between two live frames drawn during a run (ms).
 LIVE_INTERVAL_MS = 200
+#: Interval of rereading the followed run's folder between frame events (ms).
+POLL_MS = 500
 
 
 class MainWindow(QMainWindow):
@@ -73,11 +75,11 @@ class MainWindow(QMainWindow):
         self.settings = settings or Settings()
         self.library = library or MaterialLibrary(self.settings.folder)
         self.doc = ProjectDocument(parent=self)
-        self.worker: RunWorker | None = None
-        self.last_worker: RunWorker | None = None
+        self.runs: list[RunProcess] = []
+        self.followed: RunProcess | None = None
+        self.last_run: RunProcess | None = None
         self._live_frames = 0
-        self._run_started = 0.0
-        self.last_result: Any = None
+        self.last_result: RunOutcome | None = None
         self.compare: CompareView | None = None
         self._shut = False
         self.setWindowTitle(APP_NAME)
@@ -127,10 +129,15 @@ class MainWindow(QMainWindow):
         self._estimate_timer.setSingleShot(True)
         self._estimate_timer.setInterval(150)
         self._estimate_timer.timeout.connect(self.run_panel.update_estimate)
-        self._live_timer = QTimer(self)
-        self._live_timer.setSingleShot(True)
-        self._live_timer.setInterval(LIVE_INTERVAL_MS)
-        self._live_timer.timeout.connect(self._take_frames)
+        # the followed run's folder is reread after a frame event (at most every LIVE_INTERVAL_MS)
+        # and, because frames reach the disk a little after their event, every POLL_MS
+        self._refresh_timer = QTimer(self)
+        self._refresh_timer.setSingleShot(True)
+        self._refresh_timer.setInterval(LIVE_INTERVAL_MS)
+        self._refresh_timer.timeout.connect(self._refresh_live)
+        self._poll_timer = QTimer(self)
+        self._poll_timer.setInterval(POLL_MS)
+        self._poll_timer.timeout.connect(self._refresh_live)
         self._update_title()
         self.run_panel.update_estimate()
 
@@ -253,6 +260,7 @@ class MainWindow(QMainWindow):
         self.run_panel.runRequested.connect(self.start_run)
         self.run_panel.cancelRequested.connect(self.cancel_run)
         self.run_panel.problemActivated.connect(self.go_to_problem)
+        self.run_panel.runSelected.connect(self._select_run)
 
     def _mode_changed(self, mode: str) -> None:
         self.actions_["draw" if mode == "draw" else "select"].setChecked(True)
@@ -429,17 +437,28 @@ class MainWindow(QMainWindow):
     def open_results(self, path: str | os.PathLike[str]) -> bool:
         from projects.results import ResultsError
 
-        if self.worker is not None:
-            self.show_error("Run in progress", "Wait for the run to end (or cancel it) before opening results.")
-            return False
         try:
             self.results_view.open_results(path)
         except (ResultsError, OSError) as err:
             self.show_error("Cannot open results", str(err))
             return False
+        self._unfollow()
         self.settings.add_recent(path, "results")
         self.tabs.setCurrentWidget(self.results_view)
         return True
+
+    def _unfollow(self) -> None:
+        """Stop showing a run (it goes on, listed in the run panel, where it can be chosen again)."""
+        if self.followed is None:
+            return
+        self.followed = None
+        self._refresh_timer.stop()
+        self._poll_timer.stop()
+        self.actions_["cancel"].setEnabled(False)
+        self.run_panel.set_running(False)
+        self.run_panel.runs.blockSignals(True)
+        self.run_panel.runs.setCurrentRow(-1)
+        self.run_panel.runs.blockSignals(False)
 
     def show_compare(self) -> CompareView:
         if self.compare is None:
@@ -593,11 +612,76 @@ class MainWindow(QMainWindow):
 
     @property
     def running(self) -> bool:
-        return self.worker is not None
+        """Whether any run of this window is still going on."""
+        return any(run.is_running() for run in self.runs)
+
+    def invalid_fields(self) -> list[str]:
+        """Editors shown red (a typed value the schema refuses, not written to the project):
+        one line each, naming the field, its key and what is wrong."""
+        from app.gui.fields import _Bound
+
+        lines = []
+        for editor in self.findChildren(_Bound):
+            error = getattr(editor, "error", "")
+            if error and editor.path:
+                lines.append(f"{editor.label} ({editor.path}): {error}")
+        return lines
+
+    def ask_replace_results(self, path: Path) -> str:
+        """"replace", "new" (a new folder beside it) or "cancel" for an existing results folder."""
+        box = QMessageBox(QMessageBox.Icon.Question, APP_NAME,
+                          f"{path} holds the results of an earlier run. Replace them (the run deletes the "
+                          "folder's frames, series and summary) or write this run to a new folder beside it?",
+                          parent=self)
+        new = box.addButton("New folder", QMessageBox.ButtonRole.AcceptRole)
+        replace = box.addButton("Replace", QMessageBox.ButtonRole.DestructiveRole)
+        box.addButton(QMessageBox.StandardButton.Cancel)
+        box.setDefaultButton(new)
+        box.exec()
+        clicked = box.clickedButton()
+        return "new" if clicked is new else "replace" if clicked is replace else "cancel"
+
+    def _free_folder(self, path: Path) -> Path:
+        """``NAME-2.results``, ``NAME-3.results``, ...: the first that neither exists nor is in use."""
+        busy = {r.out_dir for r in self.runs if r.is_running()}
+        stem, suffix = path.stem, path.suffix
+        for n in range(2, 10_000):
+            candidate = path.with_name(f"{stem}-{n}{suffix}").absolute()
+            if not candidate.exists() and candidate not in busy:
+                return candidate
+        raise OSError(f"no free folder name beside {path}")
+
+    def _choose_out_dir(self) -> Path | None:
+        """The folder for a new run: the one asked for, or a new one beside it when a run of this
+        window writes there or the user does not want earlier results replaced; None: cancelled."""
+        from projects.results import is_results_dir
+
+        out = self.out_dir().expanduser().absolute()
+        busy = {r.out_dir for r in self.runs if r.is_running()}
+        if out in busy:
+            new = self._free_folder(out)
+            self.statusBar().showMessage(f"{out.name} is in use by a run; this one writes to {new.name}", 8000)
+            return new
+        if is_results_dir(out):
+            answer = self.ask_replace_results(out)
+            if answer == "cancel":
+                return None
+            if answer == "new":
+                return self._free_folder(out)
+        return out
 
     def start_run(self) -> bool:
-        """Run the current project in a worker thread; the Results tab shows it live."""
-        if self.worker is not None:
+        """Run the current document in a child process (``runout run``); the Results tab follows it.
+
+        The document is written to a temporary project file for the run (the user's file and any
+        unsaved edits stay as they are). Several runs may go on at once, each in its own folder.
+        """
+        invalid = self.invalid_fields()
+        if invalid:
+            self.run_dock.show()
+            self.show_error("Cannot run", "These fields hold values that are not valid (shown red); the "
+                            "project still has the previous values. Correct them (or undo the typing) "
+                            "before running:\n" + "\n".join(invalid))
             return False
         project = self.doc.project
         if project is None:
@@ -606,112 +690,165 @@ class MainWindow(QMainWindow):
             return False
         if self.scene.mode == "draw":
             self.scene.set_mode("select")
-        out_dir = self.out_dir()
-        worker = RunWorker(project, out_dir, self.doc.path, parent=self)
-        worker.progressed.connect(self._on_progress)
-        worker.frameReady.connect(self._frame_waiting)
-        worker.finishedRun.connect(self._on_finished)
-        worker.failedToStart.connect(self._on_failed)
-        self.worker = worker
-        d = project.domain
-        box = (d.origin_m[0], d.origin_m[0] + d.size_m[0], d.origin_m[1], d.origin_m[1] + d.size_m[1])
-        spacing = d.cell_size_m / project.particles.per_cell
-        self.results_view.begin_live(project.runout.title or self.doc.display_name, box, spacing,
-                                     list(project.material_names))
-        self.run_panel.set_running(True)
-        self.actions_["run"].setEnabled(False)
-        self.actions_["cancel"].setEnabled(True)
-        self.tabs.setCurrentWidget(self.results_view)
-        self.statusBar().showMessage(f"Running… results go to {out_dir}")
-        self._run_started = time.perf_counter()
-        self._live_frames = 0
-        worker.start()
+        out_dir = self._choose_out_dir()
+        if out_dir is None:
+            return False
+        name = self.doc.path.stem if self.doc.path is not None else "untitled"
+        run = RunProcess(self.doc.text(), out_dir, name, parent=self)
+        run.runStarted.connect(lambda _e, r=run: self._run_started(r))
+        run.progressed.connect(lambda e, r=run: self._run_progressed(r, e))
+        run.frameWritten.connect(lambda _e, r=run: self._run_frame(r))
+        run.ended.connect(lambda o, r=run: self._run_ended(r, o))
+        run.title = project.runout.title or self.doc.display_name  # what the live view's header says
+        self.runs.append(run)
+        self.run_panel.add_run(self._run_text(run))
+        self.follow(run)
+        self.statusBar().showMessage(f"Running in a new process… results go to {out_dir}")
+        try:
+            run.start()
+        except OSError as err:
+            self.show_error("The run could not start", str(err))
+            return False
+        self._update_run_item(run)
         return True
 
-    def cancel_run(self) -> None:
-        if self.worker is not None:
-            self.worker.cancel()
-            self.run_panel.progress.setFormat("stopping…")
-            self.statusBar().showMessage("Stopping the run after the current steps…")
+    def _run_text(self, run: RunProcess) -> str:
+        status = run.status
+        if status == "running" and run.last_progress:
+            total = run.last_progress.get("total_time_s") or 0.0
+            fraction = (run.last_progress.get("time_s") or 0.0) / total if total > 0 else 0.0
+            status = f"running {100 * min(1.0, fraction):.0f} %"
+        pid = f"pid {run.pid}, " if run.is_running() and run.pid else ""
+        return f"{run.name} → {run.out_dir.name}: {status} ({pid}{run.frames} frames)"
 
-    def _on_progress(self, progress: Any) -> None:
+    def _update_run_item(self, run: RunProcess) -> None:
+        if run in self.runs:
+            self.run_panel.set_run_text(self.runs.index(run), self._run_text(run), run.status)
+
+    def follow(self, run: RunProcess) -> None:
+        """Show ``run`` in the Results tab and the run panel (live while it goes on)."""
+        self.followed = run
+        row = self.runs.index(run)
+        if self.run_panel.runs.currentRow() != row:
+            self.run_panel.runs.blockSignals(True)
+            self.run_panel.runs.setCurrentRow(row)
+            self.run_panel.runs.blockSignals(False)
+        self.tabs.setCurrentWidget(self.results_view)
+        if run.outcome is not None:
+            self._refresh_timer.stop()
+            self._poll_timer.stop()
+            self._show_outcome(run, run.outcome, ask=False)
+            return
+        self.run_panel.set_running(True)
+        self.actions_["cancel"].setEnabled(True)
+        self.results_view.follow(run.out_dir, run.title)
+        if run.last_progress is not None:
+            self.run_panel.show_progress(run.last_progress, time.perf_counter() - run.started_at)
+        if run.started_event is not None:
+            self._refresh_live()
+            self._poll_timer.start()
+
+    def _select_run(self, row: int) -> None:
+        if 0 <= row < len(self.runs) and self.runs[row] is not self.followed:
+            self.follow(self.runs[row])
+
+    def cancel_run(self) -> None:
+        """Stop the followed run (SIGTERM; SIGKILL if it has not ended 10 s later)."""
+        run = self.followed
+        if run is not None and run.is_running():
+            run.cancel()
+            self.run_panel.progress.setFormat("stopping…")
+            self._update_run_item(run)
+            self.statusBar().showMessage("Stopping the run after its current steps…")
+
+    def _run_started(self, run: RunProcess) -> None:
+        self._update_run_item(run)
+        if run is self.followed and not self._shut:
+            self._refresh_live()
+            self._poll_timer.start()
+
+    def _run_progressed(self, run: RunProcess, event: dict[str, Any]) -> None:
         if self._shut:
             return
-        self.run_panel.show_progress(progress, time.perf_counter() - self._run_started)
+        self._update_run_item(run)
+        if run is self.followed and not run.cancel_requested:
+            self.run_panel.show_progress(event, time.perf_counter() - run.started_at)
 
-    def _frame_waiting(self) -> None:
-        # the first frame at once, then at most every LIVE_INTERVAL_MS: the view shows the
-        # newest frame, the curves get all
-        if self._live_frames == 0:
-            self._take_frames()
-        elif not self._live_timer.isActive():
-            self._live_timer.start()
-
-    def _take_frames(self) -> None:
-        if self.worker is None or self._shut:
+    def _run_frame(self, run: RunProcess) -> None:
+        if self._shut or run is not self.followed:
             return
-        frame, diagnostics = self.worker.take()
-        self.results_view.add_live_points(diagnostics)
-        if frame is not None:
-            self.results_view.show_live(frame)
+        self._update_run_item(run)
+        # the first frame at once, then at most every LIVE_INTERVAL_MS
+        if self.results_view.results is None:
+            self._refresh_live()
+        elif not self._refresh_timer.isActive():
+            self._refresh_timer.start()
+
+    def _refresh_live(self) -> None:
+        if self._shut or self.followed is None or not self.results_view.live:
+            return
+        if self.results_view.refresh():
             self._live_frames += 1
 
-    def _end_worker(self) -> None:
-        self._live_timer.stop()
-        worker, self.worker = self.worker, None
-        if self.last_worker is not None:
-            self.last_worker.deleteLater()
-        self.last_worker = worker  # kept for its timings until the next run ends
-        if worker is not None:
-            worker.wait()
-        self.actions_["run"].setEnabled(True)
-        self.actions_["cancel"].setEnabled(False)
-        self.results_view.end_live()
-
-    def _on_finished(self, result: Any) -> None:
+    def _run_ended(self, run: RunProcess, outcome: RunOutcome) -> None:
         if self._shut:
             return
-        self._end_worker()
-        self.last_result = result
-        self.run_panel.show_result(result.status, result.message, result.summary)
-        summary = result.summary or {}
+        self._update_run_item(run)
+        self.last_result = outcome
+        self.last_run = run
+        summary = outcome.summary or {}
         arch = summary.get("arch")
-        if result.status == "completed" and arch in ("cpu", "gpu"):
+        if outcome.status == "completed" and arch in ("cpu", "gpu"):
             self.settings.record_throughput(arch, float(summary.get("particle_steps_per_s") or 0.0))
             self.settings.set("last_arch", arch)
             self.run_panel.update_estimate()
+        if run is self.followed:
+            self._refresh_timer.stop()
+            self._poll_timer.stop()
+            self._show_outcome(run, outcome, ask=True)
+        else:
+            self.statusBar().showMessage(f"Run {run.name} → {run.out_dir.name} {outcome.status}: {outcome.message}",
+                                         10000)
+
+    def _show_outcome(self, run: RunProcess, outcome: RunOutcome, ask: bool) -> None:
+        """Show how a run ended, and its folder (whatever it holds: frames up to a crash too)."""
         from projects.results import ResultsError
 
-        try:
-            self.results_view.open_results(result.out_dir)
-            self.settings.add_recent(result.out_dir, "results")
-        except (ResultsError, OSError, ValueError) as err:
-            logger.warning("cannot show the results: %s", err)
-        self.statusBar().showMessage(f"Run {result.status}: {result.message}", 10000)
-        if result.status == "failed":
-            self.show_error("The run failed", f"{result.message}\n\nFrames written until then are in {result.out_dir}.")
-
-    def _on_failed(self, message: str) -> None:
-        if self._shut:
+        self.actions_["cancel"].setEnabled(False)
+        self.results_view.end_live()
+        self.run_panel.show_result(outcome.status, outcome.message, outcome.summary)
+        shown = False
+        if outcome.status != "error":
+            try:
+                self.results_view.open_results(outcome.out_dir)
+                self.settings.add_recent(outcome.out_dir, "results")
+                shown = True
+            except (ResultsError, OSError, ValueError) as err:
+                logger.warning("cannot show the results: %s", err)
+        self.statusBar().showMessage(f"Run {outcome.status}: {outcome.message}", 10000)
+        if not ask:
             return
-        self._end_worker()
-        self.last_result = None
-        self.run_panel.show_result("failed", message)
-        self.show_error("The run could not start", message)
+        if outcome.status == "error":
+            self.show_error("The run could not start", outcome.message)
+        elif outcome.status in ("failed", "killed", "crashed"):
+            where = (f"Frames written until then are in {outcome.out_dir}." if shown
+                     else f"No complete frame was written to {outcome.out_dir}.")
+            title = "The run failed" if outcome.status == "failed" else "The run process ended abnormally"
+            self.show_error(title, f"{outcome.message}\n\n{where}")
 
     def wait_for_run(self, timeout_s: float = 60.0) -> bool:
-        """Process events until the running worker has finished (for scripts and tests)."""
+        """Process events until no run of this window goes on (for scripts and tests)."""
         end = time.perf_counter() + timeout_s
-        while self.worker is not None and time.perf_counter() < end:
+        while self.running and time.perf_counter() < end:
             QApplication.processEvents()
             time.sleep(0.01)
-        return self.worker is None
+        return not self.running
 
     # -- closing ---------------------------------------------------------------------------------------
 
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt's name
         if not self._shut:
-            if self.worker is not None and not self.ask_stop_run():
+            if self.running and not self.ask_stop_run():
                 event.ignore()
                 return
             if not self.maybe_save():
@@ -726,11 +863,15 @@ class MainWindow(QMainWindow):
             return
         self._shut = True
         self._estimate_timer.stop()
-        self._live_timer.stop()
-        if self.worker is not None:
-            self.worker.cancel()
-            self.worker.wait(30_000)
-            self.worker = None
+        self._refresh_timer.stop()
+        self._poll_timer.stop()
+        running = [run for run in self.runs if run.is_running()]
+        for run in running:
+            run.cancel()
+        for run in running:
+            if not run.wait(15_000):
+                run.kill()
+                run.wait(5_000)
         self.scene.close_view()
         self.results_view.close_view()
         if self.compare is not None:

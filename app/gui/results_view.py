@@ -463,11 +463,14 @@ class ResultsView(QWidget):
     """
 
     message = Signal(str)
+    resultsShown = Signal()
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.results: Any = None
         self.live = False
+        self.live_path: Path | None = None
+        self.live_title = ""
         self.frame_index = 0
         self.live_time = 0.0
         self.history: tuple[str, np.ndarray, np.ndarray] | None = None
@@ -510,43 +513,45 @@ class ResultsView(QWidget):
         self.controls.slider.setEnabled(on)
 
     # -- live runs --------------------------------------------------------------------------------
+    # A run under way is shown from its results folder, read the same way as a finished one:
+    # follow() names the folder, refresh() reopens it whenever the run says a frame was written
+    # (and on a timer), and the view jumps to the newest frame unless the user moved the slider.
 
-    def begin_live(self, title: str, box: tuple[float, float, float, float] | None, spacing_m: float,
-                   material_names: list[str]) -> None:
-        """Prepare to show the frames of a run as they arrive."""
+    def follow(self, path: str | Path, title: str) -> None:
+        """Show the run writing to ``path`` as its frames arrive (call :meth:`refresh` to look)."""
         self.controls.stop()
         self.results = None
         self.live = True
+        self.live_path = Path(path)
+        self.live_title = title
         self.history = None
         self.history_plot.clear_history()
         self.scene.clear()
-        self.scene.set_domain(box, spacing_m, material_names)
         self.curves.clear()
         self.curves.set_time(None)
         self.controls.slider.blockSignals(True)
         self.controls.slider.setRange(0, 0)
         self.controls.slider.blockSignals(False)
         self._set_enabled(False)
-        self.header.setText(f"Running: {title}")
+        self.header.setText(f"Running: {title} — {path}")
         self.controls.time_label.setText("starting…")
 
-    def show_live(self, frame: Any) -> None:
-        """Draw a frame of the running solver (the newest; the view may skip some)."""
-        diag = frame.diagnostics
-        self.live_time = float(diag.time_s)
-        self._apply_style()
-        self.scene.show_arrays(frame.fields, diag.time_s, f"{diag.stage}   (live)")
-        self.controls.show_range(self.scene.shown_clim)
-        self.controls.time_label.setText(f"t = {diag.time_s:.4g} s   step {diag.step:,}")
-        if self.scene.message:
-            self.message.emit(self.scene.message)
+    def refresh(self) -> bool:
+        """Reread the followed folder; True when it shows a frame it did not show before."""
+        if not self.live or self.live_path is None:
+            return False
+        from projects.results import ResultsError
 
-    def add_live_points(self, diagnostics: list[Any]) -> None:
-        """Add the diagnostics of frames of the running solver to the curves (all of them, in order)."""
-        for d in diagnostics:
-            self.curves.append(d)
+        before = len(self.results) if self.results is not None else 0
+        try:
+            self._show_folder(self.live_path, live=True)
+        except (ResultsError, OSError) as err:  # not there yet, or no complete frame yet
+            logger.debug("live results not readable yet: %s", err)
+            return False
+        return len(self.results) > before
 
     def end_live(self) -> None:
+        """The followed run has ended: stop following (its folder stays open)."""
         self.live = False
 
     # -- results folders ----------------------------------------------------------------------------
@@ -559,38 +564,57 @@ class ResultsView(QWidget):
         projects.results.ResultsError
             When ``path`` is not a results folder or has no complete frame.
         """
+        self.live = False
+        self.live_path = None
+        self._show_folder(Path(path), live=False)
+
+    def _show_folder(self, path: Path, live: bool) -> None:
         from projects.results import ResultsError, open_results
 
         results = open_results(path)
         if len(results) == 0:
             raise ResultsError(f"{results.path} has no complete frames to show")
-        self.controls.stop()
+        previous = self.results
+        same = (previous is not None and previous.path == results.path and live
+                and self.scene.picked_id is not None)
+        at_end = previous is None or self.frame_index >= len(previous) - 1 or not live
+        if not live or previous is None or previous.path != results.path:
+            self.controls.stop()
+            self.history = None
+            self.history_plot.clear_history()
+            spacing = results.summary.get("particle_spacing_m") or 0.0
+            self.scene.clear()
+            self.scene.set_domain(_domain_of(results.summary), float(spacing), results.material_names)
         self.results = results
-        self.live = False
-        self.history = None
-        self.history_plot.clear_history()
-        spacing = results.summary.get("particle_spacing_m") or 0.0
-        self.scene.clear()
-        self.scene.set_domain(_domain_of(results.summary), float(spacing), results.material_names)
-        self.curves.set_series(results.series)
+        if live:
+            self.curves.set_series(results.series, now=False)
+        else:
+            self.curves.set_series(results.series)
         status = results.status
         title = results.summary.get("title") or results.path.name
-        info = (f"{title} — {results.path}   [{status}"
-                f"{': ' + results.message if results.message and status != 'completed' else ''}]   "
+        if live:
+            state = "running"
+        else:
+            state = status + (": " + results.message if results.message and status != "completed" else "")
+        info = (f"{title} — {results.path}   [{state}]   "
                 f"{results.summary.get('particles', '?')} particles, {results.summary.get('scheme', '?')}, "
                 f"{results.summary.get('arch', '?')} {results.summary.get('precision', '')}")
         self.header.setText(info)
         self._set_enabled(True)
         slider = self.controls.slider
+        index = len(results) - 1 if at_end else min(self.frame_index, len(results) - 1)
         slider.blockSignals(True)
         slider.setRange(0, len(results) - 1)
-        slider.setValue(len(results) - 1)
+        slider.setValue(index)
         slider.blockSignals(False)
-        self.show_frame(len(results) - 1)
+        self.show_frame(index)
+        if same and self.history is not None:
+            self.pick_particle(self.scene.picked_id)
+        self.resultsShown.emit()
 
     def show_frame(self, index: int) -> None:
-        """Show frame ``index`` of the open results folder."""
-        if self.results is None or self.live:
+        """Show frame ``index`` of the open results folder (also while its run goes on)."""
+        if self.results is None:
             return
         n = len(self.results)
         index = max(0, min(int(index), n - 1))
@@ -601,7 +625,8 @@ class ResultsView(QWidget):
             self.controls.slider.blockSignals(False)
         time_s = float(self.results.times[index])
         self._apply_style()
-        self.scene.show_arrays(self.results.frame(index), time_s, f"frame {index + 1}/{n}")
+        caption = f"frame {index + 1}/{n}" + ("   (live)" if self.live else "")
+        self.scene.show_arrays(self.results.frame(index), time_s, caption)
         self.controls.show_range(self.scene.shown_clim)
         stage = self._stage_at(index)
         self.controls.time_label.setText(f"t = {time_s:.4g} s   frame {index + 1}/{n}{stage}")
@@ -624,7 +649,7 @@ class ResultsView(QWidget):
 
     def _restyle(self) -> None:
         self.controls._sync_unit()
-        if self.results is not None and not self.live:
+        if self.results is not None:
             self.show_frame(self.frame_index)
             if self.history is not None and self.scene.picked_id is not None:
                 self.pick_particle(self.scene.picked_id)

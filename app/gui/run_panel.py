@@ -50,13 +50,17 @@ class RunPanel(QWidget):
     -------
     runRequested()
     cancelRequested()
+        Cancel the run selected in the run list.
     problemActivated(str)
         The key path of a problem the user double-clicked.
+    runSelected(int)
+        The row of the run list the user chose (the window follows that run).
     """
 
     runRequested = Signal()
     cancelRequested = Signal()
     problemActivated = Signal(str)
+    runSelected = Signal(int)
 
     def __init__(self, doc: ProjectDocument, settings: Settings, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -84,7 +88,8 @@ class RunPanel(QWidget):
         row.addWidget(QLabel("Results"))
         self.out_dir = QLineEdit()
         self.out_dir.setPlaceholderText("NAME.results next to the project file")
-        self.out_dir.setToolTip("Results folder; an existing results folder there is replaced")
+        self.out_dir.setToolTip("Results folder; if one is there already you are asked whether to replace "
+                                "it or to use a new folder beside it")
         browse = QPushButton("…")
         browse.setMaximumWidth(30)
         browse.clicked.connect(self._browse)
@@ -117,6 +122,15 @@ class RunPanel(QWidget):
         self.status.setWordWrap(True)
         self.status.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
         vbox.addWidget(self.status)
+        layout.addWidget(box)
+
+        box = QGroupBox("Runs (each a process with its own folder)")
+        vbox = QVBoxLayout(box)
+        self.runs = QListWidget()
+        self.runs.setToolTip("Runs of this session; choose one to follow it (progress, live view, Cancel)")
+        self.runs.setMaximumHeight(110)
+        self.runs.currentRowChanged.connect(lambda row: row >= 0 and self.runSelected.emit(row))
+        vbox.addWidget(self.runs)
         layout.addWidget(box)
 
         self.problems_box = QGroupBox("Problems")
@@ -184,10 +198,27 @@ class RunPanel(QWidget):
         if path:
             self.out_dir.setText(path)
 
+    def add_run(self, text: str) -> None:
+        """List a new run and choose it."""
+        self.runs.addItem(text)
+        self.runs.blockSignals(True)
+        self.runs.setCurrentRow(self.runs.count() - 1)
+        self.runs.blockSignals(False)
+
+    def set_run_text(self, row: int, text: str, status: str) -> None:
+        item = self.runs.item(row)
+        if item is None:
+            return
+        item.setText(text)
+        color = {"completed": "#188038", "stopped": "#e37400", "running": "#1a73e8",
+                 "starting": "#1a73e8", "stopping": "#e37400"}.get(status, "#b3261e")
+        from PySide6.QtGui import QColor
+
+        item.setForeground(QColor(color))
+
     def set_running(self, running: bool) -> None:
-        self.run_button.setEnabled(not running)
+        """Show the chosen run as running (Cancel on, progress reset) or not."""
         self.cancel_button.setEnabled(running)
-        self.out_dir.setEnabled(not running)
         if running:
             self.progress.setValue(0)
             self.progress.setFormat("starting (compiling the solver)…")
@@ -197,7 +228,12 @@ class RunPanel(QWidget):
             self._t0 = None
 
     def show_progress(self, progress: Any, wall_s: float) -> None:
-        """Show a solver Progress; ``wall_s`` is the time since the run started."""
+        """Show a ``progress`` event of a run (a dict, or an object with the same attributes);
+        ``wall_s`` is the time since the run started."""
+        if isinstance(progress, dict):
+            from types import SimpleNamespace
+
+            progress = SimpleNamespace(**progress)
         total = progress.total_time_s
         fraction = progress.time_s / total if total > 0 else 0.0
         self.progress.setValue(int(round(1000 * min(1.0, fraction))))
@@ -223,7 +259,7 @@ class RunPanel(QWidget):
                                f"{format_duration(summary.get('wall_time_s') or 0.0)} of wall time")
             rate = summary.get("particle_steps_per_s") or 0.0
             self.rate.setText(f"Speed: {rate / 1e6:.3g} M particle-steps/s on {summary.get('arch', '?')}")
-        color = {"completed": "#188038", "stopped": "#e37400"}.get(status, "#b3261e")
+        color = {"completed": "#188038", "stopped": "#e37400", "running": "#1a73e8"}.get(status, "#b3261e")
         self.status.setStyleSheet(f"color: {color};")
         self.status.setText(f"{status}: {message}")
         if status == "completed":
