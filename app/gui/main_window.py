@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import logging
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
-from PySide6.QtCore import QSize, Qt, QTimer
-from PySide6.QtGui import QAction, QActionGroup, QCloseEvent, QKeySequence
+from PySide6.QtCore import QSize, Qt, QTimer, QUrl, qVersion
+from PySide6.QtGui import QAction, QActionGroup, QCloseEvent, QDesktopServices, QKeySequence
 from PySide6.QtWidgets import (
     QApplication,
     QDialog,
@@ -57,6 +58,16 @@ PROJECT_FILTER = "Runout project (*.toml);;All files (*)"
 LIVE_INTERVAL_MS = 200
 #: Interval of rereading the followed run's folder between frame events (ms).
 POLL_MS = 500
+
+
+#: Where the documentation is read online when the workbench runs from an installed package.
+DOCS_ONLINE = "https://github.com/runout/runout/blob/main/docs/gui.md"
+
+
+def documentation_url() -> QUrl:
+    """The workbench's manual: ``docs/gui.md`` of the checkout it runs from, else online."""
+    local = Path(__file__).resolve().parents[2] / "docs" / "gui.md"
+    return QUrl.fromLocalFile(str(local)) if local.is_file() else QUrl(DOCS_ONLINE)
 
 
 class MainWindow(QMainWindow):
@@ -197,6 +208,8 @@ class MainWindow(QMainWindow):
         a["particles"].setChecked(True)
         a["fit"] = self._action("&Fit view", self.scene.fit, "F")
         a["slope"] = self._action("Slope from &template…", self.slope_dialog)
+        a["import_body"] = self._action("&Import slope profile…", self.import_body_dialog, "Ctrl+I",
+                                        "A body from a CSV or DXF profile (closed down to a base) or a mesh outline")
         a["delete_vertex"] = self._action("Delete &vertex", self.scene.delete_selected_vertex)
         a["run"] = self._action("&Run", self.start_run, "F5", "Run the project in the background")
         a["run"].setIcon(style.standardIcon(QStyle.StandardPixmap.SP_MediaPlay))
@@ -226,13 +239,16 @@ class MainWindow(QMainWindow):
         model = bar.addMenu("&Model")
         model.addActions([a["select"], a["draw"], a["snap"], a["particles"], a["fit"]])
         model.addSeparator()
-        model.addAction(a["slope"])
+        model.addActions([a["slope"], a["import_body"]])
         run = bar.addMenu("&Run")
         run.addActions([a["run"], a["cancel"]])
         view = bar.addMenu("&View")
         view.addAction(a["compare"])
         help_menu = bar.addMenu("&Help")
-        help_menu.addAction(self._action("&About Runout", self._about))
+        a["docs"] = self._action("&Documentation", self.open_documentation, QKeySequence.StandardKey.HelpContents,
+                                 "The workbench's manual (docs/gui.md) and the project-file reference")
+        a["about"] = self._action("&About Runout", self._about)
+        help_menu.addActions([a["docs"], a["about"]])
 
         tools = self.addToolBar("Main")
         tools.setObjectName("main-toolbar")
@@ -261,6 +277,7 @@ class MainWindow(QMainWindow):
         self.run_panel.cancelRequested.connect(self.cancel_run)
         self.run_panel.problemActivated.connect(self.go_to_problem)
         self.run_panel.runSelected.connect(self._select_run)
+        self.run_panel.removeUnknownRequested.connect(self.remove_unknown_keys)
 
     def _mode_changed(self, mode: str) -> None:
         self.actions_["draw" if mode == "draw" else "select"].setChecked(True)
@@ -275,8 +292,21 @@ class MainWindow(QMainWindow):
         default = self._default_out_dir()
         self.run_panel.out_dir.setPlaceholderText(str(default))
 
+    def about_text(self) -> str:
+        """Version and where the documentation is (Help ▸ About)."""
+        from projects.results import runout_version
+
+        docs = documentation_url()
+        return (f"<b>Runout {runout_version()}</b><br>Landslide run-out analysis with the material point method."
+                f"<br><br>Documentation: <a href=\"{docs.toString()}\">{docs.toString()}</a>"
+                f"<br>Python {sys.version.split()[0]}, Qt {qVersion()}")
+
     def _about(self) -> None:
-        QMessageBox.about(self, "About Runout", "Runout: landslide run-out analysis with the material point method.")
+        QMessageBox.about(self, "About Runout", self.about_text())
+
+    def open_documentation(self) -> bool:
+        """Open the manual in the desktop's viewer (Help ▸ Documentation)."""
+        return bool(QDesktopServices.openUrl(documentation_url()))
 
     # -- questions (replaceable in scripts and tests) -----------------------------------------------
 
@@ -481,10 +511,14 @@ class MainWindow(QMainWindow):
             self.show_error("Cannot open results", str(err))
 
     def _export_path(self, suffix: str) -> Path:
+        """Default file of an export: beside the results folder, never inside it (a re-run may
+        replace the folder)."""
         results = self.results_view.results
-        base = results.path if results is not None else Path.cwd()
         field = self.results_view.controls.field_name
-        return base / f"{field}_{self.results_view.frame_index:05d}{suffix}"
+        if results is None:
+            return Path.cwd() / f"{field}_{self.results_view.frame_index:05d}{suffix}"
+        folder = Path(results.path)
+        return folder.parent / f"{folder.stem}_{field}_{self.results_view.frame_index:05d}{suffix}"
 
     def export_picture_dialog(self) -> None:
         if self.results_view.results is None:
@@ -507,31 +541,55 @@ class MainWindow(QMainWindow):
         if self.results_view.results is None:
             self.show_error("Nothing to export", "Open a results folder (or run the project) first.")
             return
-        dialog = ExportDialog("movie", self._export_path(".mp4").with_name(
-            f"{self.results_view.controls.field_name}.mp4"), self)
+        frame_png = self._export_path(".png")
+        movie = frame_png.with_name(frame_png.stem.rsplit("_", 1)[0] + ".mp4")  # without the frame number
+        dialog = ExportDialog("movie", movie, self)
         if dialog.exec() != QDialog.DialogCode.Accepted:
             return
-        progress = QProgressDialog("Rendering frames…", "", 0, len(self.results_view.results), self)
-        progress.setCancelButton(None)
+        self.export_animation(dialog.path.text(), dialog.fps.value(), dialog.size_px)
+
+    def export_animation(self, path: str | os.PathLike[str], fps: float, size: tuple[int, int]) -> Path | None:
+        """Write every frame as a movie with a progress dialog that can cancel it (the partial
+        file is removed); None when cancelled or failed (the user was told)."""
+        n = len(self.results_view.results) if self.results_view.results is not None else 0
+        progress = QProgressDialog("Rendering frames…", "Cancel", 0, max(n, 1), self)
+        progress.setWindowTitle("Export animation")
         progress.setWindowModality(Qt.WindowModality.WindowModal)
+        progress.setMinimumDuration(0)
+        progress.setValue(0)
         progress.show()
+        self.export_progress = progress
+        QApplication.processEvents()
+
+        class Cancelled(Exception):
+            pass
 
         def step(done: int, total: int) -> None:
             progress.setMaximum(total)
             progress.setValue(done)
+            progress.setLabelText(f"Rendering frame {done} of {total}…")
             QApplication.processEvents()
+            if progress.wasCanceled():
+                raise Cancelled
 
+        target = Path(path)
         try:
-            path = self.results_view.export_animation(dialog.path.text(), dialog.fps.value(), dialog.size_px, step)
+            written = self.results_view.export_animation(target, fps, size, step)
+        except Cancelled:
+            target.unlink(missing_ok=True)
+            self.statusBar().showMessage("Export cancelled; no movie written", 6000)
+            return None
         except (ValueError, OSError) as err:
             self.show_error("Export failed", str(err))
-            return
+            return None
         finally:
             progress.close()
-        self.statusBar().showMessage(f"Wrote {path}", 6000)
+        self.statusBar().showMessage(f"Wrote {written}", 6000)
+        return written
 
     def export_curves_dialog(self) -> None:
-        start = str(self._export_path(".csv").with_name("curves.csv"))
+        frame_csv = self._export_path(".csv")
+        start = str(frame_csv.with_name(frame_csv.stem.rsplit("_", 2)[0] + "_curves.csv"))
         path, _ = QFileDialog.getSaveFileName(self, "Export curves", start, "CSV (*.csv)")
         if not path:
             return
@@ -577,6 +635,84 @@ class MainWindow(QMainWindow):
         self.doc.edit("slope from template", mutate)
         self.doc.selection.set(None)
         self.scene.fit()
+        return True
+
+    def remove_unknown_keys(self) -> list[str]:
+        """Remove the keys the schema does not know (typos from a file) as one undo step."""
+        removed = self.doc.remove_unknown_keys()
+        if removed:
+            self.statusBar().showMessage("Removed unknown keys: " + ", ".join(removed), 8000)
+        return removed
+
+    def ask_import(self) -> tuple[str, str, float | None] | None:
+        """The file, the material and the base height (None: the profile's lowest point) of an import."""
+        from PySide6.QtWidgets import QInputDialog
+
+        from app.gui.imports import IMPORT_FILTER
+
+        start = str(self.doc.path.parent) if self.doc.path else str(Path.cwd())
+        path, _ = QFileDialog.getOpenFileName(self, "Import slope profile", start, IMPORT_FILTER)
+        if not path:
+            return None
+        names = self.doc.material_names or ["soil"]
+        material, ok = QInputDialog.getItem(self, "Import slope profile", "Material of the new body", names, 0, False)
+        if not ok:
+            return None
+        text, ok = QInputDialog.getText(self, "Import slope profile",
+                                        "Base height of an open profile (m; empty: its lowest point)")
+        if not ok:
+            return None
+        from app.gui.units import parse_quantity
+
+        base, _err = parse_quantity(text, "m") if text.strip() else (None, "")
+        return path, material, base
+
+    def import_body_dialog(self) -> bool:
+        answer = self.ask_import()
+        return self.import_body(*answer) if answer else False
+
+    def import_body(self, path: str | os.PathLike[str], material: str | None = None,
+                    base_y_m: float | None = None) -> bool:
+        """Add a body from a CSV or DXF profile or a mesh outline (one undo step); the domain grows
+        to hold it when it does not (keeping its cell size, a margin of a tenth of the body)."""
+        import numpy as np
+
+        from app.gui.imports import read_outline
+
+        try:
+            outline = read_outline(path, base_y_m)
+        except (ValueError, OSError) as err:
+            self.show_error("Cannot import", str(err))
+            return False
+        material = material or (self.doc.material_names[0] if self.doc.material_names else "soil")
+        name = Path(path).stem
+        lo, hi = outline.min(axis=0), outline.max(axis=0)
+        origin = self.doc.get("domain.origin_m") or [0.0, 0.0]
+        size = self.doc.get("domain.size_m") or [1.0, 1.0]
+        d_lo, d_hi = np.asarray(origin, float), np.asarray(origin, float) + np.asarray(size, float)
+        grow = bool(np.any(lo < d_lo) or np.any(hi > d_hi))
+
+        def mutate(d: dict[str, Any]) -> None:
+            names = {b.get("name") for b in d.get("bodies", [])}
+            body_name = name
+            while body_name in names:
+                body_name += "-2"
+            d.setdefault("bodies", []).append(
+                {"name": body_name, "material": material, "polygon_m": [[float(x), float(y)] for x, y in outline]})
+            if grow:
+                # a closed bottom: the base of the body rests on it; room above and to the sides
+                margin = 0.1 * float(max(hi - lo))
+                new_lo = np.minimum(d_lo, [lo[0] - margin, lo[1]])
+                new_hi = np.maximum(d_hi, hi + margin)
+                d["domain"]["origin_m"] = [float(v) for v in new_lo]
+                d["domain"]["size_m"] = [float(v) for v in new_hi - new_lo]
+
+        self.doc.edit(f"import {name}", mutate)
+        self.doc.selection.set(len(self.doc.get("bodies", [])) - 1)
+        self.tabs.setCurrentWidget(self.scene)
+        self.scene.fit()
+        note = "; the domain was enlarged to hold it" if grow else ""
+        self.statusBar().showMessage(f"Imported {name}: {len(outline)} vertices{note}", 8000)
         return True
 
     def go_to_problem(self, path: str) -> None:

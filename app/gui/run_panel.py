@@ -55,12 +55,15 @@ class RunPanel(QWidget):
         The key path of a problem the user double-clicked.
     runSelected(int)
         The row of the run list the user chose (the window follows that run).
+    removeUnknownRequested()
+        Remove the keys the schema does not know (typos in a file) from the project.
     """
 
     runRequested = Signal()
     cancelRequested = Signal()
     problemActivated = Signal(str)
     runSelected = Signal(int)
+    removeUnknownRequested = Signal()
 
     def __init__(self, doc: ProjectDocument, settings: Settings, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -69,17 +72,25 @@ class RunPanel(QWidget):
         layout = QVBoxLayout(self)
         layout.setContentsMargins(6, 6, 6, 6)
 
-        box = QGroupBox("Before running")
+        box = QGroupBox("What will run")
         form = QFormLayout(box)
         self.particles = QLabel("–")
         self.grid = QLabel("–")
+        self.cell = QLabel("–")
+        self.numerics = QLabel("–")
         self.steps = QLabel("–")
         self.runtime = QLabel("–")
-        self.runtime.setWordWrap(True)
+        self.preset_note = QLabel("")
+        for w in (self.runtime, self.cell, self.numerics, self.preset_note, self.steps):
+            w.setWordWrap(True)
+        self.preset_note.setStyleSheet("color: #e37400;")
         form.addRow("Particles", self.particles)
+        form.addRow("Cell size", self.cell)
         form.addRow("Grid", self.grid)
+        form.addRow("Numerics", self.numerics)
         form.addRow("Time steps", self.steps)
         form.addRow("Run time", self.runtime)
+        form.addRow(self.preset_note)
         layout.addWidget(box)
 
         box = QGroupBox("Run")
@@ -141,6 +152,12 @@ class RunPanel(QWidget):
             lambda item: self.problemActivated.emit(item.data(Qt.ItemDataRole.UserRole) or ""))
         vbox.addWidget(self.problems)
         self.problems.setMaximumHeight(220)
+        self.remove_unknown = QPushButton("Remove unknown keys")
+        self.remove_unknown.setToolTip("Keys the project format does not know (a typo in the file) are "
+                                       "never used; remove them so that the project can run")
+        self.remove_unknown.clicked.connect(self.removeUnknownRequested)
+        self.remove_unknown.setVisible(False)
+        vbox.addWidget(self.remove_unknown)
         layout.addWidget(self.problems_box)
         layout.addStretch(1)
         self._t0: tuple[float, float] | None = None
@@ -164,20 +181,43 @@ class RunPanel(QWidget):
             self.problems.item(self.problems.count() - 1).setData(Qt.ItemDataRole.UserRole, p.path)
         n = len(self.doc.problems)
         self.problems_box.setTitle(f"Problems ({n})" if n else "Problems (none)")
+        self.remove_unknown.setVisible(bool(self.doc.unknown_keys()))
         self.problems.setMaximumHeight(260 if n else 48)
         if project is None:
-            for w in (self.particles, self.grid, self.steps):
+            for w in (self.particles, self.grid, self.steps, self.cell, self.numerics):
                 w.setText("–")
+            self.preset_note.setText("")
             self.runtime.setText("fix the problems below first")
             return None
         from projects.build import estimate
+        from projects.presets import apply_preset
+        from projects.schema import DEFAULT_CFL, ProjectError
 
         try:
             e = estimate(project)
-        except (ValueError, ZeroDivisionError) as err:
+            effective = apply_preset(project)  # what the run uses (projects.resolve will say it once)
+        except (ValueError, ZeroDivisionError, ProjectError) as err:
             self.runtime.setText(str(err))
             return None
         nx, ny = e["grid_shape"]
+        dx = effective.domain.cell_size_m
+        num = effective.numerics
+        self.cell.setText(f"{dx:.4g} m, {effective.particles.per_cell}² particles per cell")
+        step = f"time step {num.time_step_s:g} s" if num.time_step_s is not None else f"CFL {num.cfl or DEFAULT_CFL:g}"
+        self.numerics.setText(f"{num.scheme}, {step}, {num.precision}")
+        changed = []
+        if project.numerics.preset is not None:
+            if dx != project.domain.cell_size_m:
+                changed.append(f"cell size {project.domain.cell_size_m:g} → {dx:.4g} m")
+            if effective.particles.per_cell != project.particles.per_cell:
+                changed.append(f"particles per cell {project.particles.per_cell} → {effective.particles.per_cell}")
+            if num.scheme != project.numerics.scheme:
+                changed.append(f"scheme {project.numerics.scheme} → {num.scheme}")
+            if num.cfl != project.numerics.cfl:
+                changed.append(f"CFL {project.numerics.cfl or DEFAULT_CFL:g} → {num.cfl:g}")
+        self.preset_note.setText(
+            f"Preset '{project.numerics.preset}' overrides the panels: " + "; ".join(changed) if changed else "")
+        e["effective"] = effective
         self.particles.setText(f"about {e['particles']:,}")
         self.grid.setText(f"{nx} × {ny} = {e['grid_cells']:,} cells")
         self.steps.setText(f"{e['steps']:,} of {e['time_step_s']:.3g} s ({e['time_step_source']}), "
