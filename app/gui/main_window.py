@@ -855,7 +855,7 @@ class MainWindow(QMainWindow):
             fraction = (run.last_progress.get("time_s") or 0.0) / total if total > 0 else 0.0
             status = f"running {100 * min(1.0, fraction):.0f} %"
         pid = f"pid {run.pid}, " if run.is_running() and run.pid else ""
-        return f"{run.name} → {run.out_dir.name}: {status} ({pid}{run.frames} frames)"
+        return f"{run.name} → {run.out_dir.name}\n{status} ({pid}{run.frames} frames)"
 
     def _update_run_item(self, run: RunProcess) -> None:
         if run in self.runs:
@@ -911,9 +911,11 @@ class MainWindow(QMainWindow):
             self.run_panel.show_progress(event, time.perf_counter() - run.started_at)
 
     def _run_frame(self, run: RunProcess) -> None:
-        if self._shut or run is not self.followed:
+        if self._shut:
             return
         self._update_run_item(run)
+        if run is not self.followed:
+            return
         # the first frame at once, then at most every LIVE_INTERVAL_MS
         if self.results_view.results is None:
             self._refresh_live()

@@ -90,8 +90,8 @@ class RunPanel(QWidget):
         form.addRow("Numerics", self.numerics)
         form.addRow("Time steps", self.steps)
         form.addRow("Run time", self.runtime)
-        form.addRow(self.preset_note)
         layout.addWidget(box)
+        layout.addWidget(self.preset_note)
 
         box = QGroupBox("Run")
         vbox = QVBoxLayout(box)
@@ -138,6 +138,7 @@ class RunPanel(QWidget):
         box = QGroupBox("Runs (each a process with its own folder)")
         vbox = QVBoxLayout(box)
         self.runs = QListWidget()
+        self.runs.setWordWrap(True)
         self.runs.setToolTip("Runs of this session; choose one to follow it (progress, live view, Cancel)")
         self.runs.setMaximumHeight(110)
         self.runs.currentRowChanged.connect(lambda row: row >= 0 and self.runSelected.emit(row))

@@ -280,9 +280,8 @@ class RunProcess(QObject):
         elif exit_status == QProcess.ExitStatus.CrashExit:
             name = _signal_name(int(exit_code))
             outcome = RunOutcome("killed", f"the run process was killed by {name}"
-                                 f"{' after the cancel request' if self.cancel_requested else ''}; "
-                                 "its folder holds the frames written until then",
-                                 self.out_dir, {}, int(exit_code))
+                                 f"{' after the cancel request' if self.cancel_requested else ''}, "
+                                 "without closing its results folder", self.out_dir, {}, int(exit_code))
         else:
             last = next((line for line in reversed(self.stderr_lines) if line.strip()), "")
             outcome = RunOutcome("crashed", f"the run process ended with exit code {exit_code}"
