@@ -482,6 +482,8 @@ class ResultsView(QWidget):
         self.live = False
         self.live_path: Path | None = None
         self.live_title = ""
+        #: particle histories read so far: (folder, particle, field) -> (times, values)
+        self._histories: dict[tuple[str, int, str], tuple[list[float], list[np.ndarray]]] = {}
         self.frame_index = 0
         self.live_time = 0.0
         self.history: tuple[str, np.ndarray, np.ndarray] | None = None
@@ -529,6 +531,26 @@ class ResultsView(QWidget):
         self.history_plot.close_canvas()
         self.monitor_plot.close_canvas()
         self.profile_plot.close_canvas()
+
+    def particle_history(self, particle: int, field: str) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`projects.results.Results.particle_history`, kept per particle and field so
+        that a run under way (its folder reread as frames arrive) reads only the new frames."""
+        results = self.results
+        key = (str(results.path), int(particle), field)
+        times, values = self._histories.get(key, ([], []))
+        if len(times) > len(results):  # another folder of the same name: start again
+            times, values = [], []
+        for j in range(len(times), len(results)):
+            arrays = results.frame(j, {field})
+            if field not in arrays:
+                raise KeyError(f"frame {j} has no field {field!r}; it has {sorted(arrays)}")
+            column = arrays[field]
+            if not 0 <= particle < len(column):
+                raise IndexError(f"particle {particle} out of range (0..{len(column) - 1})")
+            times.append(float(results.times[j]))
+            values.append(np.array(column[particle]))
+        self._histories[key] = (times, values)
+        return np.array(times), np.array(values)
 
     def _with_inputs(self, canvas: QWidget, kind: str) -> QWidget:
         """A canvas with the coordinate fields that drive it above it."""
@@ -603,8 +625,8 @@ class ResultsView(QWidget):
             pid = int(candidates[int(np.argmin(d2))])
             ids.append(pid)
             try:
-                times, disp = self.results.particle_history(pid, "displacement")
-                _t, vel = self.results.particle_history(pid, "velocity")
+                times, disp = self.particle_history(pid, "displacement")
+                _t, vel = self.particle_history(pid, "velocity")
             except (KeyError, IndexError) as err:  # a run that did not write these fields
                 self.message.emit(f"monitoring point {label}: {err}")
                 continue
@@ -729,6 +751,7 @@ class ResultsView(QWidget):
                 and self.scene.picked_id is not None)
         at_end = previous is None or self.frame_index >= len(previous) - 1 or not live
         if not live or previous is None or previous.path != results.path:
+            self._histories.clear()
             self.controls.stop()
             self.history = None
             self.history_plot.clear_history()
@@ -822,7 +845,7 @@ class ResultsView(QWidget):
         field = self.controls.field_name
         info = field_info(field)
         try:
-            times, raw = self.results.particle_history(particle, info.source)
+            times, raw = self.particle_history(particle, info.source)
             values = field_values({info.source: raw}, field)
         except (KeyError, IndexError, ValueError) as err:
             self.message.emit(str(err))

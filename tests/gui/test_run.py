@@ -53,6 +53,16 @@ def test_a_run_is_a_child_process_shown_live_from_its_folder(window, tiny_file, 
     rate, measured = window.settings.throughput("cpu")
     assert measured and rate == pytest.approx(result.summary["particle_steps_per_s"])
     assert "measured on this machine" in window.run_panel.runtime.text()
+    # the folder holds results now: a new run asks before replacing them
+    asked = []
+    window.ask_replace_results = lambda path: (asked.append(path), "cancel")[1]
+    assert not window.start_run()
+    assert asked == [tiny_file.with_name("tiny.results")] and len(window.runs) == 1
+    window.ask_replace_results = lambda path: "new"
+    assert window.start_run()
+    wait_for_runs(qtbot, window)
+    assert window.last_result.out_dir == tiny_file.with_name("tiny-2.results")
+    assert len(open_results(tiny_file.with_name("tiny.results"))) == 6
 
 
 def test_cancel_sends_sigterm_and_the_run_closes_its_folder(window, long_file, qtbot):
@@ -130,22 +140,7 @@ def test_several_runs_at_once_each_in_its_own_folder(window, long_file, tiny_fil
     assert open_results(first.out_dir).summary["total_time_s"] > open_results(second.out_dir).summary["total_time_s"]
 
 
-def test_an_existing_results_folder_is_replaced_only_when_the_user_says_so(window, tiny_file, qtbot):
-    window.open_project(tiny_file)
-    assert window.start_run()
-    wait_for_runs(qtbot, window)
-    asked = []
-    window.ask_replace_results = lambda path: (asked.append(path), "cancel")[1]
-    assert not window.start_run()
-    assert asked == [tiny_file.with_name("tiny.results")]
-    window.ask_replace_results = lambda path: "new"
-    assert window.start_run()
-    wait_for_runs(qtbot, window)
-    assert window.last_result.out_dir == tiny_file.with_name("tiny-2.results")
-    assert len(open_results(tiny_file.with_name("tiny.results"))) == 6
-
-
-def test_errors_before_the_run_are_readable_messages(window, tiny_file, qtbot):
+def test_errors_are_readable_messages(window, tiny_file, qtbot):
     window.open_project(tiny_file)
     occupied = tiny_file.with_name("not-results")
     occupied.mkdir()
@@ -161,13 +156,10 @@ def test_errors_before_the_run_are_readable_messages(window, tiny_file, qtbot):
     assert "Traceback" not in errors[0][1]
     assert (occupied / "notes.txt").read_text() == "keep me"
     assert window.run_panel.status.text().startswith("error")
-
-
-def test_the_stability_guard_is_reported_readably(window, tiny_file, qtbot):
-    window.open_project(tiny_file)
+    # the stability guard, reported with the solver's message
+    window.run_panel.out_dir.clear()
     window.numerics_panel.dt.set_text("0.01")  # 13 times the critical step
-    errors = []
-    window.show_error = lambda title, text: errors.append((title, text))
+    errors.clear()
     assert window.start_run()
     wait_for_runs(qtbot, window)
     assert window.last_result.status == "failed"

@@ -115,6 +115,14 @@ def test_import_a_csv_profile_as_a_body(window, tmp_path):
     assert window.doc.problems == []  # inside the 20 m x 10 m domain
     window.doc.undo_stack.undo()
     assert window.doc.get("bodies") == []
+    # a file that cannot be read is refused with one line
+    bad = tmp_path / "bad.csv"
+    bad.write_text("x_m,y_m\n0,1\n2,oops\n")
+    errors = []
+    window.show_error = lambda title, text: errors.append((title, text))
+    assert not window.import_body(bad, "soil")
+    assert errors[0][0] == "Cannot import" and "line 3: non-numeric value" in errors[0][1]
+    assert window.doc.get("bodies") == []
 
 
 def test_import_a_dxf_polyline_and_grow_the_domain(window, tmp_path):
@@ -134,20 +142,9 @@ def test_import_a_dxf_polyline_and_grow_the_domain(window, tmp_path):
     assert window.doc.problems == []
 
 
-def test_a_bad_profile_is_refused_with_one_line(window, tmp_path):
-    window.new_project()
-    bad = tmp_path / "bad.csv"
-    bad.write_text("x_m,y_m\n0,1\n2,oops\n")
-    errors = []
-    window.show_error = lambda title, text: errors.append((title, text))
-    assert not window.import_body(bad, "soil")
-    assert errors[0][0] == "Cannot import" and "line 3: non-numeric value" in errors[0][1]
-    assert window.doc.get("bodies") == []
-
-
 # -- monitoring points and cross-sections ----------------------------------------------------------
 
-def test_monitoring_points_follow_the_nearest_particle(window, make_results):
+def test_monitoring_points_and_a_cross_section(window, make_results):
     from projects.results import open_results
 
     folder = make_results()
@@ -166,11 +163,7 @@ def test_monitoring_points_follow_the_nearest_particle(window, make_results):
     # the points stay for the next results opened, on their particles there
     assert window.open_results(make_results("other.results"))
     assert len(view.monitor_ids) == 2
-
-
-def test_a_cross_section_shows_the_field_along_the_line(window, make_results):
-    assert window.open_results(make_results())
-    view = window.results_view
+    # a cross-section shows the field along the line
     view.set_field("displacement")
     view.show_frame(0)
     n0 = view.set_section(0.0, 0.0625, 0.2, 0.0625)
@@ -185,7 +178,8 @@ def test_a_cross_section_shows_the_field_along_the_line(window, make_results):
 
 # -- movie export ------------------------------------------------------------------------------------
 
-def test_movie_export_shows_progress_and_can_be_cancelled(window, make_results, tmp_path):
+def test_movie_export_shows_progress_can_be_cancelled_and_goes_beside_the_results(window, make_results,
+                                                                                     tmp_path):
     assert window.open_results(make_results(n_frames=4))
     out = window.export_animation(tmp_path / "movie.gif", 5.0, (160, 90))
     assert out is not None and out.stat().st_size > 0
@@ -193,11 +187,8 @@ def test_movie_export_shows_progress_and_can_be_cancelled(window, make_results, 
     QTimer.singleShot(0, lambda: window.export_progress.cancel())
     assert window.export_animation(tmp_path / "cancelled.gif", 5.0, (160, 90)) is None
     assert not (tmp_path / "cancelled.gif").exists()
-
-
-def test_exports_default_beside_the_results_folder(window, make_results):
-    folder = make_results()
-    assert window.open_results(folder)
+    # exports default beside the results folder, never into it (a re-run may replace it)
+    folder = window.results_view.results.path
     path = window._export_path(".png")
     assert path.parent == folder.parent and path.name.startswith("synthetic_displacement_")
 
