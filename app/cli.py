@@ -5,9 +5,13 @@ standard output, progress bars and errors to standard error. Bad input (an inval
 missing results folder, an unknown field) is reported as one line per problem, never as a
 traceback; ``--verbose`` shows the log, with tracebacks of solver failures.
 
-Exit status: 0 success; 1 invalid input (project problems, unreadable results, bad options);
-3 the run failed (see the message and ``summary.json``); 130 stopped by Ctrl-C (SIGINT), 143
-stopped by SIGTERM.
+Exit status: 0 success; 1 invalid input (project problems, unreadable results, bad options,
+a results folder that must not be used); 3 the run failed (see the message and
+``summary.json``); 130 stopped by Ctrl-C (SIGINT), 143 stopped by SIGTERM, 129 by SIGHUP (the
+terminal closed).
+
+User text (names of stages, bodies, files) never goes through rich markup: every message is
+printed with ``markup=False`` and progress descriptions are escaped.
 
 Other commands (``bench``, ``study``) register themselves on :data:`cli` with
 ``@cli.command()`` and reuse :func:`fail`, :func:`load_or_exit` and :func:`stop_on_signals`.
@@ -38,6 +42,11 @@ EXIT_INVALID = 1
 EXIT_FAILED = 3
 EXIT_SIGINT = 128 + signal.SIGINT
 EXIT_SIGTERM = 128 + signal.SIGTERM
+EXIT_SIGHUP = 128 + getattr(signal, "SIGHUP", 1)
+#: Signals that stop a run cleanly (the terminal closing sends SIGHUP).
+STOP_SIGNALS = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
 
 cli = typer.Typer(
     name="runout",
@@ -84,7 +93,7 @@ def load_or_exit(path: Path, overrides: list[str] | None = None) -> Project:
 
 @contextlib.contextmanager
 def stop_on_signals(stop: StopRequest) -> Iterator[StopRequest]:
-    """Turn SIGINT and SIGTERM into a stop request while the block runs.
+    """Turn SIGINT, SIGTERM and SIGHUP into a stop request while the block runs.
 
     A second Ctrl-C raises KeyboardInterrupt, for a solver that does not reach its next check.
     Outside the main thread (signals cannot be caught there) the block runs unchanged.
@@ -98,7 +107,7 @@ def stop_on_signals(stop: StopRequest) -> Iterator[StopRequest]:
     if sys.platform == "win32" or not _in_main_thread():
         yield stop
         return
-    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    previous = {sig: signal.signal(sig, handler) for sig in STOP_SIGNALS}
     try:
         yield stop
     finally:
@@ -218,9 +227,11 @@ class _RunProgress:
     def update(self, p: Any) -> None:
         """Show a ``solver.simulation.Progress`` (time_s, total_time_s, stage, steps_per_s)."""
         total = p.total_time_s if p.total_time_s > 0 else None
+        from rich.markup import escape
+
         self.bar.update(
             self.task,
-            description=p.stage,
+            description=escape(str(p.stage)),
             total=total,
             completed=min(p.time_s, total) if total else p.time_s,
             rate=f"{p.steps_per_s:,.0f} steps/s",
@@ -309,7 +320,9 @@ def _summary_line(result: RunResult) -> str:
 
 @cli.command()
 def run(
-    project: Annotated[Path, typer.Argument(help="Project file (.toml).", show_default=False)],
+    project: Annotated[
+        Path | None, typer.Argument(help="Project file (.toml); not with --resume.", show_default=False)
+    ] = None,
     out_dir: Annotated[
         Path | None,
         typer.Option("--out", "-o", help="Results folder (default: NAME.results next to the project)."),
@@ -320,38 +333,86 @@ def run(
     ] = None,
     arch: Annotated[Arch | None, typer.Option("--arch", help="Run on the CPU or the GPU.")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress or summary; errors only.")] = False,
+    overwrite: Annotated[bool, typer.Option(
+        "--overwrite", help="Replace an earlier run's results in the folder (only that run's own files).")] = False,
+    force: Annotated[bool, typer.Option(
+        "--force", help="Run even beyond the size limits (memory, disk, particles, steps, frames).")] = False,
+    resume: Annotated[
+        Path | None,
+        typer.Option("--resume", help="Continue the killed or stopped run in this results folder "
+                     "from its last checkpoint.", show_default=False),
+    ] = None,
+    start_from: Annotated[
+        Path | None,
+        typer.Option("--start-from", help="Start the project's stages from the particle state of another "
+                     "run's checkpoint (its results folder or checkpoint.npz).", show_default=False),
+    ] = None,
     progress_mode: Annotated[
         ProgressMode,
         typer.Option("--progress", help="rich: a progress bar on standard error; jsonl: one JSON object "
-                     "per line on standard output (started, progress, frame, finished) for programs."),
+                     "per line on standard output (started, warning, progress, frame, finished) for programs."),
     ] = ProgressMode.rich,
 ) -> None:
-    """Run a project and write its results folder."""
+    """Run a project and write its results folder (or continue one with --resume).
+
+    An earlier run's results in the folder are replaced only with --overwrite; any other
+    non-empty folder is refused; a folder another run is writing into is refused.
+    """
     from projects.results import ResultsError
-    from projects.runner import StopRequest, default_results_dir, run_project
+    from projects.runner import StopRequest, default_results_dir, resume_run, run_project
     from projects.schema import ProjectError
 
+    if (project is None) == (resume is None):
+        fail("give a project file, or --resume RESULTS (not both)")
+    if resume is not None and (out_dir is not None or overrides or start_from is not None):
+        fail("--resume continues a run as it was: no --out, --set or --start-from with it")
     jsonl = progress_mode is ProgressMode.jsonl
     if quiet or jsonl:
         _setup_logging(verbose=False, quiet=True)
-    where_to = out_dir if out_dir is not None else default_results_dir(project)
+    where_to = resume if resume is not None else out_dir if out_dir is not None else default_results_dir(project)
     events = _JsonProgress(sys.stdout, Path(where_to).expanduser().absolute()) if jsonl else None
     stop = StopRequest()
     with stop_on_signals(stop):
         try:
-            model = load_or_exit(project, overrides) if events is None else _load_or_report(project, overrides, events)
+            if project is None:
+                model = None
+            elif events is None:
+                model = load_or_exit(project, overrides)
+            else:
+                model = _load_or_report(project, overrides, events)
+            if stop.requested:
+                if events is not None:
+                    events.emit("finished", status="error", message=f"stopped by {stop.reason} before the run started",
+                                out_dir=str(events.out_dir))
+                fail(f"stopped by {stop.reason} before the run started", _stop_code(stop))
+            if model is not None and events is not None:
+                from projects.checks import project_warnings
+
+                for warning in project_warnings(model):
+                    events.emit("warning", message=str(warning))
+            elif not quiet and model is not None:
+                _print_warnings(model)
             # Taichi prints "[Taichi] Starting on arch=..." to stdout; keep stdout for results
             chatter = io.StringIO() if quiet else sys.stderr
             with _RunProgress(quiet or jsonl) as progress, contextlib.redirect_stdout(chatter):
-                result = run_project(
-                    model,
-                    out_dir,
-                    project_path=project,
-                    arch=arch.value if arch is not None else None,
-                    cancel=stop,
-                    on_progress=progress.update if events is None else events.progress,
-                    on_frame=None if events is None else events.frame,
-                )
+                on_progress = progress.update if events is None else events.progress
+                on_frame = None if events is None else events.frame
+                if resume is not None:
+                    result = resume_run(resume, arch=arch.value if arch is not None else None,
+                                        cancel=stop, on_progress=on_progress, on_frame=on_frame)
+                else:
+                    result = run_project(
+                        model,
+                        out_dir,
+                        project_path=project,
+                        arch=arch.value if arch is not None else None,
+                        cancel=stop,
+                        on_progress=on_progress,
+                        on_frame=on_frame,
+                        overwrite=overwrite,
+                        force=force,
+                        start_from=start_from,
+                    )
                 if result.status == "completed":
                     progress.finish()
         except (ProjectError, ResultsError) as exc:
@@ -366,13 +427,14 @@ def run(
     if events is not None:
         events.emit("finished", status=result.status, message=result.message, out_dir=str(result.out_dir),
                     summary=result.summary)
+    _report_equilibrium(result, quiet or jsonl)
     if result.status == "completed":
         if not quiet and not jsonl:
             out.print(_summary_line(result), markup=False)
         return
     where = f"(results so far in {result.out_dir})"
     if result.status == "stopped":
-        code = EXIT_SIGTERM if stop.reason == "SIGTERM" else EXIT_SIGINT
+        code = _stop_code(stop)
         err.print(f"stopped: {result.message} {where}", markup=False)
         raise typer.Exit(code)
     err.print(f"failed: {result.message} {where}", markup=False)
@@ -391,6 +453,30 @@ def _load_or_report(path: Path, overrides: list[str] | None, events: _JsonProgre
         fail(str(exc))
 
 
+def _stop_code(stop: StopRequest) -> int:
+    return {"SIGTERM": EXIT_SIGTERM, "SIGHUP": EXIT_SIGHUP}.get(stop.reason, EXIT_SIGINT)
+
+
+def _report_equilibrium(result: RunResult, quiet: bool) -> None:
+    check = result.summary.get("initial_equilibrium")
+    if quiet or not check:
+        return
+    ratio = check.get("unbalanced_force_ratio")
+    err.print(
+        f"initial equilibrium after {check.get('stage')!r}: unbalanced-force ratio "
+        f"{ratio if ratio is None else format(ratio, '.3g')}, largest speed at its end "
+        f"{check.get('max_speed_m_s', 0.0):.3g} m/s",
+        markup=False,
+    )
+
+
+def _print_warnings(model: Project) -> None:
+    from projects.checks import project_warnings
+
+    for warning in project_warnings(model):
+        err.print(f"warning: {warning}", markup=False)
+
+
 @cli.command()
 def validate(
     project: Annotated[Path, typer.Argument(help="Project file (.toml).", show_default=False)],
@@ -398,6 +484,7 @@ def validate(
         list[str] | None,
         typer.Option("--set", "-s", metavar="KEY=VALUE", help="Override a project key (repeatable)."),
     ] = None,
+    force: Annotated[bool, typer.Option("--force", help="Skip the size limits.")] = False,
 ) -> None:
     """Check a project: every problem, or what it would run."""
     from projects.runner import check_project
@@ -405,15 +492,20 @@ def validate(
 
     model = load_or_exit(project, overrides)
     try:
-        built = check_project(model)
+        resolved = check_project(model, force=force)
     except ProjectError as exc:
         fail(f"{project}: {exc}")
-    grid = built.config.grid
+    _print_warnings(model)
+    grid = resolved.config.grid
     nx, ny = grid.cells
+    numerics = resolved.config.numerics
+    step = f"dt {numerics.time_step_s:g} s" if numerics.time_step_s is not None else f"cfl {numerics.cfl:g}"
+    preset = f" (preset {resolved.project.numerics.preset})" if resolved.project.numerics.preset else ""
     out.print(
-        f"ok: {len(built.particles):,} particles, {len(built.config.materials)} materials, "
-        f"{len(built.body_names)} bodies, {len(built.config.stages)} stages, "
-        f"grid {nx} x {ny} cells of {grid.cell_size_m:g} m",
+        f"ok: {resolved.particle_count:,} particles, {len(resolved.config.materials)} materials, "
+        f"{len(resolved.body_names)} bodies, {len(resolved.config.stages)} stages, "
+        f"grid {nx} x {ny} cells of {grid.cell_size_m:g} m, {numerics.scheme} {step}{preset}, "
+        f"about {resolved.estimate['steps']:,} steps",
         markup=False,
     )
 
@@ -423,7 +515,8 @@ def render(
     results: Annotated[Path, typer.Argument(help="Results folder (or its project file).", show_default=False)],
     frame: Annotated[str, typer.Option("--frame", "-f", help="Frame number or 'last'.")] = "last",
     field: Annotated[str, typer.Option("--field", help="Field to colour by.")] = "displacement",
-    output: Annotated[Path | None, typer.Option("-o", "--output", help="PNG file (default: in the results folder).")] = None,
+    output: Annotated[Path | None, typer.Option(
+        "-o", "--output", help="PNG file (default: beside the results folder, NAME_FIELD_FRAME.png).")] = None,
     size: Annotated[str, typer.Option("--size", help="Image size WIDTHxHEIGHT in pixels.")] = "1600x900",
 ) -> None:
     """Render one frame to a PNG (offscreen)."""

@@ -9,8 +9,10 @@ the file are filled in (gravity-stage damping 0.7, K0 per material), domain side
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,31 +25,6 @@ from projects.schema import DEFAULT_GRAVITY_DAMPING, Problem, Project, ProjectEr
 from solver import config as sc
 
 logger = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True, eq=False)
-class BuiltRun:
-    """Everything the solver needs for one run, plus names for reporting.
-
-    Attributes
-    ----------
-    config : solver.config.SimulationConfig
-        Grid, materials (file order), stages, gravity, numerics, output; SI units, radians.
-    particles : solver.config.Particles
-        Initial positions (N, 2) m, volumes (N,) m2, material ids (N,) and velocities (N, 2) m/s.
-    material_names : tuple of str
-        Name of each material id.
-    body_names : tuple of str
-        Name of each body, in file order.
-    particle_body : numpy.ndarray, shape (N,), int64
-        Index into ``body_names`` of each particle.
-    """
-
-    config: sc.SimulationConfig
-    particles: sc.Particles
-    material_names: tuple[str, ...]
-    body_names: tuple[str, ...]
-    particle_body: np.ndarray
 
 
 def solver_material(name: str, material: schema.Material) -> sc.Material:
@@ -165,6 +142,9 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
         cfl=None if numerics.time_step_s is not None else numerics.cfl,
         precision=numerics.precision,
         arch=arch,
+        guard=numerics.advanced.guard,
+        speed_bound_factor=numerics.advanced.speed_bound_factor,
+        scatter=numerics.advanced.scatter,
     )
     output = sc.Output(interval_s=project.output.interval_s, fields=tuple(project.output.fields))
     return sc.SimulationConfig(
@@ -197,18 +177,14 @@ def seed_bodies(project: Project) -> Seeds:
     return seed_lattice(polygons, project.domain.origin_m, project.domain.cell_size_m, particles.per_cell)
 
 
-def build_simulation(project: Project, *, arch_override: str | None = None) -> BuiltRun:
-    """Build the solver input of a project: configuration and seeded particles.
-
-    Parameters
-    ----------
-    project : Project
-    arch_override : {"auto", "cpu", "gpu"}, optional
-        Replaces ``numerics.arch``.
+def _seed_particles(project: Project, config: sc.SimulationConfig) -> tuple[sc.Particles, np.ndarray]:
+    """Seed the bodies of a (preset-applied) project into the solver's particles.
 
     Returns
     -------
-    BuiltRun
+    particles : solver.config.Particles
+    body_index : numpy.ndarray, shape (N,), int64
+        The body of each particle.
 
     Raises
     ------
@@ -216,8 +192,6 @@ def build_simulation(project: Project, *, arch_override: str | None = None) -> B
         When a body receives no particles (it is thinner than the particle spacing or
         entirely covered by later bodies).
     """
-    project = apply_preset(project)
-    config = solver_config(project, arch_override=arch_override)
     seeds = seed_bodies(project)
     counts = np.bincount(seeds.body_index, minlength=len(project.bodies))
     empty = [
@@ -232,7 +206,6 @@ def build_simulation(project: Project, *, arch_override: str | None = None) -> B
     ]
     if empty:
         raise ProjectError(empty)
-
     names = project.material_names
     body_material = np.array([names.index(body.material) for body in project.bodies], dtype=np.int64)
     body_velocity = np.array([body.initial_velocity_m_s for body in project.bodies], dtype=np.float64)
@@ -243,27 +216,199 @@ def build_simulation(project: Project, *, arch_override: str | None = None) -> B
         material_ids=body_material[body_index],
         velocities_m_s=body_velocity[body_index],
     )
-    logger.info(
-        "built %d particles in %d bodies on a %d x %d grid",
-        len(particles), len(project.bodies), *config.grid.cells,
-    )
-    return BuiltRun(
-        config=config,
-        particles=particles,
-        material_names=names,
-        body_names=tuple(body.name for body in project.bodies),
-        particle_body=body_index,
-    )
+    logger.info("seeded %d particles in %d bodies on a %d x %d grid",
+                len(particles), len(project.bodies), *config.grid.cells)
+    return particles, body_index
+
+
+@dataclass(frozen=True, eq=False)
+class ResolvedRun:
+    """Everything one run is: the one place where a project, its overrides and its preset become
+    the settings, particles and numbers that run (docs/DESIGN.md, "One resolved run").
+
+    Attributes
+    ----------
+    project : projects.schema.Project
+        The project as it runs: overrides applied and the preset's values filled in (what a
+        results folder records as ``project.toml``).
+    config : solver.config.SimulationConfig
+        Grid, materials (file order), stages, gravity, numerics, output; SI units, radians.
+    particles : solver.config.Particles or None
+        Initial positions (N, 2) m, volumes (N,) m2, material ids (N,) and velocities (N, 2) m/s;
+        None when resolved with ``seed=False``.
+    particle_body : numpy.ndarray, shape (N,), int64, or None
+        Index into ``body_names`` of each particle.
+    estimate : dict
+        :func:`estimate` of the project (size and cost before seeding).
+    """
+
+    project: Project
+    config: sc.SimulationConfig
+    particles: sc.Particles | None
+    particle_body: np.ndarray | None
+    estimate: dict
+
+    def seeded(self) -> ResolvedRun:
+        """This run with its particles seeded (itself when they are)."""
+        if self.particles is not None:
+            return self
+        particles, body_index = _seed_particles(self.project, self.config)
+        return dataclasses.replace(self, particles=particles, particle_body=body_index)
+
+    @property
+    def material_names(self) -> tuple[str, ...]:
+        return self.project.material_names
+
+    @property
+    def body_names(self) -> tuple[str, ...]:
+        return tuple(body.name for body in self.project.bodies)
+
+    @property
+    def particle_count(self) -> int:
+        """Seeded particles, or the estimate's count when not seeded."""
+        return len(self.particles) if self.particles is not None else int(self.estimate["particles"])
+
+    @property
+    def spacing_m(self) -> float:
+        """Side of the square one particle stands for (m): what views size points with."""
+        if self.particles is not None and len(self.particles):
+            return float(np.sqrt(np.median(np.asarray(self.particles.volumes_m2, dtype=float))))
+        return self.project.domain.cell_size_m / self.project.particles.per_cell
+
+    @property
+    def box_m(self) -> tuple[float, float, float, float]:
+        """The grid box ``(x0, y0, x1, y1)`` in metres (whole cells; may exceed ``domain.size_m``)."""
+        grid = self.config.grid
+        x0, y0 = (float(v) for v in grid.origin_m)
+        nx, ny = grid.cells
+        return (x0, y0, x0 + nx * grid.cell_size_m, y0 + ny * grid.cell_size_m)
+
+    @property
+    def checkpoint_interval_s(self) -> float:
+        """Simulated seconds between checkpoints (``output.checkpoint_interval_s`` or its default)."""
+        output = self.project.output
+        if output.checkpoint_interval_s is not None:
+            return output.checkpoint_interval_s
+        return schema.CHECKPOINT_EVERY_OUTPUTS * output.interval_s
+
+    def meta(self) -> dict[str, object]:
+        """Summary entries known before the run starts (``summary.json``)."""
+        x0, y0, x1, y1 = self.box_m
+        config = self.config
+        meta: dict[str, object] = {
+            "title": self.project.runout.title,
+            "scheme": config.numerics.scheme,
+            "precision": config.numerics.precision,
+            "particles": self.particle_count,
+            "total_time_s": float(sum(st.duration_s for st in config.stages if st.kind != "k0")),
+            "stages": [stage.name for stage in config.stages],
+            "materials": list(self.material_names),
+            "bodies": list(self.body_names),
+            "domain": {"origin_m": [x0, y0], "size_m": [x1 - x0, y1 - y0], "cell_size_m": config.grid.cell_size_m},
+            "particle_spacing_m": self.spacing_m,
+            "output_interval_s": config.output.interval_s,
+        }
+        if self.project.numerics.preset is not None:
+            meta["preset"] = self.project.numerics.preset
+        return meta
+
+
+def resolve(project: Project, overrides: Sequence[str] = (), *, arch: str | None = None,
+            seed: bool = True) -> ResolvedRun:
+    """Resolve a project into the one run it stands for.
+
+    Overrides are applied, then the preset (``numerics.preset``), once; everything a run, a
+    preview, an estimate or a study needs is derived from the result and from nothing else.
+
+    Parameters
+    ----------
+    project : Project
+        A validated project.
+    overrides : sequence of str
+        ``KEY=VALUE`` overrides (the command line's ``--set``), applied before the preset.
+    arch : {"auto", "cpu", "gpu"}, optional
+        Replaces ``numerics.arch`` (the command line's ``--arch``).
+    seed : bool
+        Seed the particles (False: only the configuration and the estimate, for live previews
+        of the cost while a project is edited).
+
+    Returns
+    -------
+    ResolvedRun
+
+    Raises
+    ------
+    ProjectError
+        Invalid overrides, an unknown preset, a body that receives no particles.
+    """
+    if overrides:
+        from projects.document import apply_overrides
+
+        project = apply_overrides(project, overrides)
+    project = apply_preset(project)
+    config = solver_config(project, arch_override=arch)
+    resolved = ResolvedRun(project=project, config=config, particles=None, particle_body=None,
+                           estimate=estimate(project))
+    return resolved.seeded() if seed else resolved
+
+
+#: Counts beyond this are reported as this (an estimate of 1e300 cells stays a number).
+MAX_COUNT = 2**62
+#: Engine state per particle: floats (x, x0, v: 2 each; C, stress: 4 each; mass, density,
+#: plastic strain) and bytes (material id int32; active, yielded, band int8).
+ENGINE_FLOATS_PER_PARTICLE = 17
+ENGINE_BYTES_PER_PARTICLE = 7
+#: Host copies per particle: the built particles (float64 positions, volumes, velocities,
+#: int64 material and body ids), bytes.
+HOST_BYTES_PER_PARTICLE = 56
+#: Frames in memory at once: the writer's queue (3), the one being encoded and its encoding.
+FRAMES_IN_MEMORY = 5
+#: Floats and bytes per particle of one frame in memory (positions, displacement, velocity:
+#: 2 each; stress 4; plastic strain 1 / material id 4, active 1, float64 world positions 16).
+FRAME_FLOATS_PER_PARTICLE = 11
+FRAME_BYTES_PER_PARTICLE = 21
+#: Grid fields per node (mass; momentum, force, old velocity: 2 each) and ghost layers.
+FLOATS_PER_NODE = 7
+GRID_PAD = 2
+#: Bytes per particle of a frame file, uncompressed, for each output field, and what every
+#: frame holds (points 12 - 24 far from the origin -, active 1, particle id 4, vertex cell 16).
+FILE_BYTES_PER_FIELD = {"displacement": 12, "velocity": 12, "stress": 16, "plastic_strain": 4, "material": 4}
+FILE_BYTES_ALWAYS = 12 + 1 + 4 + 16
+#: Bytes of one row of series.csv and of the fixed files (pvd entry per frame, summary, project).
+SERIES_BYTES_PER_FRAME = 400
+FIXED_FILE_BYTES = 1 << 20
+#: Bytes per seeding candidate: lattice seeding tests sub-cell centres of the bodies' bounding
+#: box in blocks (positions, owners and masks of one block).
+SEEDING_BLOCK_BYTES = 2_000_000 * 48
+
+
+def _count(value: float) -> int:
+    """A non-negative count from a float estimate; inf and NaN become :data:`MAX_COUNT`."""
+    if not math.isfinite(value) or value >= MAX_COUNT:
+        return MAX_COUNT
+    return max(0, int(math.ceil(value - 1e-9)))
+
+
+def _ratio(numerator: float, denominator: float) -> float:
+    """``numerator / denominator`` without ZeroDivision or OverflowError (inf instead)."""
+    try:
+        value = numerator / denominator
+    except (ZeroDivisionError, OverflowError):
+        return math.inf
+    return value if math.isfinite(value) else math.inf
 
 
 def estimate(project: Project) -> dict[str, object]:
-    """Cheap size estimates of a run, without seeding (for the GUI and the command line).
+    """Size estimates of a run without seeding or allocating (:func:`resolve` gives it).
 
-    The particle count is the bodies' total area times ``(per_cell / cell_size_m)**2``
-    (overlaps counted twice; exact for grid-aligned rectangles with lattice seeding). With
-    ``cfl`` the time step is ``cfl * dx / c_p`` with the largest p-wave speed of all
-    materials of all stages; the solver also counts the particle speed in the critical step,
-    so its steps are at least as many as estimated.
+    A pure function of the project as it runs (preset applied: :func:`resolve` does that). The particle count is the bodies'
+    total area times ``(per_cell / cell_size_m)**2`` (overlaps counted twice; exact for
+    grid-aligned rectangles with lattice seeding). With ``cfl`` the time step is
+    ``cfl * dx / c_p`` with the largest p-wave speed of all materials of all stages; the solver
+    also counts the particle speed in the critical step, so its steps are at least as many as
+    estimated. Memory counts the engine's particle and grid fields, the host copies of the
+    particles and the frames in flight; disk counts the frame files uncompressed (zlib saves
+    some of it) plus ``series.csv``. Counts too large for a number are :data:`MAX_COUNT`.
 
     Parameters
     ----------
@@ -273,16 +418,30 @@ def estimate(project: Project) -> dict[str, object]:
     -------
     dict
         ``particles`` (int), ``grid_cells`` (int), ``grid_shape`` ((int, int)),
-        ``time_step_s`` (float, s), ``time_step_source`` ("time_step_s" or "cfl"),
+        ``grid_nodes`` (int, with ghost layers), ``seeding_candidates`` (int, lattice points
+        tested), ``time_step_s`` (float, s), ``time_step_source`` ("time_step_s" or "cfl"),
         ``max_p_wave_speed_m_s`` (float), ``simulated_time_s`` (float, s, all stages),
-        ``steps`` (int, all stages), ``frames`` (int, about one per ``output.interval_s``).
+        ``steps`` (int, all stages), ``frames`` (int, about one per ``output.interval_s``),
+        ``bytes_per_particle`` and ``bytes_per_node`` (int, memory), ``memory_bytes`` (int),
+        ``frame_bytes`` (int, one frame file), ``disk_bytes`` (int, the results folder),
+        ``cell_size_m``, ``output_interval_s`` (float, the inputs the limits name).
     """
-    project = apply_preset(project)
     dx = project.domain.cell_size_m
-    area = sum(polygon_area(np.asarray(b.polygon_m)) for b in project.bodies)
-    particles = int(round(area * (project.particles.per_cell / dx) ** 2))
-    grid = sc.Grid(origin_m=project.domain.origin_m, size_m=project.domain.size_m, cell_size_m=dx)
-    nx, ny = grid.cells
+    per_cell = project.particles.per_cell
+    polygons = [np.asarray(b.polygon_m, dtype=np.float64) for b in project.bodies]
+    area = sum(polygon_area(p) for p in polygons)
+    linear = _ratio(per_cell, dx)
+    density = linear * linear  # (per_cell / dx)**2 without OverflowError
+    particles = _count(area * density if math.isfinite(density) else math.inf)
+    lo = np.min([p.min(axis=0) for p in polygons], axis=0)
+    hi = np.max([p.max(axis=0) for p in polygons], axis=0)
+    box = float(np.prod(hi - lo + 2.0 * dx / per_cell))
+    candidates = _count(box * density if math.isfinite(density) else math.inf)
+    nx = _count(_ratio(project.domain.size_m[0], dx))
+    ny = _count(_ratio(project.domain.size_m[1], dx))
+    nx, ny = max(1, nx), max(1, ny)
+    cells = _count(float(nx) * float(ny))
+    nodes = _count(float(nx + 1 + 2 * GRID_PAD) * float(ny + 1 + 2 * GRID_PAD))
     speeds = [solver_material(n, m).p_wave_speed_m_s for t in material_tables(project) for n, m in t.items()]
     speeds.extend(solver_material(n, m).p_wave_speed_m_s for n, m in project.materials.items())
     c_p = max(speeds)
@@ -290,20 +449,45 @@ def estimate(project: Project) -> dict[str, object]:
     if numerics.time_step_s is not None:
         dt, source = numerics.time_step_s, "time_step_s"
     else:
-        dt, source = (numerics.cfl or schema.DEFAULT_CFL) * dx / c_p, "cfl"
+        dt, source = numerics.cfl * dx / c_p, "cfl"
     durations = [stage.duration_s or 0.0 for stage in project.stages]
-    steps = sum(math.ceil(d / dt - 1e-9) for d in durations if d > 0.0)
+    steps = _count(sum(_ratio(d, dt) for d in durations if d > 0.0))
     total = float(sum(durations))
+    intervals = _ratio(total, project.output.interval_s)
+    frames = _count(math.floor(intervals + 1e-9) + 1.0 if math.isfinite(intervals) else math.inf)
+
+    float_bytes = 8 if numerics.precision == "f64" else 4
+    per_particle = (
+        ENGINE_FLOATS_PER_PARTICLE * float_bytes + ENGINE_BYTES_PER_PARTICLE + HOST_BYTES_PER_PARTICLE
+        + FRAMES_IN_MEMORY * (FRAME_FLOATS_PER_PARTICLE * float_bytes + FRAME_BYTES_PER_PARTICLE)
+    )
+    per_node = FLOATS_PER_NODE * float_bytes
+    memory = _count(float(particles) * per_particle + float(nodes) * per_node
+                    + min(float(candidates) * 48.0, SEEDING_BLOCK_BYTES))
+    file_per_particle = FILE_BYTES_ALWAYS + sum(
+        FILE_BYTES_PER_FIELD.get(name, 0) for name in project.output.fields
+    )
+    frame_bytes = _count(float(particles) * file_per_particle + 2048.0)
+    disk = _count(float(frames) * (frame_bytes + SERIES_BYTES_PER_FRAME) + FIXED_FILE_BYTES)
     return {
         "particles": particles,
-        "grid_cells": nx * ny,
+        "grid_cells": cells,
         "grid_shape": (nx, ny),
+        "grid_nodes": nodes,
+        "seeding_candidates": candidates,
         "time_step_s": dt,
         "time_step_source": source,
         "max_p_wave_speed_m_s": c_p,
         "simulated_time_s": total,
         "steps": steps,
-        "frames": int(math.floor(total / project.output.interval_s + 1e-9)) + 1,
+        "frames": frames,
+        "bytes_per_particle": per_particle,
+        "bytes_per_node": per_node,
+        "memory_bytes": memory,
+        "frame_bytes": frame_bytes,
+        "disk_bytes": disk,
+        "cell_size_m": dx,
+        "output_interval_s": project.output.interval_s,
     }
 
 
@@ -318,7 +502,7 @@ def describe(project: Project) -> str:
     -------
     str
     """
-    e = estimate(project)
+    e = resolve(project, seed=False).estimate
     return (
         f"about {e['particles']} particles, {e['grid_shape'][0]} x {e['grid_shape'][1]} cells, "
         f"dt {e['time_step_s']:.3g} s ({e['time_step_source']}), {e['steps']} steps "

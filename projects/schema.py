@@ -42,25 +42,30 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from geometry.polygons import distinct_vertex_count, is_simple, self_intersections
+from geometry.polygons import distinct_vertex_count, has_zero_area, self_intersections
+from projects.units import QuantityError, parse_quantity
+from solver import config as sc
 
 logger = logging.getLogger(__name__)
 
 #: The schema version this module reads and writes.
 SCHEMA_VERSION = 1
 
-MATERIAL_MODELS: tuple[str, ...] = ("linear-elastic", "drucker-prager")
-BOUNDARY_TYPES: tuple[str, ...] = ("fixed", "slip", "open", "friction")
-SIDES: tuple[str, ...] = ("left", "right", "bottom", "top")
+# The solver's vocabularies are the file's: written once, in solver/config.py.
+MATERIAL_MODELS = sc.MATERIAL_MODELS
+BOUNDARY_TYPES = sc.BOUNDARY_KINDS
+SIDES = sc.SIDES
 SEEDINGS: tuple[str, ...] = ("lattice", "gauss")
-SCHEMES: tuple[str, ...] = ("mpm", "apic", "apic-affine")
-PRECISIONS: tuple[str, ...] = ("f32", "f64")
-ARCHS: tuple[str, ...] = ("auto", "cpu", "gpu")
+SCHEMES = sc.SCHEMES
+PRECISIONS = sc.PRECISIONS
+ARCHS = sc.ARCHS
+GUARD_MODES = sc.GUARD_MODES
+SCATTERS = sc.SCATTERS
 #: Accuracy/cost presets measured by ``runout study tradeoff`` (projects/presets.json).
 PRESETS: tuple[str, ...] = ("draft", "standard", "fine")
 STAGE_TYPES: tuple[str, ...] = ("k0", "gravity", "dynamic")
 DAMPING_TYPES: tuple[str, ...] = ("local",)
-OUTPUT_FIELDS: tuple[str, ...] = ("displacement", "velocity", "stress", "plastic_strain", "material")
+OUTPUT_FIELDS = sc.OUTPUT_FIELDS
 #: Material keys that only a Drucker-Prager material may have.
 PLASTIC_KEYS: tuple[str, ...] = (
     "cohesion_pa",
@@ -69,7 +74,7 @@ PLASTIC_KEYS: tuple[str, ...] = (
     "tensile_strength_pa",
 )
 #: Numerics keys of the time step: give one of them (none: cfl = DEFAULT_CFL).
-DEFAULT_CFL = 0.5
+DEFAULT_CFL = sc.DEFAULT_CFL
 #: Damping coefficient of a gravity stage that gives none.
 DEFAULT_GRAVITY_DAMPING = 0.7
 
@@ -205,8 +210,13 @@ def _number_type(
     lt: float | None = None,
     le: float | None = None,
     optional: bool = False,
+    unit: str | None = None,
 ) -> Any:
-    """An annotated float with a range, its message built from the bounds (``must be > 0``)."""
+    """An annotated float with a range, its message built from the bounds (``must be > 0``).
+
+    With ``unit`` (``"Pa"``, ``"kg/m3"``) a string such as ``"5 kPa"`` is read with
+    :func:`projects.units.parse_quantity` and kept in SI.
+    """
     parts = []
     if gt is not None:
         parts.append(f"> {_fmt_bound(gt)}")
@@ -221,6 +231,11 @@ def _number_type(
     def before(value: Any) -> Any:
         if value is None and optional:
             return None
+        if unit is not None and isinstance(value, str):
+            try:
+                return parse_quantity(value, unit)
+            except QuantityError as err:
+                raise _fail(err.reason) from None
         return _to_number(value)
 
     def after(value: float | None) -> float | None:
@@ -305,7 +320,7 @@ def _simple_polygon(points: tuple[tuple[float, float], ...]) -> tuple[tuple[floa
         shown = ", ".join(f"{i} and {j}" for i, j in crossings[:3])
         more = f" (and {len(crossings) - 3} more pairs)" if len(crossings) > 3 else ""
         raise _fail(f"not a simple polygon: edges {shown} cross or touch{more}")
-    if not is_simple(arr):
+    if has_zero_area(arr):
         raise _fail("not a simple polygon: it has zero area")
     return points
 
@@ -341,6 +356,12 @@ OptAngleDeg = _number_type(ge=0.0, lt=90.0, optional=True)
 OptCfl = _number_type(gt=0.0, le=1.0, optional=True)
 OptFraction = _number_type(gt=0.0, lt=1.0, optional=True)
 DampingCoefficient = _number_type(ge=0.0, lt=1.0)
+# Stresses, moduli and densities also accept text with a unit ("5 kPa", "18 kN/m3"), kept in SI.
+PositivePa = _number_type(gt=0.0, unit="Pa")
+OptPositivePa = _number_type(gt=0.0, optional=True, unit="Pa")
+OptNonNegativePa = _number_type(ge=0.0, optional=True, unit="Pa")
+Density = _number_type(gt=0.0, unit="kg/m3")
+OptDensity = _number_type(gt=0.0, optional=True, unit="kg/m3")
 Int = Annotated[int, BeforeValidator(_to_int)]
 Str = Annotated[str, BeforeValidator(_to_str)]
 OptName = Annotated[
@@ -390,7 +411,7 @@ def _boundary_input(value: Any) -> Any:
 class Boundary(_Model):
     """One side of the grid: ``"fixed" | "slip" | "open"`` or ``{type = "friction", friction_angle_deg = ..}``."""
 
-    type: Annotated[Literal["fixed", "slip", "open", "friction"], _choice(BOUNDARY_TYPES)]
+    type: Annotated[Literal[BOUNDARY_TYPES], _choice(BOUNDARY_TYPES)]
     friction_angle_deg: OptAngleDeg = None
 
     @model_validator(mode="before")
@@ -421,26 +442,26 @@ class Domain(_Model):
 class Material(_Model):
     """``[materials.<name>]``: one material. The plastic keys are for Drucker-Prager only."""
 
-    model: Annotated[Literal["linear-elastic", "drucker-prager"], _choice(MATERIAL_MODELS)]
-    density_kg_m3: Positive
-    youngs_modulus_pa: Positive
+    model: Annotated[Literal[MATERIAL_MODELS], _choice(MATERIAL_MODELS)]
+    density_kg_m3: Density
+    youngs_modulus_pa: PositivePa
     poisson_ratio: PoissonRatio
-    cohesion_pa: OptNonNegative = None
+    cohesion_pa: OptNonNegativePa = None
     friction_angle_deg: OptAngleDeg = None
     dilatancy_angle_deg: OptAngleDeg = None
-    tensile_strength_pa: OptNonNegative = None
+    tensile_strength_pa: OptNonNegativePa = None
 
 
 class MaterialChange(_Model):
     """``[stages.material_changes.<name>]``: new values of a material's numeric keys."""
 
-    density_kg_m3: OptPositive = None
-    youngs_modulus_pa: OptPositive = None
+    density_kg_m3: OptDensity = None
+    youngs_modulus_pa: OptPositivePa = None
     poisson_ratio: _number_type(ge=0.0, lt=0.5, optional=True) = None
-    cohesion_pa: OptNonNegative = None
+    cohesion_pa: OptNonNegativePa = None
     friction_angle_deg: OptAngleDeg = None
     dilatancy_angle_deg: OptAngleDeg = None
-    tensile_strength_pa: OptNonNegative = None
+    tensile_strength_pa: OptNonNegativePa = None
 
 
 class Body(_Model):
@@ -456,7 +477,7 @@ class Particles(_Model):
     """``[particles]``: how bodies become material points."""
 
     per_cell: Annotated[int, BeforeValidator(_to_int), AfterValidator(lambda v: _in_int_range(v, 1, 8))] = 2
-    seeding: Annotated[Literal["lattice", "gauss"], _choice(SEEDINGS)] = "lattice"
+    seeding: Annotated[Literal[SEEDINGS], _choice(SEEDINGS)] = "lattice"
 
 
 def _in_int_range(value: int, lo: int, hi: int) -> int:
@@ -465,15 +486,24 @@ def _in_int_range(value: int, lo: int, hi: int) -> int:
     return value
 
 
+class Advanced(_Model):
+    """``[numerics.advanced]``: solver settings most projects leave alone (docs/project-format.md)."""
+
+    guard: Annotated[Literal[GUARD_MODES], _choice(GUARD_MODES)] = "stop"
+    speed_bound_factor: Positive = sc.DEFAULT_SPEED_BOUND_FACTOR
+    scatter: Annotated[Literal[SCATTERS], _choice(SCATTERS)] = "auto"
+
+
 class Numerics(_Model):
     """``[numerics]``: scheme, time step (``time_step_s`` or ``cfl``), precision, device."""
 
-    scheme: Annotated[Literal["mpm", "apic", "apic-affine"], _choice(SCHEMES)] = "apic-affine"
+    scheme: Annotated[Literal[SCHEMES], _choice(SCHEMES)] = "apic-affine"
     time_step_s: OptPositive = None
     cfl: OptCfl = None
-    precision: Annotated[Literal["f32", "f64"], _choice(PRECISIONS)] = "f32"
-    arch: Annotated[Literal["auto", "cpu", "gpu"], _choice(ARCHS)] = "auto"
-    preset: Annotated[Literal["draft", "standard", "fine"], _choice(PRESETS)] | None = None
+    precision: Annotated[Literal[PRECISIONS], _choice(PRECISIONS)] = "f32"
+    arch: Annotated[Literal[ARCHS], _choice(ARCHS)] = "auto"
+    preset: Annotated[Literal[PRESETS], _choice(PRESETS)] | None = None
+    advanced: Advanced = Advanced()
 
     @model_validator(mode="before")
     @classmethod
@@ -486,7 +516,7 @@ class Numerics(_Model):
 class Damping(_Model):
     """``damping = {type = "local", coefficient = ..}``: Cundall's local damping."""
 
-    type: Annotated[Literal["local"], _choice(DAMPING_TYPES)] = "local"
+    type: Annotated[Literal[DAMPING_TYPES], _choice(DAMPING_TYPES)] = "local"
     coefficient: DampingCoefficient
 
 
@@ -494,7 +524,7 @@ class Stage(_Model):
     """``[[stages]]``: one stage of the analysis (see docs/project-format.md)."""
 
     name: OptName = None
-    type: Annotated[Literal["k0", "gravity", "dynamic"], _choice(STAGE_TYPES)]
+    type: Annotated[Literal[STAGE_TYPES], _choice(STAGE_TYPES)]
     duration_s: OptPositive = None
     k0: OptPositive = None
     damping: Damping | None = None
@@ -517,6 +547,13 @@ class Output(_Model):
         BeforeValidator(lambda v: v if isinstance(v, (list, tuple)) else _raise_array()),
         AfterValidator(_unique_fields),
     ] = OUTPUT_FIELDS
+    #: simulated seconds between checkpoints (full solver state, ``checkpoint.npz``); default:
+    #: every CHECKPOINT_EVERY_OUTPUTS output intervals. A run always writes one at its end.
+    checkpoint_interval_s: OptPositive = None
+
+
+#: Output intervals between checkpoints when ``output.checkpoint_interval_s`` is not given.
+CHECKPOINT_EVERY_OUTPUTS = 10
 
 
 def _raise_array() -> Any:

@@ -787,9 +787,10 @@ class MainWindow(QMainWindow):
                 return candidate
         raise OSError(f"no free folder name beside {path}")
 
-    def _choose_out_dir(self) -> Path | None:
-        """The folder for a new run: the one asked for, or a new one beside it when a run of this
-        window writes there or the user does not want earlier results replaced; None: cancelled."""
+    def _choose_out_dir(self) -> tuple[Path, bool] | None:
+        """The folder for a new run and whether to replace the results there: the folder asked
+        for, or a new one beside it when a run of this window writes there or the user does not
+        want earlier results replaced; None: cancelled."""
         from projects.results import is_results_dir
 
         out = self.out_dir().expanduser().absolute()
@@ -797,14 +798,15 @@ class MainWindow(QMainWindow):
         if out in busy:
             new = self._free_folder(out)
             self.statusBar().showMessage(f"{out.name} is in use by a run; this one writes to {new.name}", 8000)
-            return new
+            return new, False
         if is_results_dir(out):
             answer = self.ask_replace_results(out)
             if answer == "cancel":
                 return None
             if answer == "new":
-                return self._free_folder(out)
-        return out
+                return self._free_folder(out), False
+            return out, True
+        return out, False
 
     def start_run(self) -> bool:
         """Run the current document in a child process (``runout run``); the Results tab follows it.
@@ -826,11 +828,12 @@ class MainWindow(QMainWindow):
             return False
         if self.scene.mode == "draw":
             self.scene.set_mode("select")
-        out_dir = self._choose_out_dir()
-        if out_dir is None:
+        chosen = self._choose_out_dir()
+        if chosen is None:
             return False
+        out_dir, overwrite = chosen
         name = self.doc.path.stem if self.doc.path is not None else "untitled"
-        run = RunProcess(self.doc.text(), out_dir, name, parent=self)
+        run = RunProcess(self.doc.text(), out_dir, name, overwrite=overwrite, parent=self)
         run.runStarted.connect(lambda _e, r=run: self._run_started(r))
         run.progressed.connect(lambda e, r=run: self._run_progressed(r, e))
         run.frameWritten.connect(lambda _e, r=run: self._run_frame(r))

@@ -181,25 +181,40 @@ class RunPanel(QWidget):
             self.problems.addItem(str(p))
             self.problems.item(self.problems.count() - 1).setData(Qt.ItemDataRole.UserRole, p.path)
         n = len(self.doc.problems)
-        self.problems_box.setTitle(f"Problems ({n})" if n else "Problems (none)")
+        warnings: list[str] = []
+        if project is not None:
+            from projects.checks import project_warnings
+
+            try:
+                warnings = project_warnings(project)  # what runs but is probably not meant
+            except (ValueError, ArithmeticError) as err:
+                logger.debug("no warnings: %s", err)
+        from PySide6.QtGui import QColor
+
+        for text in warnings:
+            self.problems.addItem(f"warning: {text}")
+            self.problems.item(self.problems.count() - 1).setForeground(QColor("#b06000"))
+        self.warnings = warnings
+        title = f"Problems ({n})" if n else "Problems (none)"
+        self.problems_box.setTitle(title + (f", {len(warnings)} warning(s)" if warnings else ""))
         self.remove_unknown.setVisible(bool(self.doc.unknown_keys()))
-        self.problems.setMaximumHeight(260 if n else 48)
+        self.problems.setMaximumHeight(260 if n or warnings else 48)
         if project is None:
             for w in (self.particles, self.grid, self.steps, self.cell, self.numerics):
                 w.setText("–")
             self.preset_note.setText("")
             self.runtime.setText("fix the problems below first")
             return None
-        from projects.build import estimate
-        from projects.presets import apply_preset
+        from projects.build import resolve
         from projects.schema import DEFAULT_CFL, ProjectError
 
         try:
-            e = estimate(project)
-            effective = apply_preset(project)  # what the run uses (projects.resolve will say it once)
+            resolved = resolve(project, seed=False)  # what the run will use, preset applied
         except (ValueError, ZeroDivisionError, ProjectError) as err:
             self.runtime.setText(str(err))
             return None
+        e = dict(resolved.estimate)
+        effective = resolved.project
         nx, ny = e["grid_shape"]
         dx = effective.domain.cell_size_m
         num = effective.numerics

@@ -92,6 +92,8 @@ class RunProcess(QObject):
         What the run list calls it (the project file's stem).
     arch : str, optional
         ``--arch`` for the child.
+    overwrite : bool
+        ``--overwrite``: replace an earlier run's results in ``out_dir`` (the user said so).
 
     Signals
     -------
@@ -112,13 +114,14 @@ class RunProcess(QObject):
     ended = Signal(object)
 
     def __init__(self, project_text: str, out_dir: Path, name: str = "untitled", arch: str | None = None,
-                 parent: QObject | None = None) -> None:
+                 overwrite: bool = False, parent: QObject | None = None) -> None:
         super().__init__(parent)
         self.name = name
         self.title = name
         self.out_dir = Path(out_dir).expanduser().absolute()
         self.project_text = project_text
         self.arch = arch
+        self.overwrite = overwrite
         self.process = QProcess(self)
         self.process.readyReadStandardOutput.connect(self._read_stdout)
         self.process.readyReadStandardError.connect(self._read_stderr)
@@ -128,6 +131,7 @@ class RunProcess(QObject):
         self._stderr = b""
         self.stderr_lines: deque[str] = deque(maxlen=STDERR_LINES)
         self.events: list[dict[str, Any]] = []
+        self.warnings: list[str] = []
         self.started_event: dict[str, Any] | None = None
         self.last_progress: dict[str, Any] | None = None
         self.finished_event: dict[str, Any] | None = None
@@ -154,6 +158,8 @@ class RunProcess(QObject):
                 "--progress", "jsonl"]
         if self.arch in ("cpu", "gpu"):
             args += ["--arch", self.arch]
+        if self.overwrite:
+            args.append("--overwrite")  # the user chose to replace an earlier run's results there
         return args
 
     def start(self) -> None:
@@ -253,6 +259,8 @@ class RunProcess(QObject):
         elif kind == "frame":
             self.frames += 1
             self.frameWritten.emit(event)
+        elif kind == "warning":
+            self.warnings.append(str(event.get("message", "")))
         elif kind == "finished":
             self.finished_event = event
 

@@ -433,17 +433,17 @@ class SceneView(QWidget):
         pl.render()
 
     def _cell_and_per(self) -> tuple[Any, Any]:
-        """Cell size and particles per cell the run will use: a preset's when one is set (until
-        ``projects.resolve`` says it once), else the panels'."""
+        """Cell size and particles per cell the run will use (:func:`projects.build.resolve`:
+        a preset's when one is set), else the panels'."""
         project = self.doc.project
         if project is not None and project.numerics.preset is not None:
-            from projects.presets import apply_preset
+            from projects.build import resolve
             from projects.schema import ProjectError
 
             try:
-                effective = apply_preset(project)
+                effective = resolve(project, seed=False).project
                 return effective.domain.cell_size_m, effective.particles.per_cell
-            except ProjectError:
+            except (ProjectError, ValueError):
                 pass
         return self.doc.get("domain.cell_size_m"), self.doc.get("particles.per_cell", 2)
 
