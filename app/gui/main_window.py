@@ -70,6 +70,26 @@ def documentation_url() -> QUrl:
     return QUrl.fromLocalFile(str(local)) if local.is_file() else QUrl(DOCS_ONLINE)
 
 
+def _gravity_for_slopes(data: dict[str, Any]) -> list[str]:
+    """Replace a k0 initial stage by gravity loading where the ground slopes (K0 is no
+    equilibrium there: :func:`projects.checks.recommended_initial_stage`); what was changed."""
+    from projects.checks import recommended_initial_stage
+    from projects.schema import validate_project
+
+    stages = data.get("stages") or []
+    if not stages or not isinstance(stages[0], dict) or stages[0].get("type") != "k0":
+        return []
+    try:
+        recommended = recommended_initial_stage(validate_project(data))
+    except (ProjectError, ValueError, ArithmeticError):
+        return []
+    if recommended.get("type") != "gravity":
+        return []
+    stages[0] = {**recommended, "name": stages[0].get("name", recommended["name"])}
+    return [f"The ground slopes: the initial stress comes from gravity loading over "
+            f"{recommended['duration_s']:g} s (K0 is no equilibrium on a slope)"]
+
+
 class MainWindow(QMainWindow):
     """The Runout workbench.
 
@@ -631,10 +651,14 @@ class MainWindow(QMainWindow):
             if fit:
                 d["domain"]["origin_m"] = origin
                 d["domain"]["size_m"] = size
+            changed.extend(_gravity_for_slopes(d))
 
+        changed: list[str] = []
         self.doc.edit("slope from template", mutate)
         self.doc.selection.set(None)
         self.scene.fit()
+        if changed:
+            self.statusBar().showMessage(changed[0], 10000)
         return True
 
     def remove_unknown_keys(self) -> list[str]:
