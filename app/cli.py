@@ -436,6 +436,12 @@ def study(
     raise typer.Exit(0 if result.passed else 4)
 
 
+# sweep, calibrate and report (sweeps on Ray): app/sweep_commands.py
+from app.sweep_commands import register as _register_sweep_commands  # noqa: E402
+
+_register_sweep_commands(cli)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point (``runout``)."""
     # Taichi prints a banner on import; keep standard output for results

@@ -1,4 +1,4 @@
-"""The direction of dependencies (docs/DESIGN.md): app -> projects -> {geometry, solver}.
+"""The direction of dependencies (docs/DESIGN.md): app -> {studies, sweeps} -> projects -> {geometry, solver}.
 
 Each package is imported in a fresh interpreter and the modules it must not pull in are checked.
 """
@@ -21,6 +21,11 @@ FORBIDDEN = {
     "app.cli": ["PySide6", "pyvista", "taichi", "gmsh"],
     "studies": ["PySide6", "pyvista", "app"],
     "benchmarks.bench": ["PySide6", "pyvista", "app"],
+    # the sweep driver schedules `runout run` processes: no solver runtime, no GUI in it
+    "sweeps.sweep": ["PySide6", "pyvista", "vtk", "app", "taichi"],
+    "sweeps.calibrate": ["PySide6", "pyvista", "vtk", "app", "taichi"],
+    "sweeps.report": ["PySide6", "pyvista", "vtk", "app", "taichi"],
+    "sweeps.measures": ["PySide6", "pyvista", "vtk", "app", "taichi"],
 }
 
 
