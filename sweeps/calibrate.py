@@ -204,7 +204,7 @@ def run_calibration(
     unit = "m" if spec.observation.type == "deposit-profile" else ("(scaled)" if spec.observation.scales else "")
     n_obs = observation_count(spec, observed)
     # fail early on a bad base project or key path (the first trial's values at the range centres)
-    resolve_runs(spec.project_path, table.set, [{k: _centre(p) for k, p in spec.parameters.items()}])
+    resolve_runs(spec.project_path, table.set, [{k: _centre(p) for k, p in spec.parameters.items()}], spec.linked)
     measures = list((spec.observation.values or {}).keys())
     out.mkdir(parents=True, exist_ok=True)
     runs_dir = out / RUNS_DIR
@@ -255,7 +255,7 @@ def run_calibration(
         while len(trials) < table.trials and not stopped:
             asked = [study.ask() for _ in range(min(batch, table.trials - len(trials)))]
             values = [{k: _suggest(t, k, spec.parameters[k]) for k in keys} for t in asked]
-            plans = resolve_runs(spec.project_path, table.set, values) if values else []
+            plans = resolve_runs(spec.project_path, table.set, values, spec.linked) if values else []
             records: dict[int, RunRecord] = {}
             tasks, task_of = [], []
             for j, plan in enumerate(plans):

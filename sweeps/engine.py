@@ -136,8 +136,11 @@ def toml_value(value: Any) -> str:
     return json.dumps(str(value))
 
 
-def resolve_runs(project_path: Path, fixed: Sequence[str], samples: Sequence[dict[str, Any]]) -> list[RunPlan]:
+def resolve_runs(project_path: Path, fixed: Sequence[str], samples: Sequence[dict[str, Any]],
+                 linked: dict[str, list[str]] | None = None) -> list[RunPlan]:
     """Resolve every run's project (base + fixed + sampled overrides) and hash it.
+
+    ``linked`` maps a parameter key to more key paths set to the same value.
 
     A run whose values make an invalid project gets ``problem`` set (it is recorded as
     ``invalid`` and the sweep goes on); when every run is invalid, or the base project or the
@@ -153,7 +156,7 @@ def resolve_runs(project_path: Path, fixed: Sequence[str], samples: Sequence[dic
     base = load_project(project_path, list(fixed))
     plans, first_error = [], None
     for i, values in enumerate(samples):
-        sets = tuple(f"{k}={toml_value(v)}" for k, v in values.items())
+        sets = tuple(f"{key}={toml_value(v)}" for k, v in values.items() for key in (k, *(linked or {}).get(k, ())))
         try:
             project = apply_overrides(base, sets)
         except ProjectError as exc:

@@ -99,7 +99,8 @@ class Parameter(_Model):
     included); ``uniform``: ``low``, ``high``; ``normal``: ``mean``, ``std`` and optional
     truncation ``low``/``high``; ``lognormal``: ``mean_log``, ``std_log`` (of ln X) and optional
     ``low``/``high``. ``levels`` (continuous distributions, grid sampling only): how many
-    equal-probability levels the grid takes (the quantiles at (i + 1/2)/levels).
+    equal-probability levels the grid takes (the quantiles at (i + 1/2)/levels). ``also``: more
+    key paths set to the same value (e.g. the base friction angle with the material's).
     """
 
     distribution: Annotated[str, _choice(DISTRIBUTIONS)] = "list"
@@ -112,6 +113,7 @@ class Parameter(_Model):
     mean_log: Number | None = None
     std_log: Number | None = None
     levels: Int | None = None
+    also: StrList | None = None
 
     @model_validator(mode="before")
     @classmethod
@@ -131,7 +133,7 @@ class Parameter(_Model):
             "normal": ("mean", "std"),
             "lognormal": ("mean_log", "std_log"),
         }[self.distribution]
-        allowed = set(need) | {"distribution"}
+        allowed = set(need) | {"distribution", "also"}
         if self.distribution in ("normal", "lognormal"):
             allowed |= {"low", "high"}
         if self.distribution in ("uniform", "normal", "lognormal"):
@@ -154,6 +156,8 @@ class Parameter(_Model):
             v = getattr(self, name)
             if v is not None and not v > 0:
                 raise _fail(f"{name} must be > 0")
+        for key in self.also or []:
+            _key_path(key)
         if self.distribution == "lognormal" and self.low is not None and self.low < 0:
             raise _fail("low must be >= 0 for a lognormal parameter")
         return self
@@ -298,6 +302,11 @@ class SweepSpec(_Model):
     def project_path(self) -> Path:
         return (self.base / self.sweep.project).resolve()
 
+    @property
+    def linked(self) -> dict[str, list[str]]:
+        """Parameter key -> the other key paths set to its value (``also``)."""
+        return {k: list(p.also or []) for k, p in self.parameters.items() if p.also}
+
 
 class CalibrationSpec(_Model):
     """A validated calibration file (see :class:`Observation`); ``base`` as for SweepSpec."""
@@ -321,6 +330,11 @@ class CalibrationSpec(_Model):
     @property
     def project_path(self) -> Path:
         return (self.base / self.calibration.project).resolve()
+
+    @property
+    def linked(self) -> dict[str, list[str]]:
+        """Parameter key -> the other key paths set to its value (``also``)."""
+        return {k: list(p.also or []) for k, p in self.parameters.items() if p.also}
 
     @property
     def observation_path(self) -> Path | None:
@@ -419,3 +433,53 @@ def load_spec(path: str | os.PathLike[str]) -> SweepSpec | CalibrationSpec:
         raise ProjectError([Problem("", None, f"cannot read the sweep file: {exc.strerror or exc}")], str(p)) from None
     data = parse_toml(text, source=str(p))
     return parse_spec(data, p.resolve().parent, source=str(p))
+
+
+def dumps_spec(spec: SweepSpec | CalibrationSpec) -> str:
+    """TOML text of a validated spec (relative paths kept as given; ``base`` left out).
+
+    ``load_spec`` of the text saved next to the same base folder gives an equal spec.
+    """
+    import tomlkit
+
+    data = spec.model_dump(exclude_none=True, exclude={"base"})
+    doc = tomlkit.document()
+    for table, values in data.items():
+        if table == "parameters":
+            params = tomlkit.table(is_super_table=True)
+            for key, p in values.items():
+                t = tomlkit.table()
+                for k, v in p.items():
+                    t.add(k, v)
+                params.add(key, t)
+            doc.add("parameters", params)
+        else:
+            doc.add(table, values)
+    return tomlkit.dumps(doc)
+
+
+def save_spec(spec: SweepSpec | CalibrationSpec, path: str | os.PathLike[str]) -> Path:
+    """Write a spec as a TOML file (atomically), e.g. from the workbench's sweep dialog."""
+    from sweeps.sweep import atomic_write
+
+    p = Path(path)
+    atomic_write(p, dumps_spec(spec))
+    return p
+
+
+def command_line(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *, workers: int | None = None,
+                 address: str | None = None) -> list[str]:
+    """The process to start for a sweep or calibration file (``runout sweep``/``calibrate``).
+
+    The workbench starts this as a process of its own (it never imports Ray or Taichi) and follows
+    ``progress.json`` and ``sweep.csv`` (:func:`sweeps.sweep.read_sweep`) in ``out_dir``.
+    """
+    import sys
+
+    kind = "calibrate" if "calibration" in load_spec(spec_path).model_fields_set else "sweep"
+    cmd = [sys.executable, "-m", "app.cli", kind, str(spec_path), "--out", str(out_dir)]
+    if workers is not None:
+        cmd += ["--workers", str(workers)]
+    if address is not None:
+        cmd += ["--address", address]
+    return cmd

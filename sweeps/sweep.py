@@ -92,7 +92,7 @@ class SweepResult:
 
 def plan_sweep(spec: SweepSpec) -> list[RunPlan]:
     """Sample the parameters and resolve every run (see :func:`sweeps.engine.resolve_runs`)."""
-    return resolve_runs(spec.project_path, spec.sweep.set, sample(spec))
+    return resolve_runs(spec.project_path, spec.sweep.set, sample(spec), spec.linked)
 
 
 def atomic_write(path: Path, text: str) -> None:

@@ -99,7 +99,7 @@ def test_list_values_are_drawn_evenly():
      "low must be < high"),
     ({"sweep": {"project": "p.toml", "runs": 2}, "parameters": {"a": {"distribution": "uniform", "low": 0,
                                                                       "high": 1, "mean": 3}}},
-     'a "uniform" parameter takes high, levels, low (not mean)'),
+     'a "uniform" parameter takes also, high, levels, low (not mean)'),
     ({"sweep": {"project": "p.toml", "runs": 0}, "parameters": {"a": [1]}}, "runs must be >= 1"),
     ({"parameters": {"a": [1]}}, "exactly one of the tables [sweep] or [calibration]"),
 ])
@@ -146,3 +146,33 @@ def test_load_spec_reads_relative_paths_from_its_folder(tmp_path):
     with pytest.raises(ProjectError, match="TOML syntax error at line 1"):
         (tmp_path / "bad.toml").write_text("[sweep\n", encoding="utf-8")
         load_spec(tmp_path / "bad.toml")
+
+
+EXAMPLE_SPECS = sorted((TINY.parent / "sweeps").glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", EXAMPLE_SPECS, ids=lambda p: p.stem)
+def test_shipped_sweep_files_load_resolve_and_round_trip(path, tmp_path):
+    from projects.document import parse_toml
+    from sweeps.spec import command_line, dumps_spec
+
+    s = load_spec(path)
+    assert parse_spec(parse_toml(dumps_spec(s)), s.base) == s
+    assert s.project_path.is_file()
+    if hasattr(s, "sweep"):
+        plans = resolve_runs(s.project_path, s.sweep.set, sample(s), s.linked)
+        assert len(plans) == s.sweep.runs and all(p.run_id and not p.problem for p in plans)
+        assert command_line(path, tmp_path)[3] == "sweep"
+    else:
+        assert s.observation_path.is_file()
+        assert command_line(path, tmp_path)[3] == "calibrate"
+
+
+def test_also_sets_linked_keys_to_the_same_value():
+    s = spec({"materials.sand.friction_angle_deg": {"values": [22.0],
+                                                    "also": ["domain.boundaries.bottom.friction_angle_deg"]}},
+             sampling="grid", runs=None)
+    plan = resolve_runs(s.project_path, s.sweep.set, sample(s), s.linked)[0]
+    assert plan.overrides == ("materials.sand.friction_angle_deg=22.0",
+                              "domain.boundaries.bottom.friction_angle_deg=22.0")
+    assert "friction_angle_deg = 22.0" in plan.project_text
