@@ -208,7 +208,8 @@ def execute_run(task: dict[str, Any]) -> dict[str, Any]:
            "--arch", task.get("arch") or "cpu"]
     t0 = time.perf_counter()
     try:
-        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=task.get("timeout_s"))
+        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=task.get("timeout_s"),
+                              preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
         rc, stderr = proc.returncode, proc.stderr
     except subprocess.TimeoutExpired as exc:
         rc, stderr = None, f"timed out after {exc.timeout:g} s"
@@ -243,6 +244,21 @@ def execute_run(task: dict[str, Any]) -> dict[str, Any]:
     else:
         rec.measures = {k: math.nan for k in task.get("measures") or ()}
     return rec.to_json()
+
+
+def _die_with_parent() -> None:
+    """In the child, before exec: SIGTERM when the Ray worker dies (cancelled sweep, ray.shutdown).
+
+    ``runout run`` stops on SIGTERM at its next step and marks its folder "stopped"; without this
+    a cancelled task would leave its run going on, orphaned. Linux only (prctl PR_SET_PDEATHSIG).
+    """
+    import ctypes
+    import signal
+
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(signal.SIGTERM), 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+    except OSError:
+        pass
 
 
 # --------------------------------------------------------------------------------------------

@@ -158,8 +158,14 @@ def write_sweep_report(data: SweepData, alpha: float = 0.05) -> Path:
             continue
         ex = exceedance(y, alpha)
         fig, ax = _figure()
-        ax.step(ex.x, ex.p, where="post", color="C0", label="P(X > x), empirical")
-        ax.fill_between(ex.x, ex.lower, ex.upper, step="post", color="C0", alpha=0.2,
+        # P(X > x) = 1 left of the smallest value: start the curve there
+        pad = 0.05 * (float(ex.x[-1] - ex.x[0]) or abs(float(ex.x[0])) or 1.0)
+        xs = np.concatenate([[ex.x[0] - pad], ex.x, [ex.x[-1] + pad]])
+        ps = np.concatenate([[1.0], ex.p, [0.0]])
+        lo = np.concatenate([[max(0.0, 1.0 - ex.eps)], ex.lower, [0.0]])
+        hi = np.concatenate([[1.0], ex.upper, [min(1.0, ex.eps)]])
+        ax.step(xs, ps, where="post", color="C0", label="P(X > x), empirical")
+        ax.fill_between(xs, lo, hi, step="post", color="C0", alpha=0.2,
                         label=f"{100 * (1 - alpha):g}% DKW band (+-{ex.eps:.2f})")
         ax.set_xlabel(m)
         ax.set_ylabel("exceedance probability")
