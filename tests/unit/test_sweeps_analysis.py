@@ -170,3 +170,17 @@ def test_confidence_threshold_by_hand():
 
     assert confidence_threshold(0.002, 41, 1) == pytest.approx(0.002 * math.sqrt(1 + f.ppf(0.95, 1, 40) / 40))
     assert math.isnan(confidence_threshold(0.1, 1, 1))  # one observed value, one parameter: no region
+
+
+@pytest.mark.parametrize("centre, width", [(19.8, 0.5), (30.0, 2.0)])
+def test_quadratic_estimate_recovers_a_parabola(centre, width):
+    from sweeps.calibrate import quadratic_estimate
+
+    theta = np.array([10.0, 15.0, centre - 1.3, centre + 0.7, centre + 2.1, 40.0])
+    s_min = 1e-6
+    rms = np.sqrt(s_min + 1e-7 * (theta - centre) ** 2)
+    threshold = math.sqrt(s_min + 1e-7 * width**2)  # the parabola crosses it at centre +- width
+    m, lo, hi = quadratic_estimate(theta, rms, threshold, points=3)
+    assert m == pytest.approx(centre, abs=1e-6)
+    assert lo == pytest.approx(centre - width, abs=1e-6) and hi == pytest.approx(centre + width, abs=1e-6)
+    assert quadratic_estimate([1.0, 2.0], [0.1, 0.2], 0.3) is None
