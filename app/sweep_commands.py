@@ -90,10 +90,14 @@ def register(cli: typer.Typer) -> None:
         """Run a parameter sweep or Monte Carlo analysis on Ray: sweep.csv, statistics, report.html."""
         from projects.runner import StopRequest
         from projects.schema import ProjectError
-        from sweeps.sweep import run_sweep
+        from sweeps.sweep import plan_sweep, run_sweep
 
         _check_engine(workers, threads, gpus)
         spec = _load_spec(spec_path, "sweep")
+        try:
+            plan_sweep(spec)  # every problem before Ray starts
+        except ProjectError as exc:
+            _cli().fail(f"{spec_path}: {exc}")
         folder = out_dir or spec_path.with_name(spec_path.stem + ".sweep")
         stop = StopRequest()
         with _cli().stop_on_signals(stop), _Bar("runs") as bar:
@@ -128,10 +132,14 @@ def register(cli: typer.Typer) -> None:
         """Find the parameters that best reproduce an observation (optuna), runs on Ray; report.html."""
         from projects.runner import StopRequest
         from projects.schema import ProjectError
-        from sweeps.calibrate import run_calibration
+        from sweeps.calibrate import check_calibration, run_calibration
 
         _check_engine(workers, threads, gpus)
         spec = _load_spec(spec_path, "calibration")
+        try:
+            check_calibration(spec)  # every problem before Ray starts
+        except ProjectError as exc:
+            _cli().fail(f"{spec_path}: {exc}")
         folder = out_dir or spec_path.with_name(spec_path.stem + ".calibration")
         stop = StopRequest()
         with _cli().stop_on_signals(stop), _Bar("trials") as bar:

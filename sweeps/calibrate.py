@@ -248,11 +248,9 @@ def run_calibration(
     out = Path(out_dir).expanduser().absolute()
     table = spec.calibration
     keys = list(spec.parameters)
-    observed = read_observation(spec) if spec.observation.type == "deposit-profile" else None
+    observed = check_calibration(spec)
     unit = "m" if spec.observation.type == "deposit-profile" else ("(scaled)" if spec.observation.scales else "")
     n_obs = observation_count(spec, observed)
-    # fail early on a bad base project or key path (the first trial's values at the range centres)
-    resolve_runs(spec.project_path, table.set, [{k: _centre(p) for k, p in spec.parameters.items()}], spec.linked)
     measures = list((spec.observation.values or {}).keys())
     out.mkdir(parents=True, exist_ok=True)
     runs_dir = out / RUNS_DIR
@@ -346,6 +344,20 @@ def run_calibration(
     if report:
         write_calibration_report(read_calibration(out))
     return result
+
+
+def check_calibration(spec: CalibrationSpec) -> np.ndarray | None:
+    """Check what can be checked before any run: the observation file, the base project, the fixed
+    overrides and the parameter keys (at the centres of their ranges). Returns the observed points.
+
+    Raises
+    ------
+    ProjectError
+    """
+    observed = read_observation(spec) if spec.observation.type == "deposit-profile" else None
+    resolve_runs(spec.project_path, spec.calibration.set, [{k: _centre(p) for k, p in spec.parameters.items()}],
+                 spec.linked)
+    return observed
 
 
 def _centre(p: Parameter) -> Any:

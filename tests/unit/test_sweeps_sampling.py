@@ -176,3 +176,29 @@ def test_also_sets_linked_keys_to_the_same_value():
     assert plan.overrides == ("materials.sand.friction_angle_deg=22.0",
                               "domain.boundaries.bottom.friction_angle_deg=22.0")
     assert "friction_angle_deg = 22.0" in plan.project_text
+
+
+def _runout(*args: str, cwd: Path) -> "subprocess.CompletedProcess[str]":
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(TINY.parents[2]), env.get("PYTHONPATH", "")])
+    return subprocess.run([sys.executable, "-m", "app.cli", *args], cwd=cwd, capture_output=True, text=True,
+                          timeout=120, env=env)
+
+
+def test_command_line_reports_bad_sweep_files_in_one_line(tmp_path):
+    (tmp_path / "s.toml").write_text(f'[sweep]\nproject = "{TINY}"\nsampling = "grid"\n'
+                                     '[parameters]\n"materials.sand.friction_angl" = [1.0]\n', encoding="utf-8")
+    res = _runout("sweep", "s.toml", cwd=tmp_path)
+    assert res.returncode == 1
+    assert res.stderr.strip().splitlines() == [
+        "error: s.toml: materials.sand.friction_angl: unknown key; allowed: model, density_kg_m3, youngs_modulus_pa, "
+        "poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, tensile_strength_pa"]
+    assert not (tmp_path / "s.sweep").exists()
+    res = _runout("calibrate", "s.toml", cwd=tmp_path)
+    assert res.returncode == 1 and "this is a sweep file" in res.stderr
+    res = _runout("report", str(tmp_path), cwd=tmp_path)
+    assert res.returncode == 1 and "holds no sweep.csv or calibration.csv" in res.stderr
