@@ -82,6 +82,9 @@ class RunRecord:
         ``(x_m, values)`` of the sweep's profile field.
     surface : list of float or None
         Final surface heights at requested stations (calibration), m.
+    overhead_s : float
+        Time from submitting the task to receiving its result, less the run process's wall time:
+        Ray's scheduling, the task's start and reading the measures, s.
     """
 
     run_id: str
@@ -93,6 +96,7 @@ class RunRecord:
     profile: tuple[list[float], list[float]] | None = None
     surface: list[float] | None = None
     host: str = ""
+    overhead_s: float = math.nan
     reused: bool = False
 
     def to_json(self) -> dict[str, Any]:
@@ -101,7 +105,7 @@ class RunRecord:
             "wall_time_s": _finite(self.wall_time_s), "results_dir": self.results_dir,
             "measures": {k: _finite(v) for k, v in self.measures.items()},
             "profile": None if self.profile is None else {"x_m": self.profile[0], "values": self.profile[1]},
-            "surface": self.surface, "host": self.host,
+            "surface": self.surface, "host": self.host, "overhead_s": _finite(self.overhead_s),
         }
 
     @classmethod
@@ -113,7 +117,7 @@ class RunRecord:
             results_dir=str(data.get("results_dir", "")),
             measures={k: _num(v) for k, v in (data.get("measures") or {}).items()},
             profile=None if not prof else (list(prof["x_m"]), [_num(v) for v in prof["values"]]),
-            surface=data.get("surface"), host=str(data.get("host", "")),
+            surface=data.get("surface"), host=str(data.get("host", "")), overhead_s=_num(data.get("overhead_s")),
         )
 
 
@@ -299,6 +303,8 @@ class RayEngine:
                  threads_per_run: int | None = None, gpus_per_run: float | None = None) -> None:
         self._want = (workers, address, threads_per_run, gpus_per_run)
         self._started = False
+        #: Seconds ``ray.init`` took (0 where Ray was running already).
+        self.startup_s = 0.0
         self.settings: EngineSettings | None = None
         self._remote: Any = None
 
@@ -321,7 +327,9 @@ class RayEngine:
                 kwargs["num_cpus"] = workers * threads
             else:
                 kwargs["address"] = address
+            t0 = time.perf_counter()
             ray.init(**kwargs)
+            self.startup_s = time.perf_counter() - t0
             self._started = True
         resources = ray.cluster_resources()
         if gpus is None:
@@ -361,6 +369,7 @@ class RayEngine:
         todo = list(enumerate(tasks))
         todo.reverse()
         running: dict[Any, int] = {}
+        submitted: dict[Any, float] = {}
         while todo or running:
             if cancel is not None and cancel():
                 for ref in running:
@@ -369,14 +378,19 @@ class RayEngine:
             while todo and len(running) < self.settings.workers:
                 i, task = todo.pop()
                 task = {**task, "threads": self.settings.threads, "arch": self.arch}
-                running[self._remote.remote(task)] = i
+                ref = self._remote.remote(task)
+                running[ref] = i
+                submitted[ref] = time.perf_counter()
             done, _ = ray.wait(list(running), num_returns=1, timeout=0.5)
             for ref in done:
                 i = running.pop(ref)
+                elapsed = time.perf_counter() - submitted.pop(ref)
                 try:
                     data = ray.get(ref)
                 except Exception as exc:  # noqa: BLE001 - a dead worker or a crashed task: record it
                     data = RunRecord(run_id=tasks[i]["run_id"], status="error",
                                      message=f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
                                      ).to_json()
+                if isinstance(data.get("wall_time_s"), (int, float)):
+                    data["overhead_s"] = elapsed - data["wall_time_s"]
                 yield i, data

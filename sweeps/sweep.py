@@ -237,7 +237,7 @@ def run_sweep(
                    gpus_per_run if gpus_per_run is not None else spec.sweep.gpus_per_run) as engine:
         assert engine.settings is not None
         settings = {"workers": engine.settings.workers, "threads_per_run": engine.settings.threads,
-                    "gpus_per_run": engine.settings.gpus, "address": address}
+                    "gpus_per_run": engine.settings.gpus, "address": address, "ray_startup_s": engine.startup_s}
         _write_spec(out, spec, plans, settings)
         progress(None)
         tasks = [{"run_id": p.run_id, "project_text": p.project_text, "runs_dir": str(runs_dir),
