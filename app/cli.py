@@ -235,7 +235,9 @@ def _summary_line(result: RunResult) -> str:
 
 @cli.command()
 def run(
-    project: Annotated[Path, typer.Argument(help="Project file (.toml).", show_default=False)],
+    project: Annotated[
+        Path | None, typer.Argument(help="Project file (.toml); not with --resume.", show_default=False)
+    ] = None,
     out_dir: Annotated[
         Path | None,
         typer.Option("--out", "-o", help="Results folder (default: NAME.results next to the project)."),
@@ -246,29 +248,48 @@ def run(
     ] = None,
     arch: Annotated[Arch | None, typer.Option("--arch", help="Run on the CPU or the GPU.")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress or summary; errors only.")] = False,
+    resume: Annotated[
+        Path | None,
+        typer.Option("--resume", help="Continue the killed or stopped run in this results folder "
+                     "from its last checkpoint.", show_default=False),
+    ] = None,
+    start_from: Annotated[
+        Path | None,
+        typer.Option("--start-from", help="Start the project's stages from the particle state of another "
+                     "run's checkpoint (its results folder or checkpoint.npz).", show_default=False),
+    ] = None,
 ) -> None:
-    """Run a project and write its results folder."""
+    """Run a project and write its results folder (or resume one with --resume)."""
     from projects.results import ResultsError
-    from projects.runner import StopRequest, run_project
+    from projects.runner import StopRequest, resume_run, run_project
     from projects.schema import ProjectError
 
+    if (project is None) == (resume is None):
+        fail("give a project file, or --resume RESULTS (not both)")
+    if resume is not None and (out_dir is not None or overrides or start_from is not None):
+        fail("--resume continues a run as it was: no --out, --set or --start-from with it")
     if quiet:
         _setup_logging(verbose=False, quiet=True)
     stop = StopRequest()
     with stop_on_signals(stop):
         try:
-            model = load_or_exit(project, overrides)
+            model = load_or_exit(project, overrides) if project is not None else None
             # Taichi prints "[Taichi] Starting on arch=..." to stdout; keep stdout for results
             chatter = io.StringIO() if quiet else sys.stderr
             with _RunProgress(quiet) as progress, contextlib.redirect_stdout(chatter):
-                result = run_project(
-                    model,
-                    out_dir,
-                    project_path=project,
-                    arch=arch.value if arch is not None else None,
-                    cancel=stop,
-                    on_progress=progress.update,
-                )
+                if resume is not None:
+                    result = resume_run(resume, arch=arch.value if arch is not None else None,
+                                        cancel=stop, on_progress=progress.update)
+                else:
+                    result = run_project(
+                        model,
+                        out_dir,
+                        project_path=project,
+                        arch=arch.value if arch is not None else None,
+                        cancel=stop,
+                        on_progress=progress.update,
+                        start_from=start_from,
+                    )
                 if result.status == "completed":
                     progress.finish()
         except (ProjectError, ResultsError) as exc:
@@ -302,15 +323,19 @@ def validate(
 
     model = load_or_exit(project, overrides)
     try:
-        built = check_project(model)
+        resolved = check_project(model)
     except ProjectError as exc:
         fail(f"{project}: {exc}")
-    grid = built.config.grid
+    grid = resolved.config.grid
     nx, ny = grid.cells
+    numerics = resolved.config.numerics
+    step = f"dt {numerics.time_step_s:g} s" if numerics.time_step_s is not None else f"cfl {numerics.cfl:g}"
+    preset = f" (preset {resolved.project.numerics.preset})" if resolved.project.numerics.preset else ""
     out.print(
-        f"ok: {len(built.particles):,} particles, {len(built.config.materials)} materials, "
-        f"{len(built.body_names)} bodies, {len(built.config.stages)} stages, "
-        f"grid {nx} x {ny} cells of {grid.cell_size_m:g} m",
+        f"ok: {resolved.particle_count:,} particles, {len(resolved.config.materials)} materials, "
+        f"{len(resolved.body_names)} bodies, {len(resolved.config.stages)} stages, "
+        f"grid {nx} x {ny} cells of {grid.cell_size_m:g} m, {numerics.scheme} {step}{preset}, "
+        f"about {resolved.estimate['steps']:,} steps",
         markup=False,
     )
 

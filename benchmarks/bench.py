@@ -35,6 +35,8 @@ import os
 import platform
 import re
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from collections.abc import Callable, Iterator
@@ -124,6 +126,9 @@ class BenchConfig:
     stall_interval_s: float = 0.01
     stall_rounds: int = 1
     gpu_full_run: bool = False
+    #: process start to first step (``runout run`` in a child process) with a cold and a warm
+    #: kernel cache, ``startup_runs`` warm runs per scene (0: not measured)
+    startup_runs: int = 2
 
     def __post_init__(self) -> None:
         problems = []
@@ -836,6 +841,45 @@ def gpu_full_run(note: Callable[[str], None] | None = None) -> dict[str, Any] | 
 # the whole benchmark
 
 
+#: Scenes of the start-up rows: (example, overrides that keep the run short) and the target (s).
+STARTUP_SCENES: tuple[tuple[str, tuple[str, ...], float], ...] = (
+    ("tiny_column", (), 1.0),
+    ("bui2008_aluminium_bars", ("stages.1.duration_s=0.002", "output.interval_s=0.001"), 2.0),
+)
+
+
+def startup(runs: int, note: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
+    """Process start to the end of the first step of ``runout run`` (``summary.json: startup_s``).
+
+    Each scene runs once with an empty kernel cache (a fresh ``TI_OFFLINE_CACHE_FILE_PATH``:
+    every kernel compiled) and then ``runs`` times with that cache warm; rows give the cold
+    figure and the best and median warm figures.
+    """
+    examples = Path(__file__).resolve().parents[1] / "projects" / "examples"
+    rows = []
+    for name, sets, goal in STARTUP_SCENES:
+        with tempfile.TemporaryDirectory(prefix="runout-startup-") as tmp:
+            env = {**os.environ, "TI_OFFLINE_CACHE_FILE_PATH": str(Path(tmp) / "cache")}
+            figures = []
+            for i in range(runs + 1):
+                out = Path(tmp) / f"run{i}"
+                args = [sys.executable, "-m", "app.cli", "run", str(examples / f"{name}.toml"), "--out", str(out),
+                        "--quiet", "--set", "numerics.advanced.scatter=serial", *[a for s_ in sets for a in ("--set", s_)]]
+                done = subprocess.run(args, env=env, capture_output=True, text=True, timeout=600)
+                summary = json.loads((out / "summary.json").read_text()) if (out / "summary.json").is_file() else {}
+                if done.returncode != 0 or "startup_s" not in summary:
+                    raise BenchError(f"start-up run of {name} failed: {done.stderr.strip()[-300:]}")
+                figures.append(float(summary["startup_s"]))
+            warm = sorted(figures[1:])
+            row = {"scene": name, "particles": summary.get("particles"), "cold_s": figures[0],
+                   "warm_best_s": warm[0] if warm else None,
+                   "warm_median_s": float(np.median(warm)) if warm else None, "goal_s": goal}
+            if note is not None:
+                note(f"start-up {name}: cold {row['cold_s']:.2f} s, warm {row['warm_best_s']:.2f} s")
+            rows.append(row)
+    return rows
+
+
 def _load_average() -> list[float] | None:
     """1, 5 and 15 minute load averages (other work on the machine disturbs the timings)."""
     try:
@@ -922,6 +966,11 @@ def evaluate_targets(result: dict[str, Any]) -> list[dict[str, Any]]:
     else:
         targets.append(_target("GPU particle-steps/s at 1e6 f32", ">= 1e9", None, None, "GPU", NOT_MEASURED_NO_GPU
                                if not result["machine"]["gpu_available"] else "not measured at 1e6"))
+    for row in result.get("startup", []):
+        value = row["warm_median_s"]
+        targets.append(_target(f"process start to first step, {row['scene']} (warm cache)", f"< {row['goal_s']:g} s",
+                               value, None if value is None else value < row["goal_s"],
+                               f"CPU, {row['particles']:,} particles", f"cold cache: {row['cold_s']:.2f} s"))
     full = result.get("gpu_full_run")
     if full:
         targets.append(_target("GPU aluminium-bar run (20k, 1 s at 20 us)", "< 1.5 s", full["wall_s"],
@@ -991,6 +1040,8 @@ def run_bench_config(cfg: BenchConfig, out: Path | None = None, *,
             result["output_stall"] = output_stall(cfg.stall_particles, cfg, "cpu", "f32", note)
     if "gpu" in archs and cfg.gpu_full_run:
         result["gpu_full_run"] = gpu_full_run(note)
+    if cfg.startup_runs > 0:
+        result["startup"] = startup(cfg.startup_runs, note)
     result["targets"] = evaluate_targets(result)
     result["wall_s"] = time.perf_counter() - started
     result["load_average"] = {"start": load_start, "end": _load_average()}
@@ -1077,6 +1128,11 @@ def profile_markdown(prof: dict[str, Any]) -> str:
 def report_tables(result: dict[str, Any]) -> list[tuple[str, list[str], list[list[str]]]]:
     """The result as (title, header, rows) tables, for markdown and rich."""
     tables = []
+    if result.get("startup"):
+        tables.append(("Start-up: process start to the end of the first step (runout run)",
+                       ["scene", "particles", "cold cache s", "warm best s", "warm median s", "goal s"],
+                       [[r["scene"], f"{r['particles']:,}", f"{r['cold_s']:.2f}", f"{r['warm_best_s']:.2f}",
+                         f"{r['warm_median_s']:.2f}", f"< {r['goal_s']:g}"] for r in result["startup"]]))
     rows = result["throughput"]
     variants = [YARDSTICK, *[s for s in SCHEMES if any(r["variant"] == s for r in rows)]]
     groups = sorted({(r["arch"], r["precision"], r["particles"]) for r in rows},
@@ -1149,6 +1205,11 @@ def report_tables(result: dict[str, Any]) -> list[tuple[str, list[str], list[lis
                 ["ratio if nothing overlapped (estimate)", _x(stall["estimated_ratio"]), "", ""]]
         tables.append((f"Output stall: {stall['arch']} {stall['precision']} {stall['particles']:,} particles, "
                        f"{stall['simulated_s']:g} s simulated", ["run", "wall s", "steps", "frames"], body))
+    for row in result.get("startup", []):
+        value = row["warm_median_s"]
+        targets.append(_target(f"process start to first step, {row['scene']} (warm cache)", f"< {row['goal_s']:g} s",
+                               value, None if value is None else value < row["goal_s"],
+                               f"CPU, {row['particles']:,} particles", f"cold cache: {row['cold_s']:.2f} s"))
     full = result.get("gpu_full_run")
     if full:
         tables.append(("GPU aluminium-bar run", ["particles", "steps", "simulated s", "wall s"],

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,31 +24,6 @@ from projects.schema import DEFAULT_GRAVITY_DAMPING, Problem, Project, ProjectEr
 from solver import config as sc
 
 logger = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True, eq=False)
-class BuiltRun:
-    """Everything the solver needs for one run, plus names for reporting.
-
-    Attributes
-    ----------
-    config : solver.config.SimulationConfig
-        Grid, materials (file order), stages, gravity, numerics, output; SI units, radians.
-    particles : solver.config.Particles
-        Initial positions (N, 2) m, volumes (N,) m2, material ids (N,) and velocities (N, 2) m/s.
-    material_names : tuple of str
-        Name of each material id.
-    body_names : tuple of str
-        Name of each body, in file order.
-    particle_body : numpy.ndarray, shape (N,), int64
-        Index into ``body_names`` of each particle.
-    """
-
-    config: sc.SimulationConfig
-    particles: sc.Particles
-    material_names: tuple[str, ...]
-    body_names: tuple[str, ...]
-    particle_body: np.ndarray
 
 
 def solver_material(name: str, material: schema.Material) -> sc.Material:
@@ -165,6 +141,9 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
         cfl=None if numerics.time_step_s is not None else numerics.cfl,
         precision=numerics.precision,
         arch=arch,
+        guard=numerics.advanced.guard,
+        speed_bound_factor=numerics.advanced.speed_bound_factor,
+        scatter=numerics.advanced.scatter,
     )
     output = sc.Output(interval_s=project.output.interval_s, fields=tuple(project.output.fields))
     return sc.SimulationConfig(
@@ -197,18 +176,14 @@ def seed_bodies(project: Project) -> Seeds:
     return seed_lattice(polygons, project.domain.origin_m, project.domain.cell_size_m, particles.per_cell)
 
 
-def build_simulation(project: Project, *, arch_override: str | None = None) -> BuiltRun:
-    """Build the solver input of a project: configuration and seeded particles.
-
-    Parameters
-    ----------
-    project : Project
-    arch_override : {"auto", "cpu", "gpu"}, optional
-        Replaces ``numerics.arch``.
+def _seed_particles(project: Project, config: sc.SimulationConfig) -> tuple[sc.Particles, np.ndarray]:
+    """Seed the bodies of a (preset-applied) project into the solver's particles.
 
     Returns
     -------
-    BuiltRun
+    particles : solver.config.Particles
+    body_index : numpy.ndarray, shape (N,), int64
+        The body of each particle.
 
     Raises
     ------
@@ -216,8 +191,6 @@ def build_simulation(project: Project, *, arch_override: str | None = None) -> B
         When a body receives no particles (it is thinner than the particle spacing or
         entirely covered by later bodies).
     """
-    project = apply_preset(project)
-    config = solver_config(project, arch_override=arch_override)
     seeds = seed_bodies(project)
     counts = np.bincount(seeds.body_index, minlength=len(project.bodies))
     empty = [
@@ -232,7 +205,6 @@ def build_simulation(project: Project, *, arch_override: str | None = None) -> B
     ]
     if empty:
         raise ProjectError(empty)
-
     names = project.material_names
     body_material = np.array([names.index(body.material) for body in project.bodies], dtype=np.int64)
     body_velocity = np.array([body.initial_velocity_m_s for body in project.bodies], dtype=np.float64)
@@ -243,21 +215,139 @@ def build_simulation(project: Project, *, arch_override: str | None = None) -> B
         material_ids=body_material[body_index],
         velocities_m_s=body_velocity[body_index],
     )
-    logger.info(
-        "built %d particles in %d bodies on a %d x %d grid",
-        len(particles), len(project.bodies), *config.grid.cells,
-    )
-    return BuiltRun(
-        config=config,
-        particles=particles,
-        material_names=names,
-        body_names=tuple(body.name for body in project.bodies),
-        particle_body=body_index,
-    )
+    logger.info("seeded %d particles in %d bodies on a %d x %d grid",
+                len(particles), len(project.bodies), *config.grid.cells)
+    return particles, body_index
+
+
+@dataclass(frozen=True, eq=False)
+class ResolvedRun:
+    """Everything one run is: the one place where a project, its overrides and its preset become
+    the settings, particles and numbers that run (docs/DESIGN.md, "One resolved run").
+
+    Attributes
+    ----------
+    project : projects.schema.Project
+        The project as it runs: overrides applied and the preset's values filled in (what a
+        results folder records as ``project.toml``).
+    config : solver.config.SimulationConfig
+        Grid, materials (file order), stages, gravity, numerics, output; SI units, radians.
+    particles : solver.config.Particles or None
+        Initial positions (N, 2) m, volumes (N,) m2, material ids (N,) and velocities (N, 2) m/s;
+        None when resolved with ``seed=False``.
+    particle_body : numpy.ndarray, shape (N,), int64, or None
+        Index into ``body_names`` of each particle.
+    estimate : dict
+        :func:`estimate` of the project (size and cost before seeding).
+    """
+
+    project: Project
+    config: sc.SimulationConfig
+    particles: sc.Particles | None
+    particle_body: np.ndarray | None
+    estimate: dict
+
+    @property
+    def material_names(self) -> tuple[str, ...]:
+        return self.project.material_names
+
+    @property
+    def body_names(self) -> tuple[str, ...]:
+        return tuple(body.name for body in self.project.bodies)
+
+    @property
+    def particle_count(self) -> int:
+        """Seeded particles, or the estimate's count when not seeded."""
+        return len(self.particles) if self.particles is not None else int(self.estimate["particles"])
+
+    @property
+    def spacing_m(self) -> float:
+        """Side of the square one particle stands for (m): what views size points with."""
+        if self.particles is not None and len(self.particles):
+            return float(np.sqrt(np.median(np.asarray(self.particles.volumes_m2, dtype=float))))
+        return self.project.domain.cell_size_m / self.project.particles.per_cell
+
+    @property
+    def box_m(self) -> tuple[float, float, float, float]:
+        """The grid box ``(x0, y0, x1, y1)`` in metres (whole cells; may exceed ``domain.size_m``)."""
+        grid = self.config.grid
+        x0, y0 = (float(v) for v in grid.origin_m)
+        nx, ny = grid.cells
+        return (x0, y0, x0 + nx * grid.cell_size_m, y0 + ny * grid.cell_size_m)
+
+    @property
+    def checkpoint_interval_s(self) -> float:
+        """Simulated seconds between checkpoints (``output.checkpoint_interval_s`` or its default)."""
+        output = self.project.output
+        if output.checkpoint_interval_s is not None:
+            return output.checkpoint_interval_s
+        return schema.CHECKPOINT_EVERY_OUTPUTS * output.interval_s
+
+    def meta(self) -> dict[str, object]:
+        """Summary entries known before the run starts (``summary.json``)."""
+        x0, y0, x1, y1 = self.box_m
+        config = self.config
+        meta: dict[str, object] = {
+            "title": self.project.runout.title,
+            "scheme": config.numerics.scheme,
+            "precision": config.numerics.precision,
+            "particles": self.particle_count,
+            "total_time_s": float(sum(st.duration_s for st in config.stages if st.kind != "k0")),
+            "stages": [stage.name for stage in config.stages],
+            "materials": list(self.material_names),
+            "bodies": list(self.body_names),
+            "domain": {"origin_m": [x0, y0], "size_m": [x1 - x0, y1 - y0], "cell_size_m": config.grid.cell_size_m},
+            "particle_spacing_m": self.spacing_m,
+            "output_interval_s": config.output.interval_s,
+        }
+        if self.project.numerics.preset is not None:
+            meta["preset"] = self.project.numerics.preset
+        return meta
+
+
+def resolve(project: Project, overrides: Sequence[str] = (), *, arch: str | None = None,
+            seed: bool = True) -> ResolvedRun:
+    """Resolve a project into the one run it stands for.
+
+    Overrides are applied, then the preset (``numerics.preset``), once; everything a run, a
+    preview, an estimate or a study needs is derived from the result and from nothing else.
+
+    Parameters
+    ----------
+    project : Project
+        A validated project.
+    overrides : sequence of str
+        ``KEY=VALUE`` overrides (the command line's ``--set``), applied before the preset.
+    arch : {"auto", "cpu", "gpu"}, optional
+        Replaces ``numerics.arch`` (the command line's ``--arch``).
+    seed : bool
+        Seed the particles (False: only the configuration and the estimate, for live previews
+        of the cost while a project is edited).
+
+    Returns
+    -------
+    ResolvedRun
+
+    Raises
+    ------
+    ProjectError
+        Invalid overrides, an unknown preset, a body that receives no particles.
+    """
+    if overrides:
+        from projects.document import apply_overrides
+
+        project = apply_overrides(project, overrides)
+    project = apply_preset(project)
+    config = solver_config(project, arch_override=arch)
+    particles, body_index = _seed_particles(project, config) if seed else (None, None)
+    return ResolvedRun(project=project, config=config, particles=particles, particle_body=body_index,
+                       estimate=estimate(project))
 
 
 def estimate(project: Project) -> dict[str, object]:
-    """Cheap size estimates of a run, without seeding (for the GUI and the command line).
+    """Cheap size estimates of a run, without seeding (:func:`resolve` gives it for a project).
+
+    ``project`` is the project as it runs (preset applied: :func:`resolve` does that).
 
     The particle count is the bodies' total area times ``(per_cell / cell_size_m)**2``
     (overlaps counted twice; exact for grid-aligned rectangles with lattice seeding). With
@@ -277,7 +367,6 @@ def estimate(project: Project) -> dict[str, object]:
         ``max_p_wave_speed_m_s`` (float), ``simulated_time_s`` (float, s, all stages),
         ``steps`` (int, all stages), ``frames`` (int, about one per ``output.interval_s``).
     """
-    project = apply_preset(project)
     dx = project.domain.cell_size_m
     area = sum(polygon_area(np.asarray(b.polygon_m)) for b in project.bodies)
     particles = int(round(area * (project.particles.per_cell / dx) ** 2))
@@ -290,7 +379,7 @@ def estimate(project: Project) -> dict[str, object]:
     if numerics.time_step_s is not None:
         dt, source = numerics.time_step_s, "time_step_s"
     else:
-        dt, source = (numerics.cfl or schema.DEFAULT_CFL) * dx / c_p, "cfl"
+        dt, source = numerics.cfl * dx / c_p, "cfl"
     durations = [stage.duration_s or 0.0 for stage in project.stages]
     steps = sum(math.ceil(d / dt - 1e-9) for d in durations if d > 0.0)
     total = float(sum(durations))
@@ -318,7 +407,7 @@ def describe(project: Project) -> str:
     -------
     str
     """
-    e = estimate(project)
+    e = resolve(project, seed=False).estimate
     return (
         f"about {e['particles']} particles, {e['grid_shape'][0]} x {e['grid_shape'][1]} cells, "
         f"dt {e['time_step_s']:.3g} s ({e['time_step_source']}), {e['steps']} steps "

@@ -210,7 +210,10 @@ def dumps_project(project: Project) -> str:
     doc["bodies"] = bodies
 
     doc["particles"] = _table(data["particles"])
-    doc["numerics"] = _table(data["numerics"])
+    numerics = _table({k: v for k, v in data["numerics"].items() if k != "advanced"})
+    if "advanced" in data["numerics"]:
+        numerics["advanced"] = _table(data["numerics"]["advanced"])
+    doc["numerics"] = numerics
 
     stages = tomlkit.aot()
     for stage in data["stages"]:

@@ -62,6 +62,7 @@ PVD_NAME = "particles.pvd"
 SERIES_NAME = "series.csv"
 SUMMARY_NAME = "summary.json"
 PROJECT_NAME = "project.toml"
+CHECKPOINT_NAME = "checkpoint.npz"
 
 #: Columns of ``series.csv``, in order.
 SERIES_COLUMNS: tuple[str, ...] = (
@@ -140,6 +141,53 @@ def _atomic_write_bytes(path: Path, data: bytes) -> None:
 
 def _atomic_write_text(path: Path, text: str) -> None:
     _atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def _csv_text(rows: list[list[Any]]) -> str:
+    buffer = io.StringIO()
+    csv.writer(buffer).writerows(rows)
+    return buffer.getvalue()
+
+
+def write_checkpoint(out_dir: str | os.PathLike[str], checkpoint: Any) -> Path:
+    """Write a run's :class:`~solver.simulation.Checkpoint` as ``checkpoint.npz`` (atomically).
+
+    The file holds the engine's state arrays (``state/NAME``), the run's position as JSON
+    (``run``) and the fingerprint of the configuration and particles it belongs to.
+    """
+    path = Path(out_dir) / CHECKPOINT_NAME
+    arrays = {f"state/{name}": np.asarray(value) for name, value in checkpoint.arrays.items()}
+    arrays["run"] = np.frombuffer(json.dumps(checkpoint.run).encode(), dtype=np.uint8)
+    arrays["fingerprint"] = np.frombuffer(checkpoint.fingerprint.encode(), dtype=np.uint8)
+    buffer = io.BytesIO()
+    np.savez(buffer, **arrays)
+    _atomic_write_bytes(path, buffer.getvalue())
+    return path
+
+
+def read_checkpoint(path: str | os.PathLike[str]) -> Any:
+    """Read ``checkpoint.npz`` (a file, or the results folder holding one) back into a Checkpoint.
+
+    Raises
+    ------
+    ResultsError
+        No checkpoint there, or one that cannot be read.
+    """
+    from solver.config import Checkpoint
+
+    path = Path(path)
+    if path.is_dir():
+        path = path / CHECKPOINT_NAME
+    if not path.is_file():
+        raise ResultsError(f"no checkpoint in {path.parent} (a run writes {CHECKPOINT_NAME} at its checkpoints)")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {key[len("state/"):]: data[key] for key in data.files if key.startswith("state/")}
+            run = json.loads(bytes(data["run"]).decode())
+            fingerprint = bytes(data["fingerprint"]).decode()
+    except (OSError, ValueError, KeyError, zlib.error) as err:
+        raise ResultsError(f"cannot read the checkpoint {path}: {err}") from err
+    return Checkpoint(run=run, arrays=arrays, fingerprint=fingerprint)
 
 
 def _json_default(value: Any) -> Any:
@@ -460,6 +508,11 @@ class ResultsWriter:
         Frames that may wait for the writer thread before :meth:`write_frame` blocks.
     compression_level : int
         zlib level of the frame files.
+    keep_frames : int, optional
+        Resume the results folder of an earlier run instead of starting a new one: its first
+        ``keep_frames`` frames (and their ``series.csv`` rows) stay, the later ones (written
+        after the checkpoint the run resumes from) are removed, and new frames continue the
+        numbering. The summary keeps the earlier run's entries.
     """
 
     def __init__(
@@ -470,17 +523,26 @@ class ResultsWriter:
         *,
         queue_size: int = 3,
         compression_level: int = 1,
+        keep_frames: int | None = None,
     ) -> None:
         try:
-            self.out_dir = prepare_results_dir(out_dir)
-            self._frames_dir = self.out_dir / FRAMES_DIR
-            self._frames_dir.mkdir()
+            if keep_frames is None:
+                self.out_dir = prepare_results_dir(out_dir)
+                self._frames_dir = self.out_dir / FRAMES_DIR
+                self._frames_dir.mkdir()
+            else:
+                self.out_dir = Path(out_dir).expanduser().absolute()
+                self._frames_dir = self.out_dir / FRAMES_DIR
         except OSError as err:
             raise ResultsError(f"cannot write results to {out_dir}: {err}") from err
         self._level = compression_level
         self._started = time.perf_counter()
         self._pvd_entries: list[tuple[float, str]] = []
         self._submitted = 0
+        earlier: dict[str, Any] = {}
+        series_rows: list[list[str]] = []
+        if keep_frames is not None:
+            earlier, series_rows = self._take_over(keep_frames)
         self._closed = False
         self._error: BaseException | None = None
         self._last: Diagnostics | None = None
@@ -500,13 +562,22 @@ class ResultsWriter:
             "runout_version": runout_version(),
             "started_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         }
+        self.summary.update(earlier)
         self.summary.update(meta)
+        if keep_frames is not None:
+            self.summary["status"] = RUNNING
+            self.summary["resumed_at_frame"] = keep_frames
 
         try:
             _atomic_write_text(self.out_dir / PROJECT_NAME, project_text)
-            self._series = open(self.out_dir / SERIES_NAME, "w", newline="", encoding="utf-8")
-            self._csv = csv.writer(self._series)
-            self._csv.writerow(SERIES_COLUMNS)
+            if keep_frames is not None:  # the kept rows, written whole before the file is replaced
+                _atomic_write_text(self.out_dir / SERIES_NAME, _csv_text([list(SERIES_COLUMNS), *series_rows]))
+                self._series = open(self.out_dir / SERIES_NAME, "a", newline="", encoding="utf-8")
+                self._csv = csv.writer(self._series)
+            else:
+                self._series = open(self.out_dir / SERIES_NAME, "w", newline="", encoding="utf-8")
+                self._csv = csv.writer(self._series)
+                self._csv.writerow(SERIES_COLUMNS)
             self._series.flush()
             self._write_pvd()
             self._write_summary()
@@ -518,6 +589,27 @@ class ResultsWriter:
             target=self._work, name=f"results-writer:{self.out_dir.name}", daemon=True
         )
         self._thread.start()
+
+    def _take_over(self, keep: int) -> tuple[dict[str, Any], list[list[str]]]:
+        """Keep the first ``keep`` frames of the earlier run in this folder; remove its later ones."""
+        results = Results(self.out_dir)
+        entries = results._entries()
+        if len(entries) < keep:
+            raise ResultsError(f"{self.out_dir} holds {len(entries)} complete frames, the checkpoint needs {keep}")
+        self._pvd_entries = list(entries[:keep])
+        self._submitted = keep
+        kept = {Path(name).name for _, name in self._pvd_entries}
+        for path in self._frames_dir.glob("frame_*.vtp*"):
+            if path.name not in kept:  # written by this run after its checkpoint: written again
+                path.unlink()
+        rows: list[list[str]] = []
+        series = self.out_dir / SERIES_NAME
+        if series.is_file():
+            with open(series, newline="", encoding="utf-8") as handle:
+                reader = csv.reader(handle)
+                next(reader, None)
+                rows = [row for row in reader if row and row[0].isdigit() and int(row[0]) < keep]
+        return dict(results.summary), rows
 
     # -- caller side -----------------------------------------------------------------------
 

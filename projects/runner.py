@@ -23,12 +23,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from projects.results import ResultsError, ResultsWriter, is_results_dir
 from solver.config import InstabilityError, SolverError
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
+    from projects.build import ResolvedRun
     from projects.schema import Project
     from solver.config import Frame
     from solver.simulation import Progress
@@ -87,6 +86,18 @@ class StopRequest:
         return self._event.is_set()
 
 
+def process_age_s() -> float | None:
+    """Seconds since this process started (Linux ``/proc``; None elsewhere)."""
+    try:
+        with open("/proc/self/stat", encoding="ascii") as handle:
+            start_ticks = int(handle.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime", encoding="ascii") as handle:
+            uptime_s = float(handle.read().split()[0])
+        return uptime_s - start_ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def default_results_dir(project_path: str | os.PathLike[str]) -> Path:
     """``NAME.results`` next to the project file ``NAME.toml``."""
     path = Path(project_path)
@@ -112,12 +123,12 @@ def _solver_rejects(err: Exception) -> Exception:
     return ProjectError([Problem("", None, f"the solver rejects this run: {err}")])
 
 
-def check_project(project: Project, *, arch: str | None = None) -> Any:
-    """Build a project into a run and apply the solver's input checks, without running it.
+def check_project(project: Project | ResolvedRun, *, arch: str | None = None) -> ResolvedRun:
+    """Resolve a project into its run and apply the solver's input checks, without running it.
 
     Returns
     -------
-    projects.build.BuiltRun
+    projects.build.ResolvedRun
 
     Raises
     ------
@@ -125,49 +136,19 @@ def check_project(project: Project, *, arch: str | None = None) -> Any:
         For problems of the project and for runs the solver would refuse (particles outside
         the grid, inconsistent stages, ...).
     """
-    from projects.build import build_simulation
+    from projects.build import ResolvedRun, resolve
     from solver.simulation import validate
 
-    built = build_simulation(project, arch_override=arch)
+    resolved = project if isinstance(project, ResolvedRun) else resolve(project, arch=arch)
     try:
-        validate(built.config, built.particles)
+        validate(resolved.config, resolved.particles)
     except SolverError as err:
         raise _solver_rejects(err) from None
-    return built
-
-
-def _meta(project: Project, built: Any, sim: Any, project_path: Path | None) -> dict[str, Any]:
-    """Summary entries known before the run starts."""
-    config = built.config
-    grid = config.grid
-    cells = grid.cells
-    volumes = np.asarray(built.particles.volumes_m2, dtype=float)
-    meta: dict[str, Any] = {
-        "title": project.runout.title,
-        "scheme": config.numerics.scheme,
-        "arch": sim.arch,
-        "precision": sim.precision,
-        "particles": len(built.particles),
-        "total_time_s": float(sim.total_time_s),
-        "stages": [stage.name for stage in config.stages],
-        "materials": list(built.material_names),
-        "bodies": list(built.body_names),
-        "domain": {
-            "origin_m": [float(v) for v in grid.origin_m],
-            "size_m": [cells[0] * grid.cell_size_m, cells[1] * grid.cell_size_m],
-            "cell_size_m": grid.cell_size_m,
-        },
-        # side of the square a particle stands for; the renderer sizes points with it
-        "particle_spacing_m": float(np.sqrt(np.median(volumes))) if volumes.size else 0.0,
-        "output_interval_s": config.output.interval_s,
-    }
-    if project_path is not None:
-        meta["project_file"] = str(project_path)
-    return meta
+    return resolved
 
 
 def run_project(
-    project: Project,
+    project: Project | ResolvedRun,
     out_dir: str | os.PathLike[str] | None = None,
     *,
     project_path: str | os.PathLike[str] | None = None,
@@ -175,13 +156,14 @@ def run_project(
     cancel: Callable[[], bool] | None = None,
     on_frame: Callable[[Frame], None] | None = None,
     on_progress: Callable[[Progress], None] | None = None,
+    start_from: str | os.PathLike[str] | None = None,
 ) -> RunResult:
-    """Run a validated project and write its results folder as frames arrive.
+    """Run a project and write its results folder as frames arrive.
 
     Parameters
     ----------
-    project : Project
-        The validated project (overrides already applied).
+    project : Project or ResolvedRun
+        The validated project (overrides applied), or its resolved run.
     out_dir : path-like, optional
         Results folder. Default: :func:`default_results_dir` of ``project_path``. An existing
         results folder there is replaced; another non-empty folder is refused.
@@ -196,6 +178,10 @@ def run_project(
         Called with every frame after it is handed to the writer (live views).
     on_progress : callable, optional
         Called with the solver's :class:`~solver.simulation.Progress`.
+    start_from : path-like, optional
+        A checkpoint (``checkpoint.npz`` or the results folder holding it) of another run of the
+        same particles: this run's stages start from its particle state (positions, velocities,
+        stresses, plastic strains) instead of the seeded one.
 
     Returns
     -------
@@ -209,15 +195,13 @@ def run_project(
     ValueError
         Neither ``out_dir`` nor ``project_path`` given.
     projects.schema.ProjectError
-        The project cannot be built into a run, or the solver rejects the built run.
+        The project cannot be resolved into a run, or the solver rejects the run.
     projects.results.ResultsError
-        ``out_dir`` exists and is not a results folder.
+        ``out_dir`` exists and is not a results folder; ``start_from`` holds no usable checkpoint.
     """
-    from projects.build import build_simulation
     from projects.document import dumps_project
-    from projects.presets import apply_preset
+    from projects.results import read_checkpoint
 
-    project = apply_preset(project)  # project.toml records the values the preset stood for
     if out_dir is None:
         if project_path is None:
             raise ValueError("give out_dir or project_path (the results go next to the project file)")
@@ -225,44 +209,157 @@ def run_project(
     out_path = Path(out_dir).expanduser().absolute()
     _check_out_dir(out_path)
     path = Path(project_path).absolute() if project_path is not None else None
+    initial = read_checkpoint(start_from) if start_from is not None else None
 
     started = time.perf_counter()
-    built = build_simulation(project, arch_override=arch)
-    # importing the simulation loads Taichi: do it only when a run really starts
-    from solver.simulation import Simulation
-
+    resolved = check_project(project, arch=arch)
+    sim = _simulation(resolved)
     try:
-        sim = Simulation(built.config, built.particles)
-    except SolverError as err:
-        raise _solver_rejects(err) from None
-    try:
-        return _run(sim, built, project, path, out_path, dumps_project(project), started,
-                    cancel, on_frame, on_progress)
+        if initial is not None:
+            _start_from(sim, initial, start_from)
+        meta = _meta(resolved, sim, path)
+        if start_from is not None:
+            meta["started_from"] = str(Path(start_from).absolute())
+        writer = ResultsWriter(out_path, dumps_project(resolved.project), meta)
+        return _run(sim, resolved, writer, started, cancel, on_frame, on_progress)
     finally:
         sim.close()
 
 
+def resume_run(
+    results_dir: str | os.PathLike[str],
+    *,
+    arch: str | None = None,
+    cancel: Callable[[], bool] | None = None,
+    on_frame: Callable[[Frame], None] | None = None,
+    on_progress: Callable[[Progress], None] | None = None,
+) -> RunResult:
+    """Continue a killed, stopped or failed run from the last checkpoint in its results folder.
+
+    The run is rebuilt from the folder's ``project.toml`` (the project as it ran), its state
+    restored from ``checkpoint.npz``; the frames written after that checkpoint are written
+    again. The frames are those of an uninterrupted run (bit for bit with the serial scatter).
+
+    Raises
+    ------
+    projects.results.ResultsError
+        Not a results folder, no checkpoint, or a checkpoint of another run.
+    projects.schema.ProjectError
+        The folder's ``project.toml`` is not a valid project.
+    """
+    from projects.document import dumps_project, load_project
+    from projects.results import PROJECT_NAME, read_checkpoint
+
+    out_path = Path(results_dir).expanduser().absolute()
+    if not is_results_dir(out_path) or not (out_path / PROJECT_NAME).is_file():
+        raise ResultsError(f"{out_path} is not a results folder with its project.toml")
+    checkpoint = read_checkpoint(out_path)
+    if checkpoint.run["cursor"]["phase"] == "done":
+        raise ResultsError(f"the run in {out_path} is complete: nothing to resume")
+    started = time.perf_counter()
+    resolved = check_project(load_project(out_path / PROJECT_NAME), arch=arch)
+    sim = _simulation(resolved)
+    try:
+        try:
+            sim.restore(checkpoint)
+        except SolverError as err:
+            raise ResultsError(f"cannot resume {out_path}: {err}") from None
+        meta = _meta(resolved, sim, None)
+        writer = ResultsWriter(out_path, dumps_project(resolved.project), meta,
+                               keep_frames=int(checkpoint.run["cursor"]["frames"]))
+        logger.info("resuming %s at t = %.6g s (step %d)", out_path, sim.time_s, sim.steps)
+        return _run(sim, resolved, writer, started, cancel, on_frame, on_progress)
+    finally:
+        sim.close()
+
+
+def run_resolved(
+    resolved: ResolvedRun,
+    *,
+    cancel: Callable[[], bool] | None = None,
+    on_frame: Callable[[Frame], None] | None = None,
+    on_progress: Callable[[Progress], None] | None = None,
+) -> RunResult:
+    """Run a resolved run without a results folder (studies that only look at the frames).
+
+    The same run loop as :func:`run_project`; ``out_dir`` of the result is empty and its
+    summary holds ``steps``, ``simulated_time_s``, ``wall_time_s`` and ``particle_steps_per_s``.
+    """
+    started = time.perf_counter()
+    check_project(resolved)
+    sim = _simulation(resolved)
+    try:
+        return _run(sim, resolved, None, started, cancel, on_frame, on_progress)
+    finally:
+        sim.close()
+
+
+def _simulation(resolved: ResolvedRun) -> Any:
+    # importing the simulation loads Taichi: do it only when a run really starts
+    from solver.simulation import Simulation
+
+    try:
+        return Simulation(resolved.config, resolved.particles)
+    except SolverError as err:
+        raise _solver_rejects(err) from None
+
+
+def _start_from(sim: Any, checkpoint: Any, source: Any) -> None:
+    """Load another run's particle state into a fresh simulation (its own stages then run)."""
+    arrays = {k: v for k, v in checkpoint.arrays.items() if k in sim.engine.PARTICLE_STATE and k != "band"}
+    try:
+        sim.engine.load_state(arrays)
+    except ValueError as err:
+        raise ResultsError(f"cannot start from {source}: {err} (its particles are not this project's)") from None
+
+
+def _meta(resolved: ResolvedRun, sim: Any, project_path: Path | None) -> dict[str, Any]:
+    """Summary entries known before the run starts."""
+    meta = resolved.meta()
+    meta["arch"] = sim.arch
+    meta["total_time_s"] = float(sim.total_time_s)
+    meta["checkpoint_interval_s"] = resolved.checkpoint_interval_s
+    if project_path is not None:
+        meta["project_file"] = str(project_path)
+    return meta
+
+
 def _run(
     sim: Any,
-    built: Any,
-    project: Project,
-    project_path: Path | None,
-    out_path: Path,
-    project_text: str,
+    resolved: ResolvedRun,
+    writer: ResultsWriter | None,
     started: float,
     cancel: Callable[[], bool] | None,
     on_frame: Callable[[Frame], None] | None,
     on_progress: Callable[[Progress], None] | None,
 ) -> RunResult:
-    writer = ResultsWriter(out_path, project_text, _meta(project, built, sim, project_path))
+    from projects.results import write_checkpoint
+
     setup_s = time.perf_counter() - started
     status, message = "failed", "the run ended unexpectedly"
     loop_start = time.perf_counter()
+    steps0 = sim.steps
+    interval = resolved.checkpoint_interval_s
+    last_checkpoint_s = sim.time_s
+
+    def save_checkpoint() -> None:
+        # frames first: a checkpoint on disk promises every frame up to its own
+        writer.flush()
+        write_checkpoint(writer.out_dir, sim.checkpoint())
+
     try:
         for frame in sim.run(cancel=cancel, on_progress=on_progress):
-            writer.write_frame(frame)
+            if writer is not None:
+                writer.write_frame(frame)
             if on_frame is not None:
                 on_frame(frame)
+            t = frame.diagnostics.time_s
+            stopping = cancel is not None and cancel()
+            if writer is not None and sim.can_checkpoint and (stopping or t >= last_checkpoint_s + interval * (1 - 1e-9)):
+                save_checkpoint()
+                last_checkpoint_s = t
+        if writer is not None and sim.can_checkpoint:  # the end state: later runs may start from it
+            save_checkpoint()
         status = sim.status if sim.status in ("completed", "stopped") else "completed"
         message = sim.message
         if status == "stopped" and isinstance(cancel, StopRequest) and cancel.reason:
@@ -273,21 +370,29 @@ def _run(
         status, message = "failed", str(err)
     except ResultsError as err:
         status, message = "failed", str(err)
+    except OSError as err:
+        status, message = "failed", f"writing results failed: {err}"
     except Exception as err:  # noqa: BLE001 - any solver failure must still close the folder
         # the traceback is for developers; users get the message in the summary
         logger.error("the run failed: %s", err, exc_info=logger.isEnabledFor(logging.DEBUG))
         status, message = "failed", f"{type(err).__name__}: {err}"
     finally:
         loop_s = time.perf_counter() - loop_start
-        particles = len(built.particles)
-        summary = writer.close(
-            status,
-            message,
-            steps=int(sim.steps),
-            simulated_time_s=float(sim.time_s),
-            wall_time_s=time.perf_counter() - started,
-            particle_steps_per_s=particles * sim.steps / loop_s if loop_s > 0 else 0.0,
-            extra={"setup_time_s": setup_s},
-        )
+        particles = resolved.particle_count
+        steps = sim.steps - steps0
+        numbers = {
+            "steps": int(sim.steps),
+            "simulated_time_s": float(sim.time_s),
+            "wall_time_s": time.perf_counter() - started,
+            "particle_steps_per_s": particles * steps / loop_s if loop_s > 0 else 0.0,
+        }
+        extra = {"setup_time_s": setup_s}
+        if sim.first_step_at is not None and process_age_s() is not None:
+            # process start to the end of its first step: what a run as a process costs to start
+            extra["startup_s"] = process_age_s() - (time.perf_counter() - sim.first_step_at)
+        if writer is not None:
+            summary = writer.close(status, message, **numbers, extra=extra)
+        else:
+            summary = {"status": status, "message": message, **numbers, **extra}
     logger.info("run %s: %s", summary["status"], summary["message"])
-    return RunResult(summary["status"], summary["message"], out_path, summary)
+    return RunResult(summary["status"], summary["message"], writer.out_dir if writer else Path(), summary)

@@ -42,6 +42,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from solver import config as sc
 from geometry.polygons import distinct_vertex_count, is_simple, self_intersections
 
 logger = logging.getLogger(__name__)
@@ -49,18 +50,21 @@ logger = logging.getLogger(__name__)
 #: The schema version this module reads and writes.
 SCHEMA_VERSION = 1
 
-MATERIAL_MODELS: tuple[str, ...] = ("linear-elastic", "drucker-prager")
-BOUNDARY_TYPES: tuple[str, ...] = ("fixed", "slip", "open", "friction")
-SIDES: tuple[str, ...] = ("left", "right", "bottom", "top")
+# The solver's vocabularies are the file's: written once, in solver/config.py.
+MATERIAL_MODELS = sc.MATERIAL_MODELS
+BOUNDARY_TYPES = sc.BOUNDARY_KINDS
+SIDES = sc.SIDES
 SEEDINGS: tuple[str, ...] = ("lattice", "gauss")
-SCHEMES: tuple[str, ...] = ("mpm", "apic", "apic-affine")
-PRECISIONS: tuple[str, ...] = ("f32", "f64")
-ARCHS: tuple[str, ...] = ("auto", "cpu", "gpu")
+SCHEMES = sc.SCHEMES
+PRECISIONS = sc.PRECISIONS
+ARCHS = sc.ARCHS
+GUARD_MODES = sc.GUARD_MODES
+SCATTERS = sc.SCATTERS
 #: Accuracy/cost presets measured by ``runout study tradeoff`` (projects/presets.json).
 PRESETS: tuple[str, ...] = ("draft", "standard", "fine")
 STAGE_TYPES: tuple[str, ...] = ("k0", "gravity", "dynamic")
 DAMPING_TYPES: tuple[str, ...] = ("local",)
-OUTPUT_FIELDS: tuple[str, ...] = ("displacement", "velocity", "stress", "plastic_strain", "material")
+OUTPUT_FIELDS = sc.OUTPUT_FIELDS
 #: Material keys that only a Drucker-Prager material may have.
 PLASTIC_KEYS: tuple[str, ...] = (
     "cohesion_pa",
@@ -69,7 +73,7 @@ PLASTIC_KEYS: tuple[str, ...] = (
     "tensile_strength_pa",
 )
 #: Numerics keys of the time step: give one of them (none: cfl = DEFAULT_CFL).
-DEFAULT_CFL = 0.5
+DEFAULT_CFL = sc.DEFAULT_CFL
 #: Damping coefficient of a gravity stage that gives none.
 DEFAULT_GRAVITY_DAMPING = 0.7
 
@@ -390,7 +394,7 @@ def _boundary_input(value: Any) -> Any:
 class Boundary(_Model):
     """One side of the grid: ``"fixed" | "slip" | "open"`` or ``{type = "friction", friction_angle_deg = ..}``."""
 
-    type: Annotated[Literal["fixed", "slip", "open", "friction"], _choice(BOUNDARY_TYPES)]
+    type: Annotated[Literal[BOUNDARY_TYPES], _choice(BOUNDARY_TYPES)]
     friction_angle_deg: OptAngleDeg = None
 
     @model_validator(mode="before")
@@ -421,7 +425,7 @@ class Domain(_Model):
 class Material(_Model):
     """``[materials.<name>]``: one material. The plastic keys are for Drucker-Prager only."""
 
-    model: Annotated[Literal["linear-elastic", "drucker-prager"], _choice(MATERIAL_MODELS)]
+    model: Annotated[Literal[MATERIAL_MODELS], _choice(MATERIAL_MODELS)]
     density_kg_m3: Positive
     youngs_modulus_pa: Positive
     poisson_ratio: PoissonRatio
@@ -456,7 +460,7 @@ class Particles(_Model):
     """``[particles]``: how bodies become material points."""
 
     per_cell: Annotated[int, BeforeValidator(_to_int), AfterValidator(lambda v: _in_int_range(v, 1, 8))] = 2
-    seeding: Annotated[Literal["lattice", "gauss"], _choice(SEEDINGS)] = "lattice"
+    seeding: Annotated[Literal[SEEDINGS], _choice(SEEDINGS)] = "lattice"
 
 
 def _in_int_range(value: int, lo: int, hi: int) -> int:
@@ -465,15 +469,24 @@ def _in_int_range(value: int, lo: int, hi: int) -> int:
     return value
 
 
+class Advanced(_Model):
+    """``[numerics.advanced]``: solver settings most projects leave alone (docs/project-format.md)."""
+
+    guard: Annotated[Literal[GUARD_MODES], _choice(GUARD_MODES)] = "stop"
+    speed_bound_factor: Positive = sc.DEFAULT_SPEED_BOUND_FACTOR
+    scatter: Annotated[Literal[SCATTERS], _choice(SCATTERS)] = "auto"
+
+
 class Numerics(_Model):
     """``[numerics]``: scheme, time step (``time_step_s`` or ``cfl``), precision, device."""
 
-    scheme: Annotated[Literal["mpm", "apic", "apic-affine"], _choice(SCHEMES)] = "apic-affine"
+    scheme: Annotated[Literal[SCHEMES], _choice(SCHEMES)] = "apic-affine"
     time_step_s: OptPositive = None
     cfl: OptCfl = None
-    precision: Annotated[Literal["f32", "f64"], _choice(PRECISIONS)] = "f32"
-    arch: Annotated[Literal["auto", "cpu", "gpu"], _choice(ARCHS)] = "auto"
-    preset: Annotated[Literal["draft", "standard", "fine"], _choice(PRESETS)] | None = None
+    precision: Annotated[Literal[PRECISIONS], _choice(PRECISIONS)] = "f32"
+    arch: Annotated[Literal[ARCHS], _choice(ARCHS)] = "auto"
+    preset: Annotated[Literal[PRESETS], _choice(PRESETS)] | None = None
+    advanced: Advanced = Advanced()
 
     @model_validator(mode="before")
     @classmethod
@@ -486,7 +499,7 @@ class Numerics(_Model):
 class Damping(_Model):
     """``damping = {type = "local", coefficient = ..}``: Cundall's local damping."""
 
-    type: Annotated[Literal["local"], _choice(DAMPING_TYPES)] = "local"
+    type: Annotated[Literal[DAMPING_TYPES], _choice(DAMPING_TYPES)] = "local"
     coefficient: DampingCoefficient
 
 
@@ -494,7 +507,7 @@ class Stage(_Model):
     """``[[stages]]``: one stage of the analysis (see docs/project-format.md)."""
 
     name: OptName = None
-    type: Annotated[Literal["k0", "gravity", "dynamic"], _choice(STAGE_TYPES)]
+    type: Annotated[Literal[STAGE_TYPES], _choice(STAGE_TYPES)]
     duration_s: OptPositive = None
     k0: OptPositive = None
     damping: Damping | None = None
@@ -517,6 +530,13 @@ class Output(_Model):
         BeforeValidator(lambda v: v if isinstance(v, (list, tuple)) else _raise_array()),
         AfterValidator(_unique_fields),
     ] = OUTPUT_FIELDS
+    #: simulated seconds between checkpoints (full solver state, ``checkpoint.npz``); default:
+    #: every CHECKPOINT_EVERY_OUTPUTS output intervals. A run always writes one at its end.
+    checkpoint_interval_s: OptPositive = None
+
+
+#: Output intervals between checkpoints when ``output.checkpoint_interval_s`` is not given.
+CHECKPOINT_EVERY_OUTPUTS = 10
 
 
 def _raise_array() -> Any:

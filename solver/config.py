@@ -21,6 +21,7 @@ import numpy as np
 Scheme = Literal["mpm", "apic", "apic-affine"]
 SCHEMES: tuple[str, ...] = ("mpm", "apic", "apic-affine")
 MaterialModel = Literal["linear-elastic", "drucker-prager"]
+MATERIAL_MODELS: tuple[str, ...] = ("linear-elastic", "drucker-prager")
 BoundaryKind = Literal["fixed", "slip", "friction", "open"]
 Side = Literal["left", "right", "bottom", "top"]
 SIDES: tuple[str, ...] = ("left", "right", "bottom", "top")
@@ -28,6 +29,17 @@ StageKind = Literal["k0", "gravity", "dynamic"]
 Precision = Literal["f32", "f64"]
 Arch = Literal["auto", "cpu", "gpu"]
 GuardMode = Literal["stop", "remove"]
+GUARD_MODES: tuple[str, ...] = ("stop", "remove")
+PRECISIONS: tuple[str, ...] = ("f32", "f64")
+ARCHS: tuple[str, ...] = ("auto", "cpu", "gpu")
+STAGE_KINDS: tuple[str, ...] = ("k0", "gravity", "dynamic")
+BOUNDARY_KINDS: tuple[str, ...] = ("fixed", "slip", "open", "friction")
+#: How particle contributions reach shared grid nodes (solver/engine.py explains each).
+SCATTERS: tuple[str, ...] = ("auto", "atomic", "serial", "split")
+#: Fraction of the critical time step when a project gives neither ``time_step_s`` nor ``cfl``.
+DEFAULT_CFL = 0.5
+#: The stability guard's speed bound in units of the free-fall speed over the scene (docs/solver.md).
+DEFAULT_SPEED_BOUND_FACTOR = 3.0
 
 #: Frame fields a run may be asked for (``positions`` and ``active`` are always present).
 OUTPUT_FIELDS: tuple[str, ...] = ("displacement", "velocity", "stress", "plastic_strain", "material")
@@ -151,11 +163,12 @@ class Numerics:
 
     scheme: Scheme = "apic-affine"
     time_step_s: float | None = None
-    cfl: float | None = 0.5
+    cfl: float | None = DEFAULT_CFL
     precision: Precision = "f32"
     arch: Arch = "auto"
     guard: GuardMode = "stop"
-    speed_bound_factor: float = 3.0
+    speed_bound_factor: float = DEFAULT_SPEED_BOUND_FACTOR
+    scatter: str = "auto"
 
 
 @dataclass(frozen=True)
@@ -238,6 +251,20 @@ class Frame:
 
     diagnostics: Diagnostics
     fields: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class Checkpoint:
+    """The full state of a run at an output frame (:meth:`Simulation.checkpoint`).
+
+    ``run``: time, step count, cursor (JSON-serialisable); ``arrays``: the engine's state fields;
+    ``fingerprint``: what the run was built from (configuration and particles), so that a
+    checkpoint is never restored into another run.
+    """
+
+    run: dict
+    arrays: dict
+    fingerprint: str
 
 
 class SolverError(Exception):

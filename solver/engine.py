@@ -23,7 +23,7 @@ empty parts of the domain cost nothing.
 import numpy as np
 import taichi as ti
 
-from solver.config import SIDES, Grid, Material
+from solver.config import SCATTERS, SIDES, Grid, Material
 from solver.materials import MaterialTable
 
 PAD = 2
@@ -41,7 +41,6 @@ PAD = 2
 #: SERIAL_SCATTER_MAX_THREADS threads split from SPLIT_MIN_PARTICLES particles on and serial below
 #: (the split recipe takes about 4 s longer to compile, which a small run does not earn back),
 #: atomic otherwise.
-SCATTERS = ("auto", "atomic", "serial", "split")
 SERIAL_SCATTER_MAX_THREADS = 4
 SPLIT_MIN_PARTICLES = 10_000
 CPU_GRAIN = 512  # loop iterations a Taichi 1.7 CPU thread takes at a time (measured; see _split_scatter)
@@ -241,9 +240,11 @@ class Engine:
             if name not in self.PARTICLE_STATE + self.COUNTER_STATE:
                 raise ValueError(f"unknown state field {name!r}")
             field = getattr(self, name)
-            if tuple(value.shape) != tuple(field.shape) and not (field.shape == () and value.shape == ()):
-                raise ValueError(f"state field {name!r} has shape {value.shape}, the engine {field.shape}")
-            field.from_numpy(np.asarray(value, dtype=field.to_numpy().dtype))
+            expected = tuple(field.shape) + tuple(getattr(field, "n", 0) and
+                                                  ((field.n, field.m) if field.m > 1 else (field.n,)) or ())
+            if tuple(value.shape) != expected:
+                raise ValueError(f"state field {name!r} has shape {value.shape}, the engine {expected}")
+            field.from_numpy(value)
 
     # ------------------------------------------------------------------ the step recipes
     def step(self, dt: float, gravity: tuple[float, float], damping: float = 0.0) -> None:

@@ -19,6 +19,8 @@ and are counted (the stability studies count survivors this way).
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import logging
 import math
 import time
@@ -30,6 +32,7 @@ import numpy as np
 from solver import runtime
 from solver.config import (
     OUTPUT_FIELDS,
+    Checkpoint,
     Diagnostics,
     Frame,
     InstabilityError,
@@ -44,6 +47,36 @@ log = logging.getLogger(__name__)
 
 #: Steps between guard / CFL / auto-stop checks (each check syncs with the device).
 CHECK_EVERY = 20
+
+
+@dataclass
+class _Cursor:
+    """Where a run stands, besides the engine's state: everything its next step depends on.
+
+    ``phase``: ``start`` (stage ``stage_index`` has not begun), ``loop`` (inside its time loop),
+    ``end`` (its time loop is over, its last frame out), ``done`` (the run is complete) or
+    ``stopped`` (cancelled; the checkpoint to resume from is the one taken at its last frame).
+    """
+
+    stage_index: int = 0
+    phase: str = "start"
+    stage_start_s: float = 0.0
+    stage_steps: int = 0
+    peak_ke: float = 0.0
+    next_output_s: float = 0.0
+    last_output_step: int = -1
+    dt_s: float = 0.0
+    reason: str = ""
+    frames: int = 0
+
+
+def fingerprint(config: SimulationConfig, particles: Particles) -> str:
+    """A digest of a configuration and its particles (checkpoints belong to one of these)."""
+    digest = hashlib.sha256(repr(config).encode())
+    for arr in (particles.positions_m, particles.volumes_m2, particles.material_ids, particles.velocities_m_s):
+        if arr is not None:
+            digest.update(np.ascontiguousarray(arr).tobytes())
+    return digest.hexdigest()[:32]
 
 
 @dataclass(frozen=True)
@@ -127,7 +160,7 @@ class Simulation:
         self.engine = Engine(
             config.grid, config.materials, len(particles), config.numerics.scheme, np_float,
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
-            damping=any(st.damping > 0 for st in config.stages),
+            damping=any(st.damping > 0 for st in config.stages), scatter=config.numerics.scatter,
         )
         self.engine.load_particles(particles.positions_m, particles.volumes_m2, particles.material_ids,
                                    particles.velocities_m_s)
@@ -139,6 +172,10 @@ class Simulation:
         self.last_frame: Frame | None = None
         self._materials = config.materials
         self._closed = False
+        self.cursor = _Cursor()
+        #: ``time.perf_counter()`` at the end of this process's first step (None before it)
+        self.first_step_at: float | None = None
+        self.fingerprint = fingerprint(config, particles)
 
     # ------------------------------------------------------------------ helpers
     def _speed_bound(self, g: np.ndarray) -> float:
@@ -190,6 +227,7 @@ class Simulation:
                     f"unstable: non-finite {name} at step {self.steps}, t = {self.time_s:.6g} s", self.steps, self.time_s)
         frame = Frame(diag, fields)
         self.last_frame = frame
+        self.cursor.frames += 1
         return frame
 
     def _check(self, dt: float, d: dict) -> None:
@@ -215,6 +253,43 @@ class Simulation:
             msg = f"unstable: {cause} {where} (time step {dt:.2g} s, critical {crit:.2g} s)"
         raise InstabilityError(msg, self.steps, self.time_s)
 
+    # ------------------------------------------------------------------ checkpoints
+    @property
+    def can_checkpoint(self) -> bool:
+        """Whether the run, suspended at the frame it just yielded, can be saved and resumed
+        from here (every frame of a stage's time loop and of a stage's end, and the end of the run)."""
+        return self.cursor.phase in ("loop", "end", "done")
+
+    def checkpoint(self) -> Checkpoint:
+        """The full state of the run at the frame it just yielded (see :attr:`can_checkpoint`).
+
+        A new :class:`Simulation` of the same configuration and particles given this to
+        :meth:`restore` continues exactly as this one would: the same steps, bit for bit.
+        """
+        if not self.can_checkpoint:
+            raise SolverError(f"no checkpoint can be taken in phase {self.cursor.phase!r}")
+        run = {"time_s": self.time_s, "steps": self.steps, "total_time_s": self.total_time_s,
+               "message": self.message, "cursor": dataclasses.asdict(self.cursor)}
+        return Checkpoint(run=run, arrays=self.engine.state(), fingerprint=self.fingerprint)
+
+    def restore(self, checkpoint: Checkpoint) -> None:
+        """Continue from ``checkpoint`` (taken from a run of the same configuration and particles)."""
+        if checkpoint.fingerprint != self.fingerprint:
+            raise SolverError("the checkpoint belongs to another configuration or particle set")
+        self.engine.load_state(checkpoint.arrays)
+        run = checkpoint.run
+        self.time_s = float(run["time_s"])
+        self.steps = int(run["steps"])
+        self.total_time_s = float(run["total_time_s"])
+        self.message = str(run["message"])
+        self.cursor = _Cursor(**run["cursor"])
+        table = self.config.materials
+        for stage in self.config.stages[: self.cursor.stage_index + 1]:
+            table = stage.materials if stage.materials is not None else table
+        if table != self._materials:
+            self.engine.materials.load(table)
+            self._materials = table
+
     # ------------------------------------------------------------------ the run
     def run(self, cancel: Callable[[], bool] | None = None,
             on_progress: Callable[[Progress], None] | None = None) -> Iterator[Frame]:
@@ -222,100 +297,112 @@ class Simulation:
 
         Raises InstabilityError when the guard fires; the frames yielded before are good.
         ``cancel()`` returning True ends the run after one last frame (status "stopped").
+        After :meth:`restore` the run continues after the checkpoint's frame.
         """
         runtime.check_owner()
         cfg = self.config
         e = self.engine
+        c = self.cursor
         interval = cfg.output.interval_s
         g_full = np.asarray(cfg.gravity_m_s2, dtype=float)
         n = len(self.particles)
         wall0 = time.perf_counter()
         self.status = "running"
         cancelled = False
-        next_output = 0.0
-        last_output_step = -1
-        d = e.diagnostics()
-        dt = self._time_step(d["max_speed"])
-        for index, stage in enumerate(cfg.stages):
-            if stage.materials is not None and stage.materials != self._materials:
-                e.materials.load(stage.materials)
-                self._materials = stage.materials
-                log.info("stage %r: material parameters changed", stage.name)
-            if stage.kind == "k0":
-                e.set_stress(k0_stress(self.particles, self._materials, cfg.gravity_m_s2,
-                                       cfg.grid.cell_size_m, stage.k0, e.active.to_numpy().astype(bool),
-                                       e.x.to_numpy()))
-                continue
-            if next_output <= self.time_s + 1e-12 and last_output_step != self.steps:
-                d = e.diagnostics()
-                yield self._frame(stage, index, 0.0, dt, d)
-                last_output_step = self.steps
-                next_output = self.time_s + interval
-            stage_start = self.time_s
-            stage_end = stage_start + stage.duration_s
-            damping = stage.damping
-            peak_ke = 0.0
-            stage_steps = 0
-            reason = ""
-            while self.time_s < stage_end - 1e-12 * max(1.0, stage_end):
-                # step size: the configured one, shortened to land exactly on outputs and the stage end
-                target = min(next_output, stage_end)
-                h = dt if self.time_s + dt * (1 + 1e-6) < target else target - self.time_s
+        if c.dt_s == 0.0:  # a fresh run (a restored one keeps its step)
+            c.dt_s = self._time_step(e.diagnostics()["max_speed"])
+        for index in range(c.stage_index, len(cfg.stages)):
+            stage = cfg.stages[index]
+            c.stage_index = index
+            if c.phase == "start":
+                if stage.materials is not None and stage.materials != self._materials:
+                    e.materials.load(stage.materials)
+                    self._materials = stage.materials
+                    log.info("stage %r: material parameters changed", stage.name)
+                if stage.kind == "k0":
+                    e.set_stress(k0_stress(self.particles, self._materials, cfg.gravity_m_s2,
+                                           cfg.grid.cell_size_m, stage.k0, e.active.to_numpy().astype(bool),
+                                           e.x.to_numpy()))
+                    continue
+                c.phase, c.stage_start_s, c.stage_steps, c.peak_ke, c.reason = "loop", self.time_s, 0, 0.0, ""
+                if c.next_output_s <= self.time_s + 1e-12 and c.last_output_step != self.steps:
+                    frame = self._frame(stage, index, 0.0, c.dt_s, e.diagnostics())
+                    c.last_output_step = self.steps
+                    c.next_output_s = self.time_s + interval
+                    yield frame
+            stage_end = c.stage_start_s + stage.duration_s
+            if c.phase == "loop":
+                damping = stage.damping
+                while not c.reason and self.time_s < stage_end - 1e-12 * max(1.0, stage_end):
+                    # step size: the configured one, shortened to land exactly on outputs and the stage end
+                    target = min(c.next_output_s, stage_end)
+                    h = c.dt_s if self.time_s + c.dt_s * (1 + 1e-6) < target else target - self.time_s
+                    if stage.kind == "gravity":
+                        ramp = min(1.0, (self.time_s + h - c.stage_start_s) / stage.duration_s)
+                        gravity = g_full * ramp
+                    else:
+                        gravity = g_full
+                    e.step(h, (gravity[0], gravity[1]), damping)
+                    if self.first_step_at is None:  # start-up ends here (kernels compiled or loaded)
+                        self.first_step_at = time.perf_counter()
+                    self.steps += 1
+                    c.stage_steps += 1
+                    self.time_s += h
+                    at_output = self.time_s >= c.next_output_s - 1e-9 * interval
+                    if c.stage_steps % CHECK_EVERY == 0 or at_output:
+                        d = e.diagnostics()
+                        self._check(c.dt_s, d)
+                        if cfg.numerics.time_step_s is None:
+                            c.dt_s = self._time_step(d["max_speed"])
+                        c.peak_ke = max(c.peak_ke, d["kinetic_energy"])
+                        stop_frac = stage.stop_when_kinetic_energy_below
+                        stage_time = self.time_s - c.stage_start_s
+                        if (stage.kind == "dynamic" and stop_frac is not None and stage_time >= stage.min_duration_s
+                                and c.peak_ke > 0 and d["kinetic_energy"] < stop_frac * c.peak_ke):
+                            c.reason = (f"stage {stage.name!r} ended at t = {self.time_s:.4g} s: kinetic energy "
+                                        f"{d['kinetic_energy']:.3g} J/m below {stop_frac:g} of its peak {c.peak_ke:.3g} J/m")
+                            log.info(c.reason)
+                        if on_progress is not None:
+                            wall = time.perf_counter() - wall0
+                            rate = self.steps / wall if wall > 0 else 0.0
+                            on_progress(Progress(self.time_s, self.total_time_s, stage.name, self.steps, rate, rate * n))
+                        if cancel is not None and cancel():
+                            cancelled = True
+                        if at_output or c.reason or cancelled:
+                            frame = self._frame(stage, index, stage_time, h, d)
+                            c.last_output_step = self.steps
+                            if at_output:
+                                c.next_output_s += interval
+                            yield frame
+                        if c.reason or cancelled:
+                            break
+                if cancelled:  # the checkpoint of a stopped run is the one at its last frame
+                    c.phase = "stopped"
+                    break
                 if stage.kind == "gravity":
-                    ramp = min(1.0, (self.time_s + h - stage_start) / stage.duration_s)
-                    gravity = g_full * ramp
-                else:
-                    gravity = g_full
-                e.step(h, (gravity[0], gravity[1]), damping)
-                self.steps += 1
-                stage_steps += 1
-                self.time_s += h
-                at_output = self.time_s >= next_output - 1e-9 * interval
-                if stage_steps % CHECK_EVERY == 0 or at_output:
+                    # quasi-static initial state: drop the velocities, measure displacement from here
+                    e.set_velocity(np.zeros((n, 2)))
+                    e.reset_reference()
+                c.phase = "end"
+                if c.last_output_step != self.steps:
                     d = e.diagnostics()
-                    self._check(dt, d)
-                    if cfg.numerics.time_step_s is None:
-                        dt = self._time_step(d["max_speed"])
-                    peak_ke = max(peak_ke, d["kinetic_energy"])
-                    stop_frac = stage.stop_when_kinetic_energy_below
-                    stage_time = self.time_s - stage_start
-                    if (stage.kind == "dynamic" and stop_frac is not None and stage_time >= stage.min_duration_s
-                            and peak_ke > 0 and d["kinetic_energy"] < stop_frac * peak_ke):
-                        reason = (f"stage {stage.name!r} ended at t = {self.time_s:.4g} s: kinetic energy "
-                                  f"{d['kinetic_energy']:.3g} J/m below {stop_frac:g} of its peak {peak_ke:.3g} J/m")
-                        log.info(reason)
-                    if on_progress is not None:
-                        wall = time.perf_counter() - wall0
-                        rate = self.steps / wall if wall > 0 else 0.0
-                        on_progress(Progress(self.time_s, self.total_time_s, stage.name, self.steps, rate, rate * n))
-                    if cancel is not None and cancel():
-                        cancelled = True
-                    if at_output or reason or cancelled:
-                        yield self._frame(stage, index, stage_time, h, d)
-                        last_output_step = self.steps
-                        if at_output:
-                            next_output += interval
-                    if reason or cancelled:
-                        break
-            if stage.kind == "gravity":
-                # quasi-static initial state: drop the velocities, measure displacement from here
-                e.set_velocity(np.zeros((n, 2)))
-                e.reset_reference()
-            if last_output_step != self.steps:
-                d = e.diagnostics()
-                self._check(dt, d)
-                yield self._frame(stage, index, self.time_s - stage_start, dt, d)
-                last_output_step = self.steps
-            if reason:
-                self.message = reason
+                    self._check(c.dt_s, d)
+                    frame = self._frame(stage, index, self.time_s - c.stage_start_s, c.dt_s, d)
+                    c.last_output_step = self.steps
+                    yield frame
+            if c.reason:
+                self.message = c.reason
                 self.total_time_s -= stage_end - self.time_s
-            if cancelled:
-                break
-        if last_output_step != self.steps or self.last_frame is None:
+            c.phase, c.reason = "start", ""
+            c.stage_index = index + 1
+        if not cancelled and (c.last_output_step != self.steps or c.frames == 0):
             # e.g. a project with only a k0 stage
             st = cfg.stages[-1]
             d = e.diagnostics()
-            yield self._frame(st, len(cfg.stages) - 1, 0.0, dt, d)
+            c.last_output_step = self.steps
+            yield self._frame(st, len(cfg.stages) - 1, 0.0, c.dt_s, d)
+        if not cancelled:
+            c.phase = "done"
         self.status = "stopped" if cancelled else "completed"
         if cancelled:
             self.message = f"cancelled at t = {self.time_s:.4g} s"

@@ -1,10 +1,9 @@
 """Shared pieces of the validation studies: running scenes, measuring deposits, writing reports.
 
 Runs go through the normal path: a shipped example project, ``--set``-style overrides
-(:func:`projects.document.apply_overrides`), :func:`projects.build.build_simulation` and either
-:func:`projects.runner.run_project` (a results folder, :func:`run_project_measured`) or, where the
-study needs a solver option that project files do not expose (the stability guard's ``remove``
-mode), :class:`solver.simulation.Simulation` on the built configuration (:func:`run_built`).
+(:func:`projects.document.apply_overrides`), :func:`projects.build.resolve` and the runner's one
+run loop: :func:`projects.runner.run_project` (a results folder, :func:`run_project_measured`) or
+:func:`projects.runner.run_resolved` (frames only, :func:`run_built`).
 
 Deposit measures (all lengths in m, on the final frame's active particles):
 
@@ -46,7 +45,7 @@ import numpy as np
 
 logger = logging.getLogger(__name__)
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[1]
 EXAMPLES = REPO / "projects" / "examples"
 #: The experimental final surface of Bui et al. (2008) (shared data folder of the project).
 BUI_SURFACE_CSV_CANDIDATES = (
@@ -314,22 +313,19 @@ class BuiltRunOutcome:
 
 
 def run_built(
-    config: Any,
-    particles: Any,
+    resolved: Any,
     *,
     time_limit_s: float | None = None,
     on_frame: Callable[[Any], None] | None = None,
 ) -> BuiltRunOutcome:
-    """Run a built configuration directly with :class:`solver.simulation.Simulation`.
+    """Run a resolved run through the runner's one run loop, without a results folder.
 
-    For settings that project files do not expose (``Numerics.guard = "remove"``). The
-    instability guard's :class:`~solver.config.InstabilityError` is an outcome here, not an
-    error: status ``failed`` with its message. Other exceptions propagate (they are bugs).
+    The instability guard's message is an outcome here, not an error: status ``failed`` with its
+    message. Other exceptions become ``failed`` as in any run.
 
     Parameters
     ----------
-    config : solver.config.SimulationConfig
-    particles : solver.config.Particles
+    resolved : projects.build.ResolvedRun
     time_limit_s : float, optional
     on_frame : callable, optional
 
@@ -337,38 +333,34 @@ def run_built(
     -------
     BuiltRunOutcome
     """
-    from solver.config import InstabilityError
-    from solver.simulation import Simulation
+    from projects.runner import run_resolved
 
     limit = WallClockLimit(time_limit_s)
     rows: list[dict[str, Any]] = []
     last: dict[str, np.ndarray] = {}
     cpu0 = cpu_seconds()
     wall0 = time.perf_counter()
-    status, message = "failed", "the run ended unexpectedly"
-    with Simulation(config, particles) as sim:
-        try:
-            for frame in sim.run(cancel=limit):
-                d = frame.diagnostics
-                rows.append({
-                    "time_s": d.time_s, "stage": d.stage, "step": d.step, "dt_s": d.dt_s,
-                    "kinetic_energy_J_per_m": d.kinetic_energy_J_per_m, "momentum_x": d.momentum_x,
-                    "momentum_y": d.momentum_y, "max_speed_m_s": d.max_speed_m_s,
-                    "unstable_particles": d.unstable_particles, "lost_particles": d.lost_particles,
-                    "total_mass_kg_per_m": d.total_mass_kg_per_m, "active_particles": int(frame.fields["active"].sum()),
-                })
-                last = frame.fields
-                if on_frame is not None:
-                    on_frame(frame)
-            status, message = sim.status, sim.message
-            if limit.fired:
-                status, message = "stopped", f"wall-clock limit of {time_limit_s:g} s reached at t = {sim.time_s:.4g} s"
-        except InstabilityError as err:
-            status, message = "failed", str(err)
-            if sim.last_frame is not None:
-                last = sim.last_frame.fields
-        steps, t = sim.steps, sim.time_s
-    return BuiltRunOutcome(status, message, rows, last, time.perf_counter() - wall0, cpu_seconds() - cpu0, steps, t)
+
+    def collect(frame: Any) -> None:
+        nonlocal last
+        d = frame.diagnostics
+        rows.append({
+            "time_s": d.time_s, "stage": d.stage, "step": d.step, "dt_s": d.dt_s,
+            "kinetic_energy_J_per_m": d.kinetic_energy_J_per_m, "momentum_x": d.momentum_x,
+            "momentum_y": d.momentum_y, "max_speed_m_s": d.max_speed_m_s,
+            "unstable_particles": d.unstable_particles, "lost_particles": d.lost_particles,
+            "total_mass_kg_per_m": d.total_mass_kg_per_m, "active_particles": int(frame.fields["active"].sum()),
+        })
+        last = frame.fields
+        if on_frame is not None:
+            on_frame(frame)
+
+    result = run_resolved(resolved, cancel=limit, on_frame=collect)
+    status, message = result.status, result.message
+    if limit.fired and status == "stopped":
+        status, message = "stopped", f"wall-clock limit of {time_limit_s:g} s reached at t = {result.summary['simulated_time_s']:.4g} s"
+    return BuiltRunOutcome(status, message, rows, last, time.perf_counter() - wall0, cpu_seconds() - cpu0,
+                           int(result.summary["steps"]), float(result.summary["simulated_time_s"]))
 
 
 # --------------------------------------------------------------------------------------------

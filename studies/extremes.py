@@ -138,7 +138,7 @@ def _energy_terms(masses: np.ndarray, volumes: np.ndarray, youngs: np.ndarray, n
 
 def run_row(row: Row, scheme: str, out_dir: Path, duration_s: float, time_limit_s: float) -> dict[str, Any]:
     """Run one row with one scheme; returns the table row (never raises for solver trouble)."""
-    from projects.build import build_simulation
+    from projects.build import resolve
     from projects.schema import ProjectError
     from solver.simulation import critical_time_step
 
@@ -149,13 +149,13 @@ def run_row(row: Row, scheme: str, out_dir: Path, duration_s: float, time_limit_
             'output.fields=["velocity", "stress"]', *row.overrides]
     try:
         project = load_scene(SCENE, sets)
-        built = build_simulation(project)
+        built = resolve(project)
         if row.dt_multiple is not None:
             dt = row.dt_multiple * critical_time_step(built.config)
             # outputs every whole number of steps, so that no step is shortened to land on one
             interval = dt * math.ceil(OUTPUT_INTERVAL_S / dt - 1e-9)
             project = load_scene(SCENE, [*sets, f"numerics.time_step_s={dt!r}", f"output.interval_s={interval!r}"])
-            built = build_simulation(project)
+            built = resolve(project)
     except ProjectError as err:
         result.update(outcome="rejected", message=str(err))
         return result

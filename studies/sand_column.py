@@ -24,7 +24,6 @@ solver rule.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from pathlib import Path
@@ -62,24 +61,21 @@ DISTURBED_FACTOR = 1.25
 DISTURBED_MARGIN_M_S = 0.05
 
 
-def _config(scheme: str, dt: float, duration_s: float, interval_s: float) -> tuple[Any, Any]:
-    """Built configuration (guard "remove") and particles of the sand column for one run."""
-    from projects.build import build_simulation
+def _resolved(scheme: str, dt: float, duration_s: float, interval_s: float) -> Any:
+    """The resolved sand-column run (guard "remove": unstable particles are counted, not fatal)."""
+    from projects.build import resolve
 
-    project = load_scene(SCENE, [f"numerics.scheme={scheme}", f"numerics.time_step_s={dt!r}",
-                                 f"stages.0.duration_s={duration_s!r}", f"output.interval_s={interval_s!r}",
-                                 'output.fields=["velocity"]'])
-    built = build_simulation(project)
-    numerics = dataclasses.replace(built.config.numerics, guard="remove")
-    return dataclasses.replace(built.config, numerics=numerics), built.particles
+    return resolve(load_scene(SCENE, [f"numerics.scheme={scheme}", f"numerics.time_step_s={dt!r}",
+                                      f"stages.0.duration_s={duration_s!r}", f"output.interval_s={interval_s!r}",
+                                      'output.fields=["velocity"]', 'numerics.advanced.guard="remove"']))
 
 
 def critical_step() -> float:
     """``dx / c_p`` of the sand column (s)."""
-    from projects.build import build_simulation
+    from projects.build import resolve
     from solver.simulation import critical_time_step
 
-    return critical_time_step(build_simulation(load_scene(SCENE)).config)
+    return critical_time_step(resolve(load_scene(SCENE), seed=False).config)
 
 
 def _output_interval(dt: float, duration_s: float, frames: int) -> float:
@@ -111,9 +107,9 @@ def run_case(scheme: str, dt: float, duration_s: float, frames: int = 100,
         ``stable_end``, ``max_speed_m_s``.
     """
     interval = _output_interval(dt, duration_s, frames)
-    config, particles = _config(scheme, dt, duration_s, interval)
-    n = len(particles)
-    g = float(np.linalg.norm(config.gravity_m_s2))
+    resolved = _resolved(scheme, dt, duration_s, interval)
+    n = resolved.particle_count
+    g = float(np.linalg.norm(resolved.config.gravity_m_s2))
     disturbed: list[int] = []
 
     def on_frame(frame: Any) -> None:
@@ -126,7 +122,7 @@ def run_case(scheme: str, dt: float, duration_s: float, frames: int = 100,
         speed = np.linalg.norm(v[act], axis=1)
         disturbed.append(int((speed > DISTURBED_FACTOR * g * t + DISTURBED_MARGIN_M_S).sum()))
 
-    out = run_built(config, particles, time_limit_s=time_limit_s, on_frame=on_frame)
+    out = run_built(resolved, time_limit_s=time_limit_s, on_frame=on_frame)
     series = rows_to_series(out.rows)
     if series:
         # stable = still in the computation. Not n - unstable - lost: the solver counts a particle

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from projects.build import build_simulation, estimate
+from projects.build import estimate, resolve
 from projects.document import dumps_project, load_project, loads_project, save_project
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "projects" / "examples"
@@ -54,7 +54,7 @@ def test_every_parameter_says_where_it_comes_from(name):
 
 def particles_of(name: str):
     project = load_project(path_of(name))
-    return project, build_simulation(project)
+    return project, resolve(project)
 
 
 def test_bars_match_the_paper():

@@ -10,7 +10,7 @@ import pytest
 
 from geometry.polygons import polygon_area, polygon_perimeter
 from geometry.templates import SlopeLayer, slope_profile
-from projects.build import BuiltRun, build_simulation, estimate, material_tables, solver_config
+from projects.build import ResolvedRun, estimate, material_tables, resolve, solver_config
 from projects.document import apply_overrides, loads_project
 from projects.schema import ProjectError, validate_project
 from solver import config as sc
@@ -85,7 +85,7 @@ def layered_data() -> dict:
 @pytest.fixture(scope="module")
 def layered():
     project = validate_project(layered_data())
-    return project, build_simulation(project)
+    return project, resolve(project)
 
 
 def test_material_ids_follow_the_layers(layered):
@@ -192,9 +192,9 @@ def test_k0_stage_value(layered):
 
 def test_built_run_is_frozen(layered):
     _, run = layered
-    assert isinstance(run, BuiltRun)
+    assert isinstance(run, ResolvedRun)
     with pytest.raises(dataclasses.FrozenInstanceError):
-        run.material_names = ()  # type: ignore[misc]
+        run.particles = None  # type: ignore[misc]
 
 
 def test_later_body_owns_the_overlap():
@@ -202,7 +202,7 @@ def test_later_body_owns_the_overlap():
     data["bodies"].append(
         {"name": "block", "material": "rock", "polygon_m": [[0.0, 7.0], [2.0, 7.0], [2.0, 9.0], [0.0, 9.0]]}
     )
-    run = build_simulation(validate_project(data))
+    run = resolve(validate_project(data))
     pos = run.particles.positions_m
     in_block = (pos[:, 0] < 2.0) & (pos[:, 1] > 7.0)
     assert np.all(run.particle_body[in_block] == 3)
@@ -215,7 +215,7 @@ def test_body_without_particles_is_an_error():
         {"name": "sliver", "material": "rock", "polygon_m": [[15.0, 10.0], [15.1, 10.0], [15.1, 10.1]]}
     )
     with pytest.raises(ProjectError) as info:
-        build_simulation(validate_project(data))
+        resolve(validate_project(data))
     assert [str(p) for p in info.value.problems] == [
         "bodies.3.polygon_m: receives no particles: smaller than the particle spacing (0.25 m) "
         "or covered by later bodies"
@@ -226,7 +226,7 @@ def test_gauss_seeding_volumes_sum_to_area():
     data = layered_data()
     data["particles"]["seeding"] = "gauss"
     project = validate_project(data)
-    run = build_simulation(project)
+    run = resolve(project)
     for index, body in enumerate(project.bodies):
         volume = run.particles.volumes_m2[run.particle_body == index].sum()
         assert volume == pytest.approx(polygon_area(np.asarray(body.polygon_m)), rel=1e-9)
@@ -267,7 +267,7 @@ def test_estimate_with_time_step():
     assert e["time_step_s"] == 1e-3 and e["time_step_source"] == "time_step_s"
     assert e["steps"] == 250 and e["simulated_time_s"] == 0.25
     assert e["frames"] == 3
-    assert e["particles"] == len(build_simulation(project).particles)
+    assert e["particles"] == len(resolve(project).particles)
 
 
 def test_estimate_with_cfl_uses_the_p_wave_speed():

@@ -318,7 +318,7 @@ def test_overrides_on_raw_data_do_not_modify_it():
 @pytest.mark.parametrize(
     ("override", "message"),
     [
-        ("numerics.schem=apic", "numerics.schem: unknown key; allowed: scheme, time_step_s, cfl, precision, arch, preset"),
+        ("numerics.schem=apic", "numerics.schem: unknown key; allowed: scheme, time_step_s, cfl, precision, arch, preset, advanced"),
         ("bodies.3.name=x", "bodies.3: no such item; bodies has indices 0 to 0"),
         ("bodies.first.name=x", "bodies.first: no such item; bodies has indices 0 to 0"),
         ("bodies.-1.name=x", "bodies.-1: no such item; bodies has indices 0 to 0"),
@@ -350,7 +350,7 @@ def test_several_bad_override_paths_reported_together(project):
     with pytest.raises(ProjectError) as info:
         apply_overrides(project, ["numerics.schem=apic", "nothing", "stages.5.duration_s=1"])
     assert problems(info) == [
-        "numerics.schem: unknown key; allowed: scheme, time_step_s, cfl, precision, arch, preset",
+        "numerics.schem: unknown key; allowed: scheme, time_step_s, cfl, precision, arch, preset, advanced",
         "nothing: expected KEY=VALUE",
         "stages.5: no such item; stages has indices 0 to 1",
     ]

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from projects import presets
-from projects.build import build_simulation, estimate
+from projects.build import estimate, resolve
 from projects.document import apply_overrides, load_project
 from projects.schema import ProjectError
 
@@ -60,11 +60,12 @@ def test_override_to_a_preset_drops_the_time_step_and_the_build_follows_the_pres
     height = min(max(p[1] for p in b.polygon_m) - min(p[1] for p in b.polygon_m) for b in project.bodies)
     assert resolved.domain.cell_size_m == pytest.approx(height / 20)
     assert resolved.particles.per_cell == 2 and resolved.numerics.scheme == "apic"
-    built = build_simulation(project)
+    built = resolve(project)
     assert built.config.grid.cell_size_m == pytest.approx(height / 20)
     assert built.config.numerics.cfl == 0.4 and built.config.numerics.time_step_s is None
     assert built.config.numerics.scheme == "apic"
-    assert estimate(project)["time_step_source"] == "cfl"
+    assert built.estimate["time_step_source"] == "cfl"
+    assert built.spacing_m == pytest.approx(height / 20 / 2)
 
 
 def test_a_preset_the_study_could_not_fill_is_a_clear_error(fake_presets):
