@@ -4,7 +4,7 @@ Measure keys are dotted paths (list items by index):
 
 - ``summary.KEY``: a key of ``summary.json`` (``summary.wall_time_s``, ``summary.steps``, ...).
 - ``hazard.KEY``: a key of ``hazard.json`` (``hazard.runout_distance_m``, ``hazard.travel_angle_deg``,
-  ``hazard.targets.0.arrival_time_s``...), where the run wrote one.
+  ``hazard.targets.NAME.arrival_time_s``...), where the run wrote one.
 - ``deposit.KEY``: measured here on the last frame's active particles with the deposit measures of
   :mod:`studies.common` (lengths in m, heights above y = 0): ``front_m`` (furthest particle edge),
   ``toe_m`` (furthest edge where the deposit is at least 2 mm thick), ``reach_m`` (the same at

@@ -92,12 +92,12 @@ def write_results(folder: Path, summary: dict, hazard: dict | None = None, profi
 
 def test_measures_from_summary_and_hazard_json(tmp_path):
     d = write_results(tmp_path / "r", {"status": "completed", "wall_time_s": 3.5, "steps": 10},
-                      {"runout_distance_m": 12.5, "targets": [{"name": "road", "arrival_time_s": 4.0}]},
-                      "x_m,max_flow_height_m,max_pressure_pa\n0,1.0,10\n1,0.5,\n")
-    got = read_measures(d, ["summary.wall_time_s", "hazard.runout_distance_m", "hazard.targets.0.arrival_time_s",
-                            "hazard.nothing", "summary.status", "deposit.front_m"])
+                      {"runout_distance_m": 12.5, "targets": {"road": {"arrival_time_s": 4.0}}, "list": [1.5]},
+                      "x_m,peak_flow_height_m,max_pressure_pa\n0,1.0,10\n1,0.5,\n")
+    got = read_measures(d, ["summary.wall_time_s", "hazard.runout_distance_m", "hazard.targets.road.arrival_time_s",
+                            "hazard.list.0", "hazard.nothing", "summary.status", "deposit.front_m"])
     assert got["summary.wall_time_s"] == 3.5 and got["hazard.runout_distance_m"] == 12.5
-    assert got["hazard.targets.0.arrival_time_s"] == 4.0
+    assert got["hazard.targets.road.arrival_time_s"] == 4.0 and got["hazard.list.0"] == 1.5
     assert math.isnan(got["hazard.nothing"]) and math.isnan(got["summary.status"])
     assert math.isnan(got["deposit.front_m"])  # no frames in this folder
     x, v = read_profile(d, "max_pressure_pa")
@@ -111,7 +111,7 @@ def fake_sweep(tmp_path: Path, n: int = 8) -> Path:
     spec = parse_spec({"sweep": {"project": "p.toml", "runs": n, "measures": ["hazard.runout_distance_m"]},
                        "parameters": {"materials.soil.friction_angle_deg": {"distribution": "uniform", "low": 20,
                                                                              "high": 40}},
-                       "profile": {"field": "max_flow_height_m", "thresholds": [0.5]}}, Path("."))
+                       "profile": {"field": "peak_flow_height_m", "thresholds": [0.5]}}, Path("."))
     plans, records = [], []
     for i in range(n):
         phi = 20.0 + 20.0 * i / (n - 1)
