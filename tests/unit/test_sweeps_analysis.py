@@ -184,3 +184,18 @@ def test_quadratic_estimate_recovers_a_parabola(centre, width):
     assert m == pytest.approx(centre, abs=1e-6)
     assert lo == pytest.approx(centre - width, abs=1e-6) and hi == pytest.approx(centre + width, abs=1e-6)
     assert quadratic_estimate([1.0, 2.0], [0.1, 0.2], 0.3) is None
+
+
+def test_a_run_past_its_timeout_is_recorded_as_error(tmp_path):
+    """execute_run (the Ray task's body) called directly: the run process is stopped at timeout_s."""
+    from projects.document import dumps_project, load_project
+    from sweeps.engine import execute_run
+
+    tiny = Path(__file__).resolve().parents[2] / "projects" / "examples" / "tiny_column.toml"
+    text = dumps_project(load_project(tiny, ["stages.1.duration_s=100"]))
+    data = execute_run({"run_id": "slow", "project_text": text, "runs_dir": str(tmp_path), "threads": 1,
+                        "arch": "cpu", "timeout_s": 1.0, "measures": ["summary.steps"], "profile_field": None,
+                        "sample_x": None})
+    assert data["status"] == "error" and data["message"] == "timed out after 1 s"
+    assert data["wall_time_s"] < 30
+    assert (tmp_path / "slow.toml").read_text(encoding="utf-8") == text
