@@ -1,4 +1,4 @@
-"""``runout sweep``, ``runout calibrate`` and ``runout report`` (registered on :data:`app.cli.cli`).
+"""``runout sweep`` and ``runout calibrate`` (registered on :data:`app.cli.cli`), and the sweep report.
 
 The work is done by :mod:`sweeps`; this module parses options, shows a progress bar with ETA on
 standard error and prints the result folder on standard output. Ctrl-C (or SIGTERM) stops
@@ -75,7 +75,8 @@ def _check_engine(workers: int | None, threads: int | None, gpus: float | None) 
 
 
 def register(cli: typer.Typer) -> None:
-    """Add ``sweep``, ``calibrate`` and ``report`` to the command line ``cli``."""
+    """Add ``sweep`` and ``calibrate`` to the command line ``cli`` (``report`` dispatches to
+    :func:`sweep_report` for a sweep folder)."""
 
     @cli.command()
     def sweep(
@@ -158,19 +159,13 @@ def register(cli: typer.Typer) -> None:
             raise typer.Exit(_cli().EXIT_SIGTERM if stop.reason == "SIGTERM" else _cli().EXIT_SIGINT)
 
 
-    @cli.command()
-    def report(
-        folder: Annotated[Path, typer.Argument(metavar="SWEEP_DIR", help="Sweep or calibration folder.",
-                                               show_default=False)],
-    ) -> None:
-        """Write report.html (plots and tables) for a sweep or calibration folder."""
-        from sweeps.report import write_report
-        from sweeps.sweep import SweepFolderError, is_sweep_dir
+def sweep_report(folder: Path, output: Path | None = None) -> None:
+    """``runout report SWEEP_DIR``: report.html of a sweep or calibration folder (in ``output`` if given)."""
+    from sweeps.report import write_report
+    from sweeps.sweep import SweepFolderError
 
-        if not is_sweep_dir(folder):
-            _cli().fail(f"{folder} holds no sweep.csv or calibration.csv (a sweep or calibration folder)")
-        try:
-            path = write_report(folder)
-        except (SweepFolderError, OSError) as exc:
-            _cli().fail(str(exc))
-        _cli().out.print(str(path), markup=False)
+    try:
+        path = write_report(folder, output)
+    except (SweepFolderError, OSError) as exc:
+        _cli().fail(str(exc))
+    _cli().out.print(str(path), markup=False)

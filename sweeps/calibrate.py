@@ -437,7 +437,7 @@ def read_calibration(path: str | os.PathLike[str]) -> CalibrationData:
     return CalibrationData(out, params, rows, info)
 
 
-def write_calibration_report(data: CalibrationData) -> Path:
+def write_calibration_report(data: CalibrationData, output: Path | None = None) -> Path:
     """Write ``report.html``: best fit, misfit landscape, optimisation history, confidence region,
     and the best run's final surface against the observed profile."""
     import html
@@ -514,6 +514,6 @@ def write_calibration_report(data: CalibrationData) -> Path:
     table_rows = [[r["trial"], *(r[k] for k in data.parameters), r["misfit"], r["status"], r["message"]]
                   for r in data.rows]
     parts += ["<h2>Trials</h2>", _table(["trial", *data.parameters, "misfit", "status", "message"], table_rows)]
-    path = data.out_dir / REPORT_NAME
+    path = (output or data.out_dir) / REPORT_NAME
     atomic_write(path, _page(f"Calibration report: {data.out_dir.name}", parts))
     return path

@@ -122,7 +122,7 @@ def _page(title: str, parts: Sequence[str]) -> str:
             f"</head><body><h1>{html.escape(title)}</h1>{''.join(parts)}</body></html>")
 
 
-def write_sweep_report(data: SweepData, alpha: float = 0.05) -> Path:
+def write_sweep_report(data: SweepData, alpha: float = 0.05, output: Path | None = None) -> Path:
     """Write ``report.html`` of a sweep folder: runs, measures against parameters, exceedance
     curves with DKW bands, the probability profile, the sensitivity ranking, failed runs."""
     rows = data.rows
@@ -212,7 +212,7 @@ def write_sweep_report(data: SweepData, alpha: float = 0.05) -> Path:
         parts.append(_table(["run", *data.parameters, "status", "message"],
                             [[r["run"], *(r[k] for k in data.parameters), r["status"], r["message"]] for r in bad]))
     parts.append("<p>Files: sweep.csv, exceedance.csv, profile.csv, sensitivity.csv, runs/.</p>")
-    path = data.out_dir / REPORT_NAME
+    path = (output or data.out_dir) / REPORT_NAME
     atomic_write(path, _page(f"Sweep report: {data.out_dir.name}", parts))
     return path
 
@@ -239,8 +239,9 @@ def _describe(p: dict[str, Any]) -> str:
     return f"{d}: " + ", ".join(f"{k} = {p[k]}" for k in keys)
 
 
-def write_report(path: str | Path) -> Path:
-    """Write ``report.html`` for a sweep folder (sweep.csv) or a calibration folder (calibration.csv).
+def write_report(path: str | Path, output: str | Path | None = None) -> Path:
+    """Write ``report.html`` for a sweep folder (sweep.csv) or a calibration folder (calibration.csv),
+    into the folder itself or into ``output``.
 
     Raises
     ------
@@ -250,7 +251,7 @@ def write_report(path: str | Path) -> Path:
     if (p / "calibration.csv").is_file():
         from sweeps.calibrate import read_calibration, write_calibration_report
 
-        return write_calibration_report(read_calibration(p))
+        return write_calibration_report(read_calibration(p), Path(output) if output else None)
     data = read_sweep(p)
     write_statistics(data)
-    return write_sweep_report(data)
+    return write_sweep_report(data, output=Path(output) if output else None)
