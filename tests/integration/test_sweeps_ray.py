@@ -36,10 +36,10 @@ def sweep_dir(tmp_path_factory):
     return tmp_path_factory.mktemp("sweep")
 
 
-def sweep_spec(params: dict, measures=("deposit.front_m", "summary.steps"), **extra):
+def sweep_spec(params: dict, measures=("hazard.runout_distance_m", "deposit.front_m", "summary.steps"), **extra):
     return parse_spec({"sweep": {"project": str(TINY), "sampling": "grid", "set": SHORT,
                                  "measures": list(measures), **extra},
-                       "parameters": params, "profile": {"field": "deposit_height_m", "thresholds": [0.05]}},
+                       "parameters": params, "profile": {"field": "peak_flow_height_m", "thresholds": [0.02, 0.1]}},
                       Path("."))
 
 
@@ -63,6 +63,13 @@ def test_tiny_sweep_runout_falls_with_friction(ray_local, sweep_dir):
     front = [float(r["deposit.front_m"]) for r in table]
     assert all(a > b for a, b in zip(front, front[1:])), front
     assert front[0] > 0.12 + 0.005  # the column (0.12 m wide) spread
+    runout = [float(r["hazard.runout_distance_m"]) for r in table]
+    assert all(a > b for a, b in zip(runout, runout[1:])), runout
+    with open(sweep_dir / "profile.csv", encoding="utf-8") as fh:
+        prof = list(csv.DictReader(fh))
+    p_low = np.array([float(r["p_gt_0.02"]) for r in prof])
+    p_high = np.array([float(r["p_gt_0.1"]) for r in prof])
+    assert len(prof) > 10 and np.all(p_high <= p_low) and p_low.max() == 1.0 and p_low.min() == 0.0
     assert [p.done for p in seen] == [0, 1, 2, 3, 4]
     assert result.settings["workers"] == 2 and result.settings["threads_per_run"] == 1
     for name in ("exceedance.csv", "sensitivity.csv", "profile.csv", "report.html", "progress.json"):
@@ -70,6 +77,7 @@ def test_tiny_sweep_runout_falls_with_friction(ray_local, sweep_dir):
     with open(sweep_dir / "sensitivity.csv", encoding="utf-8") as fh:
         sens = {r["measure"]: r for r in csv.DictReader(fh)}
     assert float(sens["deposit.front_m"]["spearman_rho"]) == pytest.approx(-1.0)
+    assert float(sens["hazard.runout_distance_m"]["spearman_rho"]) == pytest.approx(-1.0)
 
 
 def test_failing_run_is_recorded_and_finished_runs_are_reused(ray_local, sweep_dir):
