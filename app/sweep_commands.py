@@ -65,13 +65,20 @@ def _load_spec(path: Path, kind: str):  # noqa: ANN202 - SweepSpec | Calibration
     return spec
 
 
-def _check_engine(workers: int | None, threads: int | None, gpus: float | None) -> None:
+def _check_engine(workers: int | None, threads: int | None, gpus: float | None, address: str | None = None) -> None:
     if workers is not None and workers < 1:
         _cli().fail(f"--workers must be >= 1, not {workers}")
     if threads is not None and threads < 1:
         _cli().fail(f"--threads must be >= 1, not {threads}")
     if gpus is not None and not gpus >= 0:
         _cli().fail(f"--gpus-per-run must be >= 0, not {gpus:g}")
+    if address is not None:
+        from sweeps.engine import check_address
+
+        try:
+            check_address(address)
+        except ConnectionError as exc:
+            _cli().fail(f"cannot reach the Ray cluster at {address}: {exc}")
 
 
 def register(cli: typer.Typer) -> None:
@@ -93,7 +100,7 @@ def register(cli: typer.Typer) -> None:
         from projects.schema import ProjectError
         from sweeps.sweep import plan_sweep, run_sweep
 
-        _check_engine(workers, threads, gpus)
+        _check_engine(workers, threads, gpus, address)
         spec = _load_spec(spec_path, "sweep")
         try:
             plan_sweep(spec)  # every problem before Ray starts
@@ -135,7 +142,7 @@ def register(cli: typer.Typer) -> None:
         from projects.schema import ProjectError
         from sweeps.calibrate import check_calibration, run_calibration
 
-        _check_engine(workers, threads, gpus)
+        _check_engine(workers, threads, gpus, address)
         spec = _load_spec(spec_path, "calibration")
         try:
             check_calibration(spec)  # every problem before Ray starts

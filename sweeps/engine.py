@@ -269,6 +269,29 @@ def _die_with_parent() -> None:
 # the engine
 
 
+def check_address(address: str, timeout_s: float = 5.0) -> None:
+    """Fail fast on a cluster address nothing listens at (Ray itself retries for minutes).
+
+    ``HOST:PORT`` (the head's GCS port, 6379 by default) and ``ray://HOST:PORT`` (Ray Client,
+    10001) are tried with a TCP connection; ``auto`` and other forms are left to Ray.
+
+    Raises
+    ------
+    ConnectionError
+        With the address and the reason.
+    """
+    text = address[len("ray://"):] if address.startswith("ray://") else address
+    host, sep, port = text.rpartition(":")
+    if not sep or not port.isdigit() or not host:
+        return
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
+            pass
+    except OSError as exc:
+        raise ConnectionError(f"nothing answers at {address} ({exc.strerror or exc}); start the head with "
+                              "`ray start --head` and give the address it prints") from None
+
+
 @dataclass(frozen=True)
 class EngineSettings:
     """How runs are placed: ``workers`` runs at once, ``threads`` Taichi CPU threads each, or
@@ -320,6 +343,8 @@ class RayEngine:
                 workers = max(1, cpus // threads)
         else:
             threads = threads or 1
+        if address is not None and not ray.is_initialized():
+            check_address(address)
         if not ray.is_initialized():
             kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False,
                                       "logging_level": logging.WARNING}
