@@ -12,7 +12,7 @@ import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
@@ -83,9 +83,7 @@ def _key_path(value: Any) -> Any:
 
 Number = Annotated[int | float, BeforeValidator(_number)]  # ints stay ints
 Int = Annotated[int, BeforeValidator(_int)]
-Positive = Annotated[float, BeforeValidator(_number)]
 StrList = Annotated[list[str], BeforeValidator(_str_list)]
-KeyPath = Annotated[str, BeforeValidator(_key_path)]
 
 
 class _Model(BaseModel):
