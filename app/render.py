@@ -551,3 +551,94 @@ def animate(
         scene.close()
     logger.info("wrote %s (%d frames)", out, len(frames))
     return out
+
+
+def render_mechanism(results: Results | str | os.PathLike[str], path: str | os.PathLike[str] | None = None,
+                     size: tuple[int, int] = (1600, 700)) -> Path:
+    """The failure mechanism of a strength-reduction run: plastic strain at ``F_fail`` with
+    Bishop's critical circle and the monitor point, beside the knee curve (monitor
+    displacement against the trial factor). Matplotlib, offscreen.
+
+    Parameters
+    ----------
+    results : Results or path-like
+    path : path-like, optional
+        Output PNG. Default: ``<results>/mechanism.png``.
+    size : (int, int)
+        Image width and height, pixels.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    ValueError
+        When the results hold no factor of safety (not a strength-reduction run).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    import json
+
+    res = _as_results(results)
+    summary = json.loads((res.path / "summary.json").read_text(encoding="utf-8"))
+    fos = summary.get("factor_of_safety")
+    if not fos:
+        raise ValueError(f"{res.path} holds no factor of safety (no strength-reduction stage ran)")
+    out = Path(path) if path is not None else res.path / "mechanism.png"
+    frame = fos.get("mechanism_frame")
+    fig, (ax, knee) = plt.subplots(1, 2, figsize=(size[0] / 100, size[1] / 100), dpi=100,
+                                   gridspec_kw={"width_ratios": [2.2, 1]})
+    try:
+        if frame is not None:
+            arrays = res.frame(int(frame))
+            keep = arrays["active"]
+            xy = arrays["positions"][keep]
+            eps = arrays.get("plastic_strain", np.zeros(len(keep)))[keep]
+            spacing = float(summary.get("particle_spacing_m") or 0.0)
+            dots = ax.scatter(xy[:, 0], xy[:, 1], c=eps, s=max(1.0, 4000.0 * spacing / max(np.ptp(xy[:, 0]), 1e-9)),
+                              cmap="inferno", marker="s", linewidths=0)
+            fig.colorbar(dots, ax=ax, label="equivalent plastic strain", shrink=0.8)
+            ax.set_title(f"mechanism at F = {fos['upper']:.3f}")
+        le = summary.get("limit_equilibrium") or {}
+        circle = le.get("circle")
+        if circle:
+            cx, cy = circle["centre_m"]
+            t = np.linspace(np.pi, 2.0 * np.pi, 361)  # the lower arc: the slip surface
+            ax.plot(cx + circle["radius_m"] * np.cos(t), cy + circle["radius_m"] * np.sin(t), "c--", lw=1.5,
+                    label=f"Bishop critical circle, F = {le['factor_of_safety']:.3f}")
+        if fos.get("monitor_point_m"):
+            ax.plot(*fos["monitor_point_m"], "o", mfc="none", mec="lime", ms=10, label="monitor point")
+        if frame is not None:
+            pad = 0.05 * max(np.ptp(xy[:, 0]), np.ptp(xy[:, 1]))
+            ax.set_xlim(xy[:, 0].min() - pad, xy[:, 0].max() + pad)
+            ax.set_ylim(xy[:, 1].min() - pad, xy[:, 1].max() + pad)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.legend(loc="lower left", fontsize=8)
+        trials = sorted(fos.get("trials", []), key=lambda tr: tr["factor"])
+        for verdict, style in (("stable", "bo"), ("failed", "rx")):
+            pts = [(tr["factor"], tr["monitor_displacement_m"]) for tr in trials if tr["verdict"] == verdict]
+            if pts:
+                knee.plot(*zip(*pts), style, label=verdict)
+        if trials:
+            knee.plot([tr["factor"] for tr in trials], [tr["monitor_displacement_m"] for tr in trials], "k-", lw=0.5)
+        if fos.get("value") is not None:
+            knee.axvline(fos["value"], color="k", ls=":", label=f"F = {fos['value']:.3f}")
+        if le.get("factor_of_safety") is not None:
+            knee.axvline(le["factor_of_safety"], color="c", ls="--", label="Bishop")
+        knee.set_xlabel("trial factor F")
+        knee.set_ylabel("monitor displacement (m)")
+        knee.legend(fontsize=8)
+        knee.set_title("strength reduction trials")
+        fig.tight_layout()
+        out.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(out)
+    finally:
+        plt.close(fig)
+    logger.info("wrote %s", out)
+    return out

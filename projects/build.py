@@ -110,9 +110,13 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
     grid = sc.Grid(origin_m=domain.origin_m, size_m=domain.size_m, cell_size_m=domain.cell_size_m, **sides)
 
     stages = []
+    reduced = False  # after a strength-reduction stage projects.strength sets the material table
     for stage, table in zip(project.stages, material_tables(project)):
+        if stage.type == "strength-reduction":
+            reduced = True
+            continue  # driven by projects.strength between the solver's stages
         stage_materials = None
-        if stage.material_changes:
+        if stage.material_changes and not reduced:
             stage_materials = tuple(solver_material(n, table[n]) for n in names)
         if stage.damping is not None:
             damping = stage.damping.coefficient

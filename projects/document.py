@@ -236,7 +236,7 @@ def dumps_project(project: Project) -> str:
     for stage in data["stages"]:
         table = tomlkit.table()
         for key, value in stage.items():
-            if key == "damping":
+            if key in ("damping", "failure"):
                 table[key] = _inline(value)
             elif key == "material_changes":
                 changes = tomlkit.table(is_super_table=True)

@@ -326,10 +326,13 @@ def run_resolved(
 
 def _simulation(resolved: ResolvedRun) -> Any:
     # importing the simulation loads Taichi: do it only when a run really starts
+    from projects.strength import settings_of
     from solver.simulation import Simulation
 
     try:
-        return Simulation(resolved.config, resolved.particles)
+        # strength-reduction trials step with local damping whatever the stages say
+        return Simulation(resolved.config, resolved.particles,
+                          damping_support=settings_of(resolved.project) is not None)
     except SolverError as err:
         raise _solver_rejects(err) from None
 
@@ -365,6 +368,7 @@ def _run(
 ) -> RunResult:
     from projects.hazard import HazardOutput, settings
     from projects.results import write_checkpoint
+    from projects.strength import strength_reduction
 
     hazard = None
     if writer is not None:
@@ -374,6 +378,11 @@ def _run(
                      hazard_files.HAZARD_VTI):
             writer.own(name)
         hazard = HazardOutput(writer.out_dir, sim, settings(resolved.project), writer.submit)
+    driver = strength_reduction(resolved)  # None unless the project has a strength-reduction stage
+    if driver is not None and writer is not None:
+        from projects.strength import TRIALS_NAME
+
+        writer.own(TRIALS_NAME)
     setup_s = time.perf_counter() - started
     status, message = "failed", "the run ended unexpectedly"
     loop_start = time.perf_counter()
@@ -387,7 +396,9 @@ def _run(
         write_checkpoint(writer.out_dir, sim.checkpoint())
 
     try:
-        for frame in sim.run(cancel=cancel, on_progress=on_progress):
+        frames = (sim.run(cancel=cancel, on_progress=on_progress) if driver is None
+                  else driver.run(sim, cancel=cancel, on_progress=on_progress))
+        for frame in frames:
             if writer is not None:
                 writer.write_frame(frame)
                 hazard.write()  # the envelopes with every frame: a killed run keeps them
@@ -395,7 +406,9 @@ def _run(
                 on_frame(frame)
             t = frame.diagnostics.time_s
             stopping = cancel is not None and cancel()
-            if writer is not None and sim.can_checkpoint and (stopping or t >= last_checkpoint_s + interval * (1 - 1e-9)):
+            # a strength-reduction run is not resumable part-way (its search lives in memory)
+            if writer is not None and driver is None and sim.can_checkpoint and (
+                    stopping or t >= last_checkpoint_s + interval * (1 - 1e-9)):
                 save_checkpoint()
                 last_checkpoint_s = t
         if writer is not None and sim.can_checkpoint:  # the end state: later runs may start from it
@@ -438,6 +451,13 @@ def _run(
         if sim.first_step_at is not None and process_age_s() is not None:
             # process start to the end of its first step: what a run as a process costs to start
             extra["startup_s"] = process_age_s() - (time.perf_counter() - sim.first_step_at)
+        if driver is not None:
+            extra.update(driver.summary())
+            if writer is not None:
+                try:
+                    driver.write_files(writer.out_dir)
+                except OSError as err:
+                    logger.error("could not write the strength-reduction trials: %s", err)
         if writer is not None:
             summary = writer.close(status, message, **numbers, extra=extra)
         else:

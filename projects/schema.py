@@ -63,7 +63,9 @@ GUARD_MODES = sc.GUARD_MODES
 SCATTERS = sc.SCATTERS
 #: Accuracy/cost presets measured by ``runout study tradeoff`` (projects/presets.json).
 PRESETS: tuple[str, ...] = ("draft", "standard", "fine")
-STAGE_TYPES: tuple[str, ...] = ("k0", "gravity", "dynamic")
+STAGE_TYPES: tuple[str, ...] = ("k0", "gravity", "dynamic", "strength-reduction")
+#: ``first_trial`` of a strength-reduction stage may be a number or this word.
+FIRST_TRIALS: tuple[str, ...] = ("limit-equilibrium",)
 DAMPING_TYPES: tuple[str, ...] = ("local",)
 OUTPUT_FIELDS = sc.OUTPUT_FIELDS
 #: Material keys that only a Drucker-Prager material may have.
@@ -521,6 +523,34 @@ class Damping(_Model):
     coefficient: DampingCoefficient
 
 
+def _first_trial(value: Any) -> Any:
+    if value is None or (isinstance(value, str) and value in FIRST_TRIALS):
+        return value
+    if isinstance(value, str) or isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise _fail('must be a number > 0 or "limit-equilibrium"')
+    if not value > 0:
+        raise _fail('must be a number > 0 or "limit-equilibrium"')
+    return float(value)
+
+
+FAILURE_CRITERIA: tuple[str, ...] = ("displacement", "kinetic-energy")
+
+
+class Failure(_Model):
+    """``failure = {..}`` of a strength-reduction stage: when a trial has failed."""
+
+    criteria: Annotated[
+        tuple[Annotated[str, _choice(FAILURE_CRITERIA)], ...],
+        BeforeValidator(lambda v: v if isinstance(v, (list, tuple)) else _raise_array()),
+        AfterValidator(_unique_fields),
+        _nonempty_list("criterion"),
+    ] = FAILURE_CRITERIA
+    kinetic_energy_ratio: OptFraction = None
+    displacement_m: OptPositive = None
+    monitor_point_m: Vec2 | None = None
+    min_settle_fraction: OptFraction = None
+
+
 class Stage(_Model):
     """``[[stages]]``: one stage of the analysis (see docs/project-format.md)."""
 
@@ -532,6 +562,17 @@ class Stage(_Model):
     stop_when_kinetic_energy_below: OptFraction = None
     min_duration_s: OptNonNegative = None
     material_changes: dict[MaterialName, MaterialChange] = {}
+    # strength-reduction stages (and strength_factor on the dynamic stage after one)
+    materials: tuple[MaterialName, ...] | None = None
+    tolerance: OptPositive = None
+    first_trial: Annotated[float | str | None, BeforeValidator(_first_trial)] = None
+    bracket_step: OptPositive = None
+    trial_duration_s: OptPositive = None
+    max_trials: Annotated[int | None, BeforeValidator(lambda v: v if v is None else _to_int(v)),
+                          AfterValidator(lambda v: v if v is None else _in_int_range(v, 2, 200))] = None
+    limit_equilibrium: bool | None = None
+    failure: Failure | None = None
+    strength_factor: OptPositive = None
 
     @property
     def label(self) -> str:
@@ -1013,6 +1054,9 @@ def _numerics_rules(numerics: Mapping[str, Any]) -> list[Problem]:
 
 
 _INITIAL_STRESS = ("k0", "gravity")
+#: Keys only a strength-reduction stage may have.
+STRENGTH_KEYS: tuple[str, ...] = ("materials", "tolerance", "first_trial", "bracket_step", "trial_duration_s",
+                                  "max_trials", "limit_equilibrium", "failure")
 
 
 def _stage_rules(stages: list[Any], materials: Mapping[str, Any]) -> list[Problem]:
@@ -1042,11 +1086,67 @@ def _stage_rules(stages: list[Any], materials: Mapping[str, Any]) -> list[Proble
         if kind in STAGE_TYPES:
             problems += _stage_keys(path, kind, stage)
         problems += _change_rules(path, _table(stage.get("material_changes")), current)
+    problems += _strength_rules(stages, materials)
+    return problems
+
+
+def _strength_rules(stages: list[Any], materials: Mapping[str, Any]) -> list[Problem]:
+    """A strength-reduction stage follows the initial stress; at most one dynamic stage follows it."""
+    problems = []
+    kinds = [stage.get("type") if isinstance(stage, Mapping) else None for stage in stages]
+    sr = [i for i, kind in enumerate(kinds) if kind == "strength-reduction"]
+    for index, stage in enumerate(stages):
+        if not isinstance(stage, Mapping):
+            continue
+        path = f"stages.{index}"
+        if kinds[index] != "strength-reduction":
+            for key in STRENGTH_KEYS:
+                if key in stage:
+                    problems.append(Problem(f"{path}.{key}", stage[key], "only allowed on a strength-reduction stage"))
+            if "strength_factor" in stage and not (sr and kinds[index] == "dynamic" and index > sr[0]):
+                problems.append(Problem(f"{path}.strength_factor", stage["strength_factor"],
+                                        "only allowed on the dynamic stage after a strength-reduction stage"))
+    if not sr:
+        return problems
+    first = sr[0]
+    path = f"stages.{first}"
+    if len(sr) > 1:
+        problems.append(Problem(f"stages.{sr[1]}.type", "strength-reduction",
+                                f"only one strength-reduction stage is allowed (stages.{first} is one)"))
+    if not any(kind in _INITIAL_STRESS for kind in kinds[:first]) or any(kind == "dynamic" for kind in kinds[:first]):
+        problems.append(Problem(f"{path}.type", "strength-reduction",
+                                "must follow the initial-stress stage (k0 or gravity) and come before any dynamic stage"))
+    after = [i for i in range(first + 1, len(stages)) if kinds[i] != "strength-reduction"]
+    if len(after) > 1:
+        problems.append(Problem(f"stages.{after[1]}.type", kinds[after[1]],
+                                "at most one stage (the dynamic run-out) may follow a strength-reduction stage"))
+    stage = stages[first] if isinstance(stages[first], Mapping) else {}
+    for key in ("duration_s", "k0", "stop_when_kinetic_energy_below", "min_duration_s", "material_changes"):
+        if key in stage:
+            problems.append(Problem(f"{path}.{key}", stage[key], "not allowed on a strength-reduction stage"))
+    names = stage.get("materials")
+    if isinstance(names, (list, tuple)):
+        plastic = [n for n, m in materials.items() if isinstance(m, Mapping) and m.get("model") == "drucker-prager"]
+        for k, name in enumerate(names):
+            if isinstance(name, str) and name not in plastic:
+                problems.append(Problem(f"{path}.materials.{k}", name,
+                                        f"not a drucker-prager material; defined: {_defined(plastic)}"))
+        if not names:
+            problems.append(Problem(f"{path}.materials", [], "needs at least one material"))
+    elif names is None and not any(isinstance(m, Mapping) and m.get("model") == "drucker-prager"
+                                   for m in materials.values()):
+        problems.append(Problem(f"{path}.type", "strength-reduction", "needs a drucker-prager material to reduce"))
+    has_gravity = any(kind == "gravity" for kind in kinds[:first])
+    if "trial_duration_s" not in stage and not has_gravity:
+        problems.append(Problem(f"{path}.trial_duration_s", None,
+                                "required when there is no gravity stage (its duration is the default)"))
     return problems
 
 
 def _stage_keys(path: str, kind: str, stage: Mapping[str, Any]) -> list[Problem]:
     problems = []
+    if kind == "strength-reduction":
+        return problems  # its keys are checked by _strength_rules
     if kind == "k0":
         for key in ("duration_s", "damping"):
             if key in stage:

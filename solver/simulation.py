@@ -50,6 +50,7 @@ from solver.config import (
     Diagnostics,
     Frame,
     InstabilityError,
+    Material,
     Particles,
     SimulationConfig,
     SolverError,
@@ -162,7 +163,9 @@ def validate(config: SimulationConfig, particles: Particles) -> None:
 class Simulation:
     """One analysis: builds the engine in the calling thread and advances it stage by stage."""
 
-    def __init__(self, config: SimulationConfig, particles: Particles):
+    def __init__(self, config: SimulationConfig, particles: Particles, *, damping_support: bool = False):
+        """``damping_support`` builds the engine for local damping even when no stage of the
+        configuration uses it (the steps of :meth:`advance` may)."""
         validate(config, particles)
         self.config = config
         self.particles = particles
@@ -179,7 +182,7 @@ class Simulation:
         self.engine = Engine(
             local_grid, config.materials, len(particles), config.numerics.scheme, np_float,
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
-            damping=any(st.damping > 0 for st in config.stages), scatter=config.numerics.scatter,
+            damping=damping_support or any(st.damping > 0 for st in config.stages), scatter=config.numerics.scatter,
         )
         self.engine.load_particles(np.asarray(particles.positions_m, dtype=np.float64) - self.origin_m,
                                    particles.volumes_m2, particles.material_ids,
@@ -381,12 +384,15 @@ class Simulation:
 
     # ------------------------------------------------------------------ the run
     def run(self, cancel: Callable[[], bool] | None = None,
-            on_progress: Callable[[Progress], None] | None = None) -> Iterator[Frame]:
+            on_progress: Callable[[Progress], None] | None = None, *,
+            stop_before: int | None = None) -> Iterator[Frame]:
         """Yield frames at t = 0, every output interval and the end of each stage.
 
         Raises InstabilityError when the guard fires; the frames yielded before are good.
         ``cancel()`` returning True ends the run after one last frame (status "stopped").
         After :meth:`restore` the run continues after the checkpoint's frame.
+        ``stop_before`` ends the run at the start of that stage (a driver then works on the
+        state, e.g. strength-reduction trials, and calls ``run`` again to go on from there).
         """
         runtime.check_owner()
         cfg = self.config
@@ -400,7 +406,8 @@ class Simulation:
         cancelled = False
         if c.dt_s == 0.0:  # a fresh run (a restored one keeps its step)
             c.dt_s = self._time_step(e.diagnostics()["max_speed"])
-        for index in range(c.stage_index, len(cfg.stages)):
+        last = len(cfg.stages) if stop_before is None else min(stop_before, len(cfg.stages))
+        for index in range(c.stage_index, last):
             stage = cfg.stages[index]
             c.stage_index = index
             if c.phase == "start":
@@ -493,17 +500,73 @@ class Simulation:
             c.stage_index = index + 1
         if not cancelled and (c.last_output_step != self.steps or c.frames == 0):
             # e.g. a project with only a k0 stage
-            st = cfg.stages[-1]
+            st = cfg.stages[last - 1]
             d = e.diagnostics()
             c.last_output_step = self.steps
-            yield self._frame(st, len(cfg.stages) - 1, 0.0, c.dt_s, d)
-        if not cancelled:
+            yield self._frame(st, last - 1, 0.0, c.dt_s, d)
+        if not cancelled and last == len(cfg.stages):
             c.phase = "done"
         self.status = "stopped" if cancelled else "completed"
         if cancelled:
             self.message = f"cancelled at t = {self.time_s:.4g} s"
         elif not self.message:
             self.message = f"completed {self.steps} steps, t = {self.time_s:.4g} s"
+
+    # ------------------------------------------------------------------ driving from outside
+    def advance(self, duration_s: float, *, damping: float = 0.0,
+                check: Callable[[float, dict], str | None] | None = None,
+                cancel: Callable[[], bool] | None = None) -> str:
+        """Step the current state for up to ``duration_s`` with full gravity, yielding no frames.
+
+        Every :data:`CHECK_EVERY` steps the stability guard runs and ``check(elapsed_s,
+        diagnostics)`` is called; a non-empty string it returns ends the advance early and is
+        returned (also from the check after the last step). ``cancel()`` returning True ends it
+        with ``"cancelled"``. Returns ``""`` when the whole duration ran. The clock (``time_s``,
+        ``steps``) advances; callers that restore a checkpoint restore it too. Raises
+        InstabilityError like :meth:`run`.
+        """
+        runtime.check_owner()
+        e = self.engine
+        g = tuple(float(v) for v in self.config.gravity_m_s2)
+        d = e.diagnostics()
+        dt = self._time_step(d["max_speed"])
+        elapsed = 0.0
+        count = 0
+        while elapsed < duration_s - 1e-12 * max(1.0, duration_s):
+            h = min(dt, duration_s - elapsed)
+            e.step(h, g, damping)
+            self.steps += 1
+            count += 1
+            elapsed += h
+            self.time_s += h
+            if count % CHECK_EVERY == 0:
+                d = e.diagnostics()
+                self._check(dt, d)
+                if self.config.numerics.time_step_s is None:
+                    dt = self._time_step(d["max_speed"])
+                if check is not None:
+                    reason = check(elapsed, d)
+                    if reason:
+                        return reason
+                if cancel is not None and cancel():
+                    return "cancelled"
+        d = e.diagnostics()
+        self._check(dt, d)
+        if check is not None:
+            return check(elapsed, d) or ""
+        return ""
+
+    def set_materials(self, materials: tuple[Material, ...]) -> None:
+        """Replace the material table now (one row per material of the configuration)."""
+        if len(materials) != len(self.config.materials):
+            raise SolverError(f"the material table must have {len(self.config.materials)} rows")
+        self.engine.materials.load(materials)
+        self._materials = tuple(materials)
+
+    def snapshot(self, stage: Stage, index: int, stage_time_s: float = 0.0) -> Frame:
+        """A frame of the current state, labelled with ``stage`` (number ``index``)."""
+        d = self.engine.diagnostics()
+        return self._frame(stage, index, stage_time_s, self._time_step(d["max_speed"]), d)
 
     # ------------------------------------------------------------------ lifetime
     def close(self) -> None:

@@ -432,9 +432,23 @@ class SceneView(QWidget):
         self._update_legend()
         pl.render()
 
+    def _cell_and_per(self) -> tuple[Any, Any]:
+        """Cell size and particles per cell the run will use (:func:`projects.build.resolve`:
+        a preset's when one is set), else the panels'."""
+        project = self.doc.project
+        if project is not None and project.numerics.preset is not None:
+            from projects.build import resolve
+            from projects.schema import ProjectError
+
+            try:
+                effective = resolve(project, seed=False).project
+                return effective.domain.cell_size_m, effective.particles.per_cell
+            except (ProjectError, ValueError):
+                pass
+        return self.doc.get("domain.cell_size_m"), self.doc.get("particles.per_cell", 2)
+
     def _spacing_pixels(self) -> float:
-        cell = self.doc.get("domain.cell_size_m")
-        per = self.doc.get("particles.per_cell", 2)
+        cell, per = self._cell_and_per()
         if not isinstance(cell, (int, float)) or not isinstance(per, int) or per < 1:
             return 2.0
         return float(cell) / per / max(self.pixel_size_m(), 1e-12)
@@ -445,7 +459,7 @@ class SceneView(QWidget):
 
         empty = np.zeros(0, dtype=int)
         doc = self.doc
-        cell, per = doc.get("domain.cell_size_m"), doc.get("particles.per_cell", 2)
+        cell, per = self._cell_and_per()
         origin = _as_points([doc.get("domain.origin_m", [0.0, 0.0])])
         if not isinstance(cell, (int, float)) or cell <= 0 or not isinstance(per, int) or per < 1 or origin is None:
             return None, empty

@@ -198,7 +198,7 @@ GOLDEN = [
     (
         "stages.1.type",
         "quasi-static",
-        'stages.1.type = "quasi-static": must be one of "k0", "gravity", "dynamic"',
+        'stages.1.type = "quasi-static": must be one of "k0", "gravity", "dynamic", "strength-reduction"',
     ),
     (
         "stages.1.material_changes",
