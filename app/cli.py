@@ -565,10 +565,17 @@ def report(
     output: Annotated[Path | None, typer.Option("-o", "--output", help="Folder for report.html and its "
                                                 "pictures (default: RESULTS/report).")] = None,
 ) -> None:
-    """Write the hazard report of a run: HTML with the measures, envelopes, targets and pictures."""
+    """Write the report of a run (hazard: measures, envelopes, targets, pictures) or of a sweep or
+    calibration folder (exceedance, probability profile, sensitivity; misfit landscape)."""
     from app.report import write_report
     from projects.results import ResultsError
+    from sweeps.sweep import is_sweep_dir
 
+    if is_sweep_dir(results):  # sweep.csv or calibration.csv: app/sweep_commands.py
+        from app.sweep_commands import sweep_report
+
+        sweep_report(results, output)
+        return
     res = _open_results(results)
     try:
         path = write_report(res.path, output)
@@ -674,6 +681,12 @@ def study(
         out.print(line, markup=False)
     out.print(f"report: {result.report} ({result.wall_s:.0f} s)", markup=False)
     raise typer.Exit(0 if result.passed else 4)
+
+
+# sweep and calibrate (sweeps on Ray): app/sweep_commands.py
+from app.sweep_commands import register as _register_sweep_commands  # noqa: E402
+
+_register_sweep_commands(cli)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -1,4 +1,4 @@
-"""The direction of dependencies (docs/DESIGN.md): app -> projects -> {geometry, solver, stability}.
+"""The direction of dependencies (docs/DESIGN.md): app -> {studies, sweeps} -> projects -> {geometry, solver, stability}.
 
 Each package is imported in a fresh interpreter and the modules it must not pull in are checked.
 """
@@ -26,6 +26,11 @@ FORBIDDEN = {
     "benchmarks.bench": ["PySide6", "pyvista", "app"],
     "stability": ["PySide6", "pyvista", "vtk", "gmsh", "taichi", "solver", "geometry", "projects", "app",
                   "scipy", "shapely"],
+    # the sweep driver schedules `runout run` processes: no solver runtime, no GUI in it
+    "sweeps.sweep": ["PySide6", "pyvista", "vtk", "app", "taichi"],
+    "sweeps.calibrate": ["PySide6", "pyvista", "vtk", "app", "taichi"],
+    "sweeps.report": ["PySide6", "pyvista", "vtk", "app", "taichi"],
+    "sweeps.measures": ["PySide6", "pyvista", "vtk", "app", "taichi"],
 }
 
 
