@@ -349,6 +349,9 @@ class RayEngine:
             kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False,
                                       "logging_level": logging.WARNING}
             if address is None:
+                # "local": always a new embedded Ray, never a stale or foreign cluster that
+                # ray.init() would otherwise find through RAY_ADDRESS or /tmp/ray
+                kwargs["address"] = "local"
                 kwargs["num_cpus"] = workers * threads
             else:
                 kwargs["address"] = address
