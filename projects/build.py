@@ -91,6 +91,14 @@ def solver_boundary(boundary: schema.Boundary) -> sc.Boundary:
     return sc.Boundary(kind=boundary.type, friction_angle_rad=angle)
 
 
+def solver_structure(structure: schema.Structure) -> sc.Structure:
+    """Convert one ``[[structures]]`` entry (its contact as a side's boundary)."""
+    contact = structure.contact
+    angle = math.radians(contact.friction_angle_deg or 0.0) if contact.type == "friction" else 0.0
+    return sc.Structure(structure.name, tuple(tuple(p) for p in structure.polygon_m),
+                        sc.Boundary(kind=contact.type, friction_angle_rad=angle))
+
+
 def material_tables(project: Project) -> list[dict[str, schema.Material]]:
     """The material table in force during each stage (changes persist into later stages).
 
@@ -174,6 +182,7 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
         gravity_m_s2=domain.gravity_m_s2,
         numerics=solver_numerics,
         output=output,
+        structures=tuple(solver_structure(st) for st in project.structures),
     )
 
 
@@ -219,13 +228,21 @@ def build_simulation(project: Project, *, arch_override: str | None = None) -> B
     project = apply_preset(project)
     config = solver_config(project, arch_override=arch_override)
     seeds = seed_bodies(project)
+    if project.structures:  # a structure takes precedence: no material is seeded inside one
+        from solver.structures import signed_distance
+
+        keep = np.ones(len(seeds.body_index), bool)
+        for structure in project.structures:
+            keep &= signed_distance(np.asarray(seeds.positions_m, float), structure.polygon_m) >= 0.0
+        seeds = type(seeds)(**{k: np.asarray(v)[keep] for k, v in vars(seeds).items()})
     counts = np.bincount(seeds.body_index, minlength=len(project.bodies))
     empty = [
         Problem(
             f"bodies.{i}.polygon_m",
             None,
             "receives no particles: smaller than the particle spacing "
-            f"({project.domain.cell_size_m / project.particles.per_cell:g} m) or covered by later bodies",
+            f"({project.domain.cell_size_m / project.particles.per_cell:g} m) or covered by later bodies "
+            "or structures",
         )
         for i, count in enumerate(counts)
         if count == 0

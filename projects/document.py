@@ -209,6 +209,18 @@ def dumps_project(project: Project) -> str:
         bodies.append(table)
     doc["bodies"] = bodies
 
+    if data.get("structures"):
+        structures = tomlkit.aot()
+        for structure in data["structures"]:
+            table = tomlkit.table()
+            for key, value in structure.items():
+                if key == "polygon_m":
+                    table[key] = _points(value)
+                else:
+                    table[key] = _inline(value) if isinstance(value, Mapping) else _value(value)
+            structures.append(table)
+        doc["structures"] = structures
+
     doc["particles"] = _table(data["particles"])
     doc["numerics"] = _table(data["numerics"])
 

@@ -152,6 +152,7 @@ def _meta(project: Project, built: Any, sim: Any, project_path: Path | None) -> 
         "stages": [stage.name for stage in config.stages],
         "materials": list(built.material_names),
         "bodies": list(built.body_names),
+        "structures": [{"name": st.name, "polygon_m": [list(p) for p in st.polygon_m]} for st in config.structures],
         "domain": {
             "origin_m": [float(v) for v in grid.origin_m],
             "size_m": [cells[0] * grid.cell_size_m, cells[1] * grid.cell_size_m],

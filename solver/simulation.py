@@ -30,6 +30,8 @@ import numpy as np
 from solver import runtime
 from solver.config import (
     OUTPUT_FIELDS,
+    SIDES,
+    ContactForce,
     Diagnostics,
     Frame,
     InstabilityError,
@@ -106,6 +108,14 @@ def validate(config: SimulationConfig, particles: Particles) -> None:
             problems.append(f"stage {st.name!r}: duration must be > 0")
         if st.materials is not None and len(st.materials) != len(config.materials):
             problems.append(f"stage {st.name!r}: material table must have {len(config.materials)} rows")
+    names = [st.name for st in config.structures]
+    for st in config.structures:
+        if len(st.polygon_m) < 3:
+            problems.append(f"structure {st.name!r}: a polygon needs at least 3 points")
+        if st.contact.kind == "open":
+            problems.append(f"structure {st.name!r}: contact must be fixed, slip or friction, not open")
+        if names.count(st.name) > 1 or st.name in SIDES:
+            problems.append(f"structure name {st.name!r} is used twice or is a side's name")
     if problems:
         raise SolverError("; ".join(problems))
 
@@ -127,7 +137,7 @@ class Simulation:
         self.engine = Engine(
             config.grid, config.materials, len(particles), config.numerics.scheme, np_float,
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
-            damping=any(st.damping > 0 for st in config.stages),
+            damping=any(st.damping > 0 for st in config.stages), structures=config.structures,
         )
         self.engine.load_particles(particles.positions_m, particles.volumes_m2, particles.material_ids,
                                    particles.velocities_m_s)
@@ -139,6 +149,10 @@ class Simulation:
         self.last_frame: Frame | None = None
         self._materials = config.materials
         self._closed = False
+        # contacts reported in frames: the closed sides, then the structures (engine order)
+        self._contacts = [i for i, side in enumerate(SIDES) if config.grid.boundary(side).kind != "open"]
+        self._contacts += [4 + k for k in range(len(config.structures))]
+        self._contacts_since_s = 0.0
 
     # ------------------------------------------------------------------ helpers
     def _speed_bound(self, g: np.ndarray) -> float:
@@ -188,9 +202,28 @@ class Simulation:
             if arr.dtype.kind == "f" and not np.all(np.isfinite(arr[fields["active"]])):
                 raise InstabilityError(
                     f"unstable: non-finite {name} at step {self.steps}, t = {self.time_s:.6g} s", self.steps, self.time_s)
-        frame = Frame(diag, fields)
+        frame = Frame(diag, fields, self._contact_forces())
         self.last_frame = frame
         return frame
+
+    def _contact_forces(self) -> tuple[ContactForce, ...]:
+        """Mean and peak force on each contact since the last frame (see :class:`ContactForce`)."""
+        impulse, peak = self.engine.read_contacts()
+        interval = self.time_s - self._contacts_since_s
+        self._contacts_since_s = self.time_s
+        names = self.engine.contact_names
+        out = []
+        for c in self._contacts:
+            fx, fy = (float(v) / interval for v in impulse[c]) if interval > 0 else (0.0, 0.0)
+            normal = tangential = None
+            if c < 4:
+                axis = c // 2
+                outward = -1.0 if c % 2 == 0 else 1.0  # from the material into the wall
+                normal = (fx, fy)[axis] * outward
+                tangential = (fx, fy)[1 - axis]
+            out.append(ContactForce(names[c], fx, fy, normal, tangential, float(peak[c, 0]), float(peak[c, 1]),
+                                    float(peak[c, 2])))
+        return tuple(out)
 
     def _check(self, dt: float, d: dict) -> None:
         """The stability guard; raises InstabilityError naming the cause, step and time."""
