@@ -171,6 +171,7 @@ class MainWindow(QMainWindow):
         self._poll_timer.timeout.connect(self._refresh_live)
         self._update_title()
         self.run_panel.update_estimate()
+        self._add_analysis()
 
     # -- construction -----------------------------------------------------------------------------
 
@@ -1009,6 +1010,117 @@ class MainWindow(QMainWindow):
             time.sleep(0.01)
         return not self.running
 
+    # -- hazard, factor of safety and sweeps (app/gui/hazard_view.py, fos_view.py, sweep_view.py) --
+
+    def _add_analysis(self) -> None:
+        """The Hazard, Factor of safety and Sweep tabs and their actions."""
+        from app.gui.fos_view import FosView
+        from app.gui.hazard_view import HazardView
+
+        self.hazard_view = HazardView()
+        self.fos_view = FosView()
+        self.sweep_view: Any = None
+        self.tabs.addTab(self.hazard_view, "Hazard")
+        self.tabs.addTab(self.fos_view, "Factor of safety")
+        self.tabs.setTabVisible(self.tabs.indexOf(self.fos_view), False)
+        self.hazard_view.message.connect(lambda text: self.statusBar().showMessage(text, 8000))
+        self.results_view.resultsShown.connect(lambda: self._update_analysis(False))
+        self.tabs.currentChanged.connect(lambda _i: self._update_analysis(False))
+        a = self.actions_
+        a["export_report"] = self._action("Export hazard &report…", self.export_report_dialog,
+                                          tip="Write the HTML report of the shown results (runout report) and open it")
+        a["sweep"] = self._action("S&weep or calibration…", self.sweep_dialog, "Ctrl+Shift+W",
+                                  "Run the open project many times with sampled parameters (runout sweep)")
+        a["open_sweep"] = self._action("Open s&weep…", self.open_sweep_dialog,
+                                       tip="Show a sweep or calibration folder (runout sweep --out)")
+        menus = {m.title(): m for m in (act.menu() for act in self.menuBar().actions()) if m is not None}
+        if "&File" in menus:
+            menus["&File"].insertAction(a["quit"], a["export_report"])
+            menus["&File"].insertAction(a["export_report"], a["open_sweep"])
+        if "&Run" in menus:
+            menus["&Run"].addSeparator()
+            menus["&Run"].addAction(a["sweep"])
+
+    def _update_analysis(self, force: bool = True) -> None:
+        """Show the open results' hazard files and factor of safety (while a run goes on, only
+        in the tab on view)."""
+        results = self.results_view.results
+        current = self.tabs.currentWidget()
+        if results is None:
+            return
+        if force or not self.results_view.live or current is self.hazard_view:
+            self.hazard_view.show_results(results.path, results)
+        if force or not self.results_view.live or current is self.fos_view:
+            shown = self.fos_view.show_results(results)
+            self.tabs.setTabVisible(self.tabs.indexOf(self.fos_view), shown)
+
+    def export_report_dialog(self) -> Path | None:
+        """Write the hazard report of the shown results and open it (File ▸ Export hazard report)."""
+        results = self.results_view.results
+        if results is None:
+            self.show_error("Export hazard report", "Open a results folder first (File ▸ Open results).")
+            return None
+        self.hazard_view.show_results(results.path, results)
+        if self.hazard_view.path is None:
+            self.show_error("Export hazard report", f"{results.path} has no hazard files: the run wrote no "
+                            "hazard envelopes (hazard.enabled = false, or no dynamic stage ran).")
+            return None
+        return self.hazard_view.export_and_open()
+
+    def sweep_dialog(self) -> bool:
+        """Define a sweep or calibration of the open project, write its file and start it."""
+        from app.gui.sweep_dialog import SweepDialog
+
+        dialog = SweepDialog(self.doc, self._default_sweep_dir(), self)
+        if dialog.exec() != SweepDialog.DialogCode.Accepted:
+            return False
+        return self.start_sweep(dialog.spec_path, dialog.out_dir, dialog.workers())
+
+    def _default_sweep_dir(self) -> Path:
+        path = self.doc.path
+        if path is not None:
+            return path.with_name(path.stem + ".sweep")
+        return Path(tempfile.gettempdir()) / "runout.sweep"
+
+    def _sweep_view(self) -> Any:
+        if self.sweep_view is None:
+            from app.gui.sweep_view import SweepView
+
+            self.sweep_view = SweepView()
+            self.sweep_view.message.connect(lambda text: self.statusBar().showMessage(text, 8000))
+            self.sweep_view.resultsRequested.connect(self.open_results)
+            self.tabs.addTab(self.sweep_view, "Sweep")
+        self.tabs.setCurrentWidget(self.sweep_view)
+        return self.sweep_view
+
+    def start_sweep(self, spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[str],
+                    workers: int | None = None) -> bool:
+        """Start ``runout sweep`` (or ``calibrate``) as a child process and follow its folder."""
+        return self._sweep_view().start(Path(spec_path), Path(out_dir), workers)
+
+    def open_sweep_dialog(self) -> bool:
+        from PySide6.QtWidgets import QFileDialog
+
+        path = QFileDialog.getExistingDirectory(self, "Open sweep folder", str(Path.cwd()))
+        return self.open_sweep(path) if path else False
+
+    def open_sweep(self, path: str | os.PathLike[str]) -> bool:
+        """Show a sweep or calibration folder."""
+        from sweeps.sweep import SweepFolderError
+
+        try:
+            self._sweep_view().open_folder(Path(path))
+        except SweepFolderError as err:
+            self.show_error("Cannot open sweep", str(err))
+            return False
+        return True
+
+    def _close_analysis(self) -> None:
+        self.hazard_view.close_view()
+        self.fos_view.close_view()
+        if self.sweep_view is not None:
+            self.sweep_view.shutdown()
+
     # -- closing ---------------------------------------------------------------------------------------
 
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt's name
@@ -1037,6 +1149,7 @@ class MainWindow(QMainWindow):
             if not run.wait(15_000):
                 run.kill()
                 run.wait(5_000)
+        self._close_analysis()
         self.scene.close_view()
         self.results_view.close_view()
         if self.compare is not None:

@@ -1,0 +1,334 @@
+"""The Hazard tab: the envelopes of a run along the section, drawn over the scene, its run-out
+measures and its targets, and the export of the HTML report (``runout report``).
+
+Everything here is read from the results folder (``hazard.json``, ``hazard_profile.csv``,
+``targets.csv``: :func:`projects.hazard.read_hazard`), the same files ``runout report`` reads;
+the report itself is written by :func:`app.report.write_report` in this process (matplotlib and
+VTK offscreen; neither imports Taichi).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PySide6.QtCore import Qt, QUrl, Signal
+from PySide6.QtGui import QDesktopServices
+from PySide6.QtWidgets import (
+    QHBoxLayout,
+    QHeaderView,
+    QLabel,
+    QPushButton,
+    QSplitter,
+    QTableWidget,
+    QTableWidgetItem,
+    QVBoxLayout,
+    QWidget,
+)
+
+logger = logging.getLogger(__name__)
+
+#: Rows of the target table: (key in hazard.json's target, header, unit).
+TARGET_COLUMNS: tuple[tuple[str, str, str], ...] = (
+    ("x_m", "x", "m"),
+    ("arrival_time_s", "arrival", "s"),
+    ("arrival_after_release_s", "after release", "s"),
+    ("max_height_m", "max height", "m"),
+    ("max_speed_m_s", "max speed", "m/s"),
+    ("max_pressure_pa", "max pressure", "kPa"),
+)
+
+
+def format_value(value: Any, unit: str = "", digits: int = 4) -> str:
+    """A measure as text: ``-`` for a missing value, ``g`` format with ``digits`` digits."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "–"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, (int, float)):
+        text = f"{value:.{digits}g}"
+    else:
+        text = str(value)
+    return f"{text} {unit}".strip()
+
+
+def has_hazard(path: str | os.PathLike[str]) -> bool:
+    """Whether a results folder holds the hazard files."""
+    from projects.hazard import HAZARD_JSON, PROFILE_CSV
+
+    p = Path(path)
+    return (p / HAZARD_JSON).is_file() and (p / PROFILE_CSV).is_file()
+
+
+def measure_rows(doc: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """(label, value with unit, threshold) of each measure of :data:`app.report.MEASURES` in ``doc``."""
+    from app.report import MEASURES
+
+    thresholds = doc.get("thresholds") or {}
+    rows = []
+    for key, label, unit, threshold in MEASURES:
+        if key not in doc:
+            continue
+        th = f"{threshold} = {thresholds[threshold]:g}" if threshold and threshold in thresholds else ""
+        rows.append((label, format_value(doc.get(key), unit), th))
+    return rows
+
+
+def export_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str] | None = None) -> Path:
+    """Write the hazard report of a results folder (``report.html`` and its PNGs).
+
+    The same function as ``runout report RESULTS`` (:func:`app.report.write_report`); it renders
+    offscreen and does not import Taichi.
+
+    Returns
+    -------
+    Path
+        ``report.html``.
+
+    Raises
+    ------
+    projects.results.ResultsError
+        When the folder has no hazard files.
+    """
+    from app.report import write_report
+
+    return write_report(results, out_dir)
+
+
+class HazardView(QWidget):
+    """Envelope profiles over the scene, the measures and the target table of a results folder.
+
+    Signals
+    -------
+    message(str)
+        Status-bar text.
+    """
+
+    message = Signal(str)
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
+        from matplotlib.figure import Figure
+
+        self.path: Path | None = None
+        self.doc: dict[str, Any] | None = None
+        self._stamp: float | None = None
+        self.last_report: Path | None = None
+        self.header = QLabel("Open a results folder with hazard files (a run with a dynamic stage).")
+        self.header.setWordWrap(True)
+        self.header.setStyleSheet("padding: 3px; color: #3c4043;")
+        self.export_button = QPushButton("Export report…")
+        self.export_button.setToolTip("Write the HTML report (runout report) and open it")
+        self.export_button.setEnabled(False)
+        top = QHBoxLayout()
+        top.addWidget(self.header, 1)
+        top.addWidget(self.export_button)
+
+        self.figure = Figure(figsize=(8.0, 9.0))
+        self.canvas = FigureCanvasQTAgg(self.figure)
+        self.canvas.setMinimumHeight(300)
+        self.measures = QTableWidget(0, 3)
+        self.measures.setHorizontalHeaderLabels(["Measure", "Value", "Threshold"])
+        self.targets = QTableWidget(0, 1 + len(TARGET_COLUMNS))
+        self.targets.setHorizontalHeaderLabels(
+            ["Target"] + [f"{h} ({u})" for _k, h, u in TARGET_COLUMNS])
+        for table in (self.measures, self.targets):
+            table.verticalHeader().setVisible(False)
+            table.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
+            table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
+            table.horizontalHeader().setStretchLastSection(True)
+        self.context = QLabel("")
+        self.context.setWordWrap(True)
+        self.context.setStyleSheet("color: #5f6368; font-size: 11px;")
+        side = QWidget()
+        side_layout = QVBoxLayout(side)
+        side_layout.setContentsMargins(0, 0, 0, 0)
+        side_layout.addWidget(QLabel("<b>Run-out measures</b>"))
+        side_layout.addWidget(self.measures, 3)
+        side_layout.addWidget(QLabel("<b>Targets</b>"))
+        side_layout.addWidget(self.targets, 1)
+        side_layout.addWidget(self.context)
+        split = QSplitter(Qt.Orientation.Horizontal)
+        split.addWidget(self.canvas)
+        split.addWidget(side)
+        split.setStretchFactor(0, 3)
+        split.setStretchFactor(1, 2)
+        split.setSizes([800, 480])
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addLayout(top)
+        layout.addWidget(split, 1)
+        self.export_button.clicked.connect(self.export_and_open)
+
+    # -- reading ----------------------------------------------------------------------------------
+
+    def clear(self, text: str = "") -> None:
+        self.path = None
+        self.doc = None
+        self._stamp = None
+        self.figure.clear()
+        self.canvas.draw_idle()
+        self.measures.setRowCount(0)
+        self.targets.setRowCount(0)
+        self.context.setText("")
+        self.export_button.setEnabled(False)
+        self.header.setText(text or "This results folder has no hazard files (no dynamic stage ran, "
+                            "or hazard.enabled = false).")
+
+    def show_results(self, path: str | os.PathLike[str], results: Any = None) -> bool:
+        """Show the hazard files of a results folder; reread only when ``hazard.json`` changed.
+
+        Parameters
+        ----------
+        path : path-like
+            The results folder.
+        results : projects.results.Results, optional
+            The open results (its last frame is drawn as the scene under the envelopes).
+
+        Returns
+        -------
+        bool
+            Whether the folder has hazard files.
+        """
+        from projects.hazard import HAZARD_JSON, read_hazard
+
+        p = Path(path)
+        if not has_hazard(p):
+            self.clear()
+            return False
+        try:
+            stamp = (p / HAZARD_JSON).stat().st_mtime_ns
+        except OSError:
+            stamp = None
+        if self.path == p and stamp is not None and stamp == self._stamp:
+            return True
+        try:
+            doc = read_hazard(p)
+        except (OSError, ValueError, KeyError) as err:
+            self.clear(f"Cannot read the hazard files of {p}: {err}")
+            return False
+        self.path, self.doc, self._stamp = p, doc, stamp
+        scene = None
+        if results is not None and len(results):
+            try:
+                frame = results.frame(len(results) - 1)
+                keep = frame["active"]
+                scene = np.asarray(frame["positions"])[keep]
+            except Exception:  # a frame being written: the envelopes are drawn without the scene
+                logger.debug("no scene under the envelopes", exc_info=True)
+        self._draw(doc, scene)
+        self._fill_tables(doc)
+        status = doc.get("status", "?")
+        self.header.setText(f"Hazard of {p}   [{status}]   released at t = "
+                            f"{format_value(doc.get('release_time_s'), 's')}, envelopes to t = "
+                            f"{format_value(doc.get('time_s'), 's')}")
+        self.export_button.setEnabled(True)
+        return True
+
+    def _fill_tables(self, doc: dict[str, Any]) -> None:
+        rows = measure_rows(doc)
+        self.measures.setRowCount(len(rows))
+        for r, row in enumerate(rows):
+            for c, text in enumerate(row):
+                self.measures.setItem(r, c, QTableWidgetItem(text))
+        targets = doc.get("targets") or {}
+        self.targets.setRowCount(len(targets))
+        for r, (name, t) in enumerate(targets.items()):
+            self.targets.setItem(r, 0, QTableWidgetItem(f"{name} ({t.get('kind', '')})"))
+            for c, (key, _h, unit) in enumerate(TARGET_COLUMNS, start=1):
+                value = t.get(key)
+                if unit == "kPa" and isinstance(value, (int, float)):
+                    value = value / 1000.0
+                self.targets.setItem(r, c, QTableWidgetItem(format_value(value)))
+        notes = [doc["note"]] if doc.get("note") else []
+        sampling = doc.get("sampling") or {}
+        if sampling.get("every_steps"):
+            notes.append(f"Envelopes updated every {sampling['every_steps']} steps "
+                         f"({sampling.get('updates', '?')} updates).")
+        self.context.setText(" ".join(notes))
+
+    def _draw(self, doc: dict[str, Any], scene: np.ndarray | None) -> None:
+        from app.report import _target_lines
+
+        p = doc["profile"]
+        fig = self.figure
+        fig.clear()
+        if "x_m" not in p or not len(p["x_m"]):
+            self.canvas.draw_idle()
+            return
+        x = p["x_m"]
+        axes = fig.subplots(5, 1, sharex=True, gridspec_kw={"height_ratios": [2.2, 1, 1, 1, 1]})
+        ax = axes[0]
+        ax.fill_between(x, p["floor_m"], p["ground_m"], color="0.88", step="mid", label="material at the release")
+        if scene is not None and len(scene):
+            ax.plot(scene[:, 0], scene[:, 1], ",", color="0.45", alpha=0.6, label="particles (last frame)")
+        ax.fill_between(x, p["ground_m"], p["ground_m"] + np.nan_to_num(p["peak_flow_height_m"]), step="mid",
+                        color="tab:orange", alpha=0.35, label="peak flow height")
+        ax.step(x, p["surface_m"], where="mid", color="tab:brown", lw=1.4, label="surface at the end")
+        if doc.get("runout_point_m"):
+            ax.plot(*doc["runout_point_m"], marker="v", color="k", ms=8, ls="none", label="run-out (deposit)")
+        if doc.get("source_top_m"):
+            ax.plot(*doc["source_top_m"], marker="^", color="k", ms=7, ls="none", label="source top")
+            if doc.get("runout_point_m"):
+                (x0, y0), (x1, y1) = doc["source_top_m"], doc["runout_point_m"]
+                ax.plot([x0, x1], [y0, y1], color="k", lw=0.8, ls="--",
+                        label=f"travel angle {format_value(doc.get('travel_angle_deg'), '°', 3)}")
+        ax.set_ylabel("y (m)", fontsize=8)
+        ax.set_aspect("auto")
+        ax.legend(fontsize=7, loc="upper right", ncol=2)
+        series = (
+            (axes[1], p["max_speed_m_s"], 1.0, "peak speed (m/s)", "tab:blue"),
+            (axes[2], p["max_pressure_pa"], 1e-3, "peak pressure (kPa)", "tab:red"),
+            (axes[3], p["arrival_s"], 1.0, "arrival (s)", "tab:green"),
+            (axes[4], p["deposit_m"], 1.0, "deposit (m)", "tab:brown"),
+        )
+        for a, values, scale, label, colour in series:
+            a.step(x, values * scale, where="mid", color=colour, lw=1.2)
+            a.set_ylabel(label, fontsize=8)
+        axes[4].axhline(0.0, color="0.6", lw=0.6)
+        axes[4].set_xlabel("x (m)", fontsize=8)
+        for a in axes:
+            a.tick_params(labelsize=8)
+            a.grid(True, color="#e6e6e6", linewidth=0.6)
+            _target_lines(a, doc, label=a is axes[0])
+        fig.subplots_adjust(left=0.1, right=0.98, top=0.98, bottom=0.06, hspace=0.12)
+        self.canvas.draw_idle()
+
+    # -- the report -------------------------------------------------------------------------------
+
+    def export_report(self, out_dir: str | os.PathLike[str] | None = None) -> Path | None:
+        """Write the report of the shown folder (default ``RESULTS/report``); None on an error."""
+        from projects.results import ResultsError
+
+        if self.path is None:
+            return None
+        from PySide6.QtWidgets import QApplication
+
+        QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
+        try:
+            html = export_report(self.path, out_dir)
+        except (ResultsError, OSError, ValueError) as err:
+            self.message.emit(f"Cannot write the report: {err}")
+            return None
+        finally:
+            QApplication.restoreOverrideCursor()
+        self.last_report = html
+        self.message.emit(f"Wrote {html}")
+        return html
+
+    def open_report(self, html: Path) -> bool:
+        return QDesktopServices.openUrl(QUrl.fromLocalFile(str(html)))
+
+    def export_and_open(self) -> Path | None:
+        html = self.export_report()
+        if html is not None:
+            self.open_report(html)
+        return html
+
+    def close_view(self) -> None:
+        self.figure.clear()
