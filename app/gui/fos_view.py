@@ -26,7 +26,7 @@ def fos_text(summary: dict[str, Any]) -> str:
     fos = summary.get("factor_of_safety") or {}
     le = summary.get("limit_equilibrium") or {}
     value = fos.get("value")
-    head = (f"<b>Factor of safety (strength reduction): {format_value(value, digits=3)}</b>"
+    head = (f"<b>Factor of safety (strength reduction): {value:.3f}</b>"
             if value is not None else "<b>Factor of safety: not bracketed</b>")
     parts = [head,
              f"bracket [{format_value(fos.get('lower'), digits=4)}, {format_value(fos.get('upper'), digits=4)}]"
@@ -35,8 +35,8 @@ def fos_text(summary: dict[str, Any]) -> str:
     if le.get("factor_of_safety") is not None:
         circle = le.get("circle") or {}
         centre = circle.get("centre_m") or [float("nan"), float("nan")]
-        parts.append(f"Bishop's simplified method: <b>{format_value(le['factor_of_safety'], digits=3)}</b> "
-                     f"(Fellenius {format_value(le.get('fellenius_factor_of_safety'), digits=3)}; critical circle "
+        parts.append(f"Bishop's simplified method: <b>{le['factor_of_safety']:.3f}</b> "
+                     f"(Fellenius {format_value(le.get('fellenius_factor_of_safety'), digits=4)}; critical circle "
                      f"centre ({centre[0]:.2f}, {centre[1]:.2f}) m, radius "
                      f"{format_value(circle.get('radius_m'), 'm', 3)}, {le.get('circles_tried', '?')} circles)")
     elif le.get("message"):
@@ -93,7 +93,7 @@ class FosView(QWidget):
         le = summary.get("limit_equilibrium") or {}
         fig = self.figure
         fig.clear()
-        ax, knee = fig.subplots(1, 2, gridspec_kw={"width_ratios": [2.2, 1]})
+        ax, knee = fig.subplots(1, 2, gridspec_kw={"width_ratios": [2.6, 1]})
         frame = fos.get("mechanism_frame")
         xy = None
         if frame is not None and int(frame) < len(results):
@@ -106,7 +106,9 @@ class FosView(QWidget):
                 spacing = float(summary.get("particle_spacing_m") or 0.0)
                 dots = ax.scatter(xy[:, 0], xy[:, 1], c=eps, s=max(1.0, 2500.0 * spacing / width), cmap="inferno",
                                   marker="s", linewidths=0)
-                fig.colorbar(dots, ax=ax, label="equivalent plastic strain", shrink=0.8)
+                bar = fig.colorbar(dots, ax=ax, orientation="horizontal", fraction=0.05, pad=0.14, aspect=40)
+                bar.set_label("equivalent plastic strain", fontsize=8)
+                bar.ax.tick_params(labelsize=7)
                 ax.set_title(f"mechanism at F = {fos['upper']:.3f} (frame {int(frame)})", fontsize=9)
             except Exception:  # noqa: BLE001 - a frame being written: the circle is drawn alone
                 logger.debug("cannot draw the mechanism frame", exc_info=True)
@@ -143,12 +145,12 @@ class FosView(QWidget):
             knee.axvline(le["factor_of_safety"], color="c", ls="--", label="Bishop")
         knee.set_xlabel("trial factor F", fontsize=8)
         knee.set_ylabel("monitor displacement (m)", fontsize=8)
-        knee.set_title("F - displacement (strength-reduction trials)", fontsize=9)
+        knee.set_title("F - displacement of the trials", fontsize=9)
         knee.grid(True, color="#e6e6e6", linewidth=0.6)
         knee.legend(fontsize=7)
         for a in (ax, knee):
             a.tick_params(labelsize=8)
-        fig.subplots_adjust(left=0.06, right=0.98, top=0.92, bottom=0.12, wspace=0.25)
+        fig.subplots_adjust(left=0.05, right=0.98, top=0.93, bottom=0.1, wspace=0.18)
         self.canvas.draw_idle()
 
     def close_view(self) -> None:

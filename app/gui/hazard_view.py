@@ -142,6 +142,9 @@ class HazardView(QWidget):
             table.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
             table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
             table.horizontalHeader().setStretchLastSection(True)
+        self.measures.horizontalHeader().setSectionResizeMode(0, QHeaderView.ResizeMode.Interactive)
+        self.measures.setColumnWidth(0, 250)
+        self.measures.setWordWrap(True)
         self.context = QLabel("")
         self.context.setWordWrap(True)
         self.context.setStyleSheet("color: #5f6368; font-size: 11px;")
@@ -158,7 +161,7 @@ class HazardView(QWidget):
         split.addWidget(side)
         split.setStretchFactor(0, 3)
         split.setStretchFactor(1, 2)
-        split.setSizes([800, 480])
+        split.setSizes([760, 560])
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         layout.addLayout(top)
@@ -296,7 +299,7 @@ class HazardView(QWidget):
             a.tick_params(labelsize=8)
             a.grid(True, color="#e6e6e6", linewidth=0.6)
             _target_lines(a, doc, label=a is axes[0])
-        fig.subplots_adjust(left=0.1, right=0.98, top=0.98, bottom=0.06, hspace=0.12)
+        fig.subplots_adjust(left=0.12, right=0.98, top=0.98, bottom=0.06, hspace=0.12)
         self.canvas.draw_idle()
 
     # -- the report -------------------------------------------------------------------------------

@@ -19,7 +19,6 @@ Folder written on *Start* (``OUT``)::
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -224,7 +223,7 @@ class SweepDialog(QDialog):
             item.setFlags(item.flags() | Qt.ItemFlag.ItemIsUserCheckable)
             item.setCheckState(Qt.CheckState.Checked if m in DEFAULT_MEASURES else Qt.CheckState.Unchecked)
             self.measures.addItem(item)
-        self.measures.setMaximumHeight(150)
+        self.measures.setMinimumHeight(120)
         self.more_measures = QLineEdit()
         self.more_measures.setPlaceholderText("more measure keys, comma-separated (hazard.targets.house.arrival_time_s)")
         self.profile_field = QComboBox()

@@ -14,7 +14,6 @@ A folder written earlier, or by ``runout sweep`` on the command line, opens the 
 from __future__ import annotations
 
 import logging
-import math
 import os
 from collections import deque
 from pathlib import Path

@@ -156,9 +156,9 @@ def test_the_factor_of_safety_tab_shows_factor_bracket_bishop_knee_and_mechanism
     index = window.tabs.indexOf(window.fos_view)
     assert window.tabs.isTabVisible(index)
     text = window.fos_view.label.text()
-    assert "Factor of safety (strength reduction): 1.48" in text  # 1.475 to 3 digits
+    assert "Factor of safety (strength reduction): 1.475" in text
     assert "bracket [1.45, 1.5]" in text and "displacement criterion" in text and "5 trials" in text
-    assert "Bishop's simplified method: <b>1.41</b>" in text and "Fellenius 1.33" in text
+    assert "Bishop's simplified method: <b>1.410</b>" in text and "Fellenius 1.33" in text
     mech, knee, _colour_bar = window.fos_view.figure.axes
     assert "mechanism at F = 1.500 (frame 2)" == mech.get_title()
     # the critical circle's lower arc, and the mechanism frame's particles coloured by plastic strain
@@ -178,24 +178,40 @@ def test_the_factor_of_safety_tab_shows_factor_bracket_bishop_knee_and_mechanism
 # -- sweeps -----------------------------------------------------------------------------------------
 
 
-def test_numeric_keys_are_the_project_scalars_by_dotted_key(window, tiny_file):
+@pytest.fixture
+def tiny_doc(qtbot, tiny_file):
+    """The tiny example open in a project document (the dialog needs no main window)."""
+    from app.gui.document import ProjectDocument
+
+    doc = ProjectDocument()
+    doc.open(tiny_file)
+    return doc
+
+
+def _dialog(qtbot, doc, folder):
+    from app.gui.sweep_dialog import SweepDialog
+
+    dialog = SweepDialog(doc, folder)
+    qtbot.addWidget(dialog)
+    return dialog
+
+
+def test_numeric_keys_are_the_project_scalars_by_dotted_key(tiny_doc):
     from app.gui.sweep_dialog import numeric_keys
 
-    window.open_project(tiny_file, ask=False)
-    keys = numeric_keys(window.doc.data)
+    keys = numeric_keys(tiny_doc.data)
     assert keys["materials.sand.friction_angle_deg"] == 30.0
     assert keys["domain.boundaries.bottom.friction_angle_deg"] == 30.0
     assert keys["stages.1.duration_s"] == 0.05
     assert not any("polygon_m" in k for k in keys)
 
 
-def test_the_sweep_dialog_writes_a_valid_sweep_file(window, tiny_file, tmp_path):
+def test_the_sweep_dialog_writes_a_valid_sweep_file(qtbot, tiny_doc, tmp_path):
     from app.gui.sweep_dialog import BASE_PROJECT, SweepDialog
     from projects.document import load_project
     from sweeps.spec import SweepSpec, load_spec
 
-    window.open_project(tiny_file, ask=False)
-    dialog = SweepDialog(window.doc, tmp_path / "tiny.sweep", window)
+    dialog = _dialog(qtbot, tiny_doc, tmp_path / "tiny.sweep")
     # a friction angle is offered first, ±10 % around its value
     assert dialog.params.cellWidget(0, 0).currentText().endswith("friction_angle_deg")
     dialog.params.cellWidget(0, 0).setCurrentText("materials.sand.friction_angle_deg")
@@ -229,12 +245,11 @@ def test_the_sweep_dialog_writes_a_valid_sweep_file(window, tiny_file, tmp_path)
     ("range", "1, 2, x", "'x' is not a number"),
     ("uniform", "35, 25", "low must be < high"),
 ])
-def test_the_sweep_dialog_refuses_bad_values_with_one_line(window, tiny_file, tmp_path, distribution, values,
+def test_the_sweep_dialog_refuses_bad_values_with_one_line(qtbot, tiny_doc, tmp_path, distribution, values,
                                                            message):
     from app.gui.sweep_dialog import SweepDialog
 
-    window.open_project(tiny_file, ask=False)
-    dialog = SweepDialog(window.doc, tmp_path / "bad.sweep", window)
+    dialog = _dialog(qtbot, tiny_doc, tmp_path / "bad.sweep")
     dialog.params.cellWidget(0, 1).setCurrentText(distribution)
     dialog.params.item(0, 2).setText(values)
     dialog.accept()
@@ -244,14 +259,13 @@ def test_the_sweep_dialog_refuses_bad_values_with_one_line(window, tiny_file, tm
     assert not (tmp_path / "bad.sweep" / "sweep.toml").exists()
 
 
-def test_the_sweep_dialog_writes_a_calibration(window, tiny_file, tmp_path):
+def test_the_sweep_dialog_writes_a_calibration(qtbot, tiny_doc, tmp_path):
     from app.gui.sweep_dialog import SweepDialog
     from sweeps.spec import CalibrationSpec, load_spec
 
-    window.open_project(tiny_file, ask=False)
     observed = tmp_path / "surface.csv"
     observed.write_text("x_m,y_m\n0.0,0.1\n0.2,0.05\n0.3,0.0\n")
-    dialog = SweepDialog(window.doc, tmp_path / "tiny.sweep", window)
+    dialog = _dialog(qtbot, tiny_doc, tmp_path / "tiny.sweep")
     dialog.kind.setCurrentText("calibration")
     dialog.obs_file.setText(str(observed))
     dialog.x_range.setText("0, 0.3")
@@ -331,3 +345,23 @@ def test_open_sweep_refuses_a_folder_that_is_not_a_sweep(window, tmp_path):
     window.show_error = lambda title, text: errors.append(text)
     assert not window.open_sweep(tmp_path)
     assert "is not a sweep or calibration folder" in errors[0]
+
+
+def test_the_sweep_tab_shows_a_calibration_with_its_best_trial(window, tmp_path):
+    folder = tmp_path / "c.calibration"
+    folder.mkdir()
+    trials = [(20.0, 0.004), (30.0, 0.009), (24.0, 0.002), (27.0, "")]
+    with open(folder / "calibration.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["trial", "run_id", "materials.sand.friction_angle_deg", "misfit", "status", "message",
+                    "wall_time_s", "results_dir"])
+        for i, (phi, misfit) in enumerate(trials):
+            w.writerow([i, f"c{i}", phi, misfit, "completed" if misfit != "" else "failed", "", 2.0, ""])
+    (folder / "calibration.json").write_text(json.dumps({"kind": "calibration", "spec": {}}))
+    assert window.open_sweep(folder)
+    view = window.sweep_view
+    assert view.kind == "calibration" and view.table.rowCount() == 4
+    (ax,) = view.figure.axes
+    best = next(line for line in ax.lines if line.get_marker() == "*")
+    assert (list(best.get_xdata()), list(best.get_ydata())) == ([24.0], [0.002])
+    assert ax.get_xlabel() == "materials.sand.friction_angle_deg"
