@@ -162,12 +162,13 @@ class SweepView(QWidget):
             self.header.setText(f"Cannot start the sweep: {err}")
             return False
         self.path = Path(out_dir)
-        self.kind = "calibration" if cmd[3] == "calibrate" else "sweep"
+        self.kind = "calibration" if "calibrate" in cmd[:4] else "sweep"
         self.data = None
         self._stamp = None
         self.exit_code = None
         self.stderr.clear()
         self.table.setRowCount(0)
+        self.path.mkdir(parents=True, exist_ok=True)
         process = QProcess(self)
         env = QProcessEnvironment.systemEnvironment()
         paths = [str(REPO_ROOT), *[p for p in env.value("PYTHONPATH", "").split(os.pathsep) if p]]
@@ -176,6 +177,7 @@ class SweepView(QWidget):
         process.setWorkingDirectory(str(self.path))
         process.readyReadStandardError.connect(self._read_stderr)
         process.finished.connect(self._finished)
+        process.errorOccurred.connect(self._error)
         process.setProgram(cmd[0])
         process.setArguments(cmd[1:])
         self.process = process
@@ -194,6 +196,14 @@ class SweepView(QWidget):
         for line in text.replace("\r", "\n").splitlines():
             if line.strip():
                 self.stderr.append(line.strip())
+
+    def _error(self, error: QProcess.ProcessError) -> None:
+        if error == QProcess.ProcessError.FailedToStart:
+            self._timer.stop()
+            self.cancel_button.setEnabled(False)
+            self.exit_code = -1
+            self.header.setText(f"The {self.kind} process did not start: {self.process.errorString()}")
+            self.finished.emit(-1)
 
     def _finished(self, code: int, _status: Any) -> None:
         self._kill_timer.stop()

@@ -316,8 +316,7 @@ def test_the_sweep_tab_lists_runs_and_draws_exceedance_and_probability_profile(w
     view = window.sweep_view
     assert window.tabs.currentWidget() is view
     assert view.table.rowCount() == 5
-    statuses = [view.table.item(r, view.table.columnCount() - 3).text() for r in range(5)]
-    assert statuses == ["completed", "completed", "completed", "failed", "pending"]
+    assert _statuses(view) == ["completed", "completed", "completed", "failed", "pending"]
     assert (view.bar.value(), view.bar.maximum()) == (4, 5)
     assert "4 of 5 runs done, 1 not completed" in view.header.text()
     # exceedance over the three completed runs: P(d > 0.1) = 2/3, P(d > 0.2) = 1/3, P(d > 0.3) = 0
@@ -365,3 +364,70 @@ def test_the_sweep_tab_shows_a_calibration_with_its_best_trial(window, tmp_path)
     best = next(line for line in ax.lines if line.get_marker() == "*")
     assert (list(best.get_xdata()), list(best.get_ydata())) == ([24.0], [0.002])
     assert ax.get_xlabel() == "materials.sand.friction_angle_deg"
+
+
+#: Stands in for ``runout sweep``: writes a 3-run sweep folder, one run more each time the test
+#: creates ``go-N``, like the real one rewrites sweep.csv and progress.json after every run.
+FAKE_SWEEP = r"""
+import csv, json, sys, time
+from pathlib import Path
+out, n = Path(sys.argv[1]), int(sys.argv[2])
+(out / "runs").mkdir(parents=True, exist_ok=True)
+(out / "sweep.json").write_text(json.dumps({"kind": "sweep", "spec": {"sweep": {"measures": ["hazard.runout_distance_m"]}}}))
+def write(done):
+    with open(out / "sweep.csv.tmp", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["run", "run_id", "p", "hazard.runout_distance_m", "status", "message", "wall_time_s", "results_dir"])
+        for i in range(n):
+            w.writerow([i, f"r{i}", i, 0.1 * (i + 1) if i < done else "", "completed" if i < done else "pending", "", 1.0, ""])
+    (out / "sweep.csv.tmp").replace(out / "sweep.csv")
+    (out / "progress.json").write_text(json.dumps({"done": done, "total": n, "failed": 0, "elapsed_s": done}))
+for done in range(n + 1):
+    write(done)
+    while done < n and not (out / f"go-{done + 1}").exists():
+        time.sleep(0.05)
+"""
+
+
+def _statuses(view) -> list[str]:
+    header = [view.table.horizontalHeaderItem(c).text() for c in range(view.table.columnCount())]
+    col = header.index("status")
+    return [view.table.item(r, col).text() for r in range(view.table.rowCount())]
+
+
+def _fake_sweep(monkeypatch):
+    from app.gui.sweep_view import SweepView
+
+    monkeypatch.setattr(SweepView, "command",
+                        lambda self, spec, out, workers=None: [sys.executable, "-c", FAKE_SWEEP, str(out), "3"])
+
+
+def test_a_sweep_process_is_followed_run_by_run_until_it_ends(window, tmp_path, monkeypatch, qtbot):
+    _fake_sweep(monkeypatch)
+    out = tmp_path / "f.sweep"
+    assert window.start_sweep(tmp_path / "sweep.toml", out)
+    view = window.sweep_view
+    assert view.running and view.cancel_button.isEnabled()
+    for done in range(4):
+        qtbot.waitUntil(lambda d=done: view.bar.value() == d and view.table.rowCount() == 3, timeout=20_000)
+        assert _statuses(view) == ["completed"] * done + ["pending"] * (3 - done)
+        if done < 3:
+            (out / f"go-{done + 1}").touch()
+    qtbot.waitUntil(lambda: view.exit_code is not None, timeout=20_000)
+    assert view.exit_code == 0 and not view.cancel_button.isEnabled()
+    assert "[finished]   3 of 3 runs done" in view.header.text()
+    assert view.exceedance().n == 3
+
+
+def test_stop_sweep_ends_the_process_and_keeps_the_finished_runs(window, tmp_path, monkeypatch, qtbot):
+    _fake_sweep(monkeypatch)
+    out = tmp_path / "f.sweep"
+    assert window.start_sweep(tmp_path / "sweep.toml", out)
+    view = window.sweep_view
+    (out / "go-1").touch()
+    qtbot.waitUntil(lambda: view.bar.value() == 1, timeout=20_000)
+    view.cancel()
+    qtbot.waitUntil(lambda: view.exit_code is not None, timeout=20_000)
+    assert not view.running
+    assert _statuses(view) == ["completed", "pending", "pending"]
+    assert "1 of 3 runs done" in view.header.text() and "[stopped]" in view.header.text()
