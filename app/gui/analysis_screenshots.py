@@ -10,8 +10,8 @@ Run under a display (Xvfb on a server), after a hazard run and a strength-reduct
 
 It saves ``hazard.png`` and ``fos.png`` (the tabs on those folders), then defines a sweep of the
 project over the friction angle in the Sweep dialog (``sweep_dialog.png``), starts it (a child
-``runout sweep``, 2 workers) and saves ``sweep.png`` when it has finished. The window is grabbed
-by Qt.
+``runout sweep``, 2 workers) and saves ``sweep.png`` when it has finished (``--sweep FOLDER``:
+shows that sweep folder instead). The window is grabbed by Qt.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--hazard", type=Path, required=True, help="a results folder with hazard files")
     parser.add_argument("--fos", type=Path, help="a strength-reduction results folder")
     parser.add_argument("--project", type=Path, help="the project to sweep over its friction angle")
+    parser.add_argument("--sweep", type=Path, help="show this sweep folder instead of running one")
     parser.add_argument("--runs", type=int, default=6)
     parser.add_argument("--set", dest="fixed", default='numerics.arch="cpu"',
                         help='fixed overrides of the sweep, ";"-separated (numerics.arch="cpu")')
@@ -73,7 +74,14 @@ def main(argv: list[str] | None = None) -> int:
             settle(1.5)
             win.grab().save(str(out / "fos.png"))
             written.append(out / "fos.png")
-        if args.project:
+        if args.sweep:
+            if args.project:
+                win.open_project(args.project, ask=False)
+            win.open_sweep(args.sweep)
+            settle(1.5)
+            win.grab().save(str(out / "sweep.png"))
+            written.append(out / "sweep.png")
+        elif args.project:
             win.open_project(args.project, ask=False)
             settle(0.5)
             dialog = SweepDialog(win.doc, Path(tempfile.mkdtemp()) / "screenshot.sweep", win)

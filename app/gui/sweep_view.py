@@ -319,10 +319,10 @@ class SweepView(QWidget):
         rows = data.rows
         if self.kind == "sweep":
             measures = list(data.measures)
-            columns = ["run", *data.parameters, *measures, "status", "wall_time_s", "message"]
+            columns = ["run", "status", *data.parameters, *measures, "wall_time_s", "message"]
         else:
             measures = ["misfit"]
-            columns = ["trial", *data.parameters, "misfit", "status", "wall_time_s", "message"]
+            columns = ["trial", "status", *data.parameters, "misfit", "wall_time_s", "message"]
         total = int(progress.get("total") or len(rows))
         done = int(progress.get("done") or sum(r.get("status") not in ("pending", "") for r in rows))
         failed = int(progress.get("failed") or 0)
