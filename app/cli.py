@@ -1,13 +1,17 @@
 """The ``runout`` command line (typer + rich).
 
-Commands: ``run``, ``validate``, ``render``, ``animate`` and ``gui``. Results and summaries go to
+Commands: ``run``, ``validate``, ``render``, ``report``, ``animate`` and ``gui``. Results and summaries go to
 standard output, progress bars and errors to standard error. Bad input (an invalid project, a
 missing results folder, an unknown field) is reported as one line per problem, never as a
 traceback; ``--verbose`` shows the log, with tracebacks of solver failures.
 
-Exit status: 0 success; 1 invalid input (project problems, unreadable results, bad options);
-3 the run failed (see the message and ``summary.json``); 130 stopped by Ctrl-C (SIGINT), 143
-stopped by SIGTERM.
+Exit status: 0 success; 1 invalid input (project problems, unreadable results, bad options,
+a results folder that must not be used); 3 the run failed (see the message and
+``summary.json``); 130 stopped by Ctrl-C (SIGINT), 143 stopped by SIGTERM, 129 by SIGHUP (the
+terminal closed).
+
+User text (names of stages, bodies, files) never goes through rich markup: every message is
+printed with ``markup=False`` and progress descriptions are escaped.
 
 Other commands (``bench``, ``study``) register themselves on :data:`cli` with
 ``@cli.command()`` and reuse :func:`fail`, :func:`load_or_exit` and :func:`stop_on_signals`.
@@ -38,6 +42,11 @@ EXIT_INVALID = 1
 EXIT_FAILED = 3
 EXIT_SIGINT = 128 + signal.SIGINT
 EXIT_SIGTERM = 128 + signal.SIGTERM
+EXIT_SIGHUP = 128 + getattr(signal, "SIGHUP", 1)
+#: Signals that stop a run cleanly (the terminal closing sends SIGHUP).
+STOP_SIGNALS = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
 
 cli = typer.Typer(
     name="runout",
@@ -79,7 +88,7 @@ def load_or_exit(path: Path, overrides: list[str] | None = None) -> Project:
 
 @contextlib.contextmanager
 def stop_on_signals(stop: StopRequest) -> Iterator[StopRequest]:
-    """Turn SIGINT and SIGTERM into a stop request while the block runs.
+    """Turn SIGINT, SIGTERM and SIGHUP into a stop request while the block runs.
 
     A second Ctrl-C raises KeyboardInterrupt, for a solver that does not reach its next check.
     Outside the main thread (signals cannot be caught there) the block runs unchanged.
@@ -93,7 +102,7 @@ def stop_on_signals(stop: StopRequest) -> Iterator[StopRequest]:
     if sys.platform == "win32" or not _in_main_thread():
         yield stop
         return
-    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    previous = {sig: signal.signal(sig, handler) for sig in STOP_SIGNALS}
     try:
         yield stop
     finally:
@@ -213,9 +222,11 @@ class _RunProgress:
     def update(self, p: Any) -> None:
         """Show a ``solver.simulation.Progress`` (time_s, total_time_s, stage, steps_per_s)."""
         total = p.total_time_s if p.total_time_s > 0 else None
+        from rich.markup import escape
+
         self.bar.update(
             self.task,
-            description=p.stage,
+            description=escape(str(p.stage)),
             total=total,
             completed=min(p.time_s, total) if total else p.time_s,
             rate=f"{p.steps_per_s:,.0f} steps/s",
@@ -266,6 +277,10 @@ def run(
     ] = None,
     arch: Annotated[Arch | None, typer.Option("--arch", help="Run on the CPU or the GPU.")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress or summary; errors only.")] = False,
+    overwrite: Annotated[bool, typer.Option(
+        "--overwrite", help="Replace an earlier run's results in the folder (only that run's own files).")] = False,
+    force: Annotated[bool, typer.Option(
+        "--force", help="Run even beyond the size limits (memory, disk, particles, steps, frames).")] = False,
     resume: Annotated[
         Path | None,
         typer.Option("--resume", help="Continue the killed or stopped run in this results folder "
@@ -277,7 +292,11 @@ def run(
                      "run's checkpoint (its results folder or checkpoint.npz).", show_default=False),
     ] = None,
 ) -> None:
-    """Run a project and write its results folder (or resume one with --resume)."""
+    """Run a project and write its results folder (or continue one with --resume).
+
+    An earlier run's results in the folder are replaced only with --overwrite; any other
+    non-empty folder is refused; a folder another run is writing into is refused.
+    """
     from projects.results import ResultsError
     from projects.runner import StopRequest, resume_run, run_project
     from projects.schema import ProjectError
@@ -292,6 +311,10 @@ def run(
     with stop_on_signals(stop):
         try:
             model = load_or_exit(project, overrides) if project is not None else None
+            if stop.requested:
+                fail(f"stopped by {stop.reason} before the run started", _stop_code(stop))
+            if not quiet and model is not None:
+                _print_warnings(model)
             # Taichi prints "[Taichi] Starting on arch=..." to stdout; keep stdout for results
             chatter = io.StringIO() if quiet else sys.stderr
             with _RunProgress(quiet) as progress, contextlib.redirect_stdout(chatter):
@@ -306,6 +329,8 @@ def run(
                         arch=arch.value if arch is not None else None,
                         cancel=stop,
                         on_progress=progress.update,
+                        overwrite=overwrite,
+                        force=force,
                         start_from=start_from,
                     )
                 if result.status == "completed":
@@ -314,6 +339,7 @@ def run(
             fail(str(exc))
         except KeyboardInterrupt:
             fail("stopped before the run started", EXIT_SIGINT)
+    _report_equilibrium(result, quiet)
     if result.status == "completed":
         if not quiet:
             out.print(_summary_line(result), markup=False)
@@ -323,11 +349,35 @@ def run(
         return
     where = f"(results so far in {result.out_dir})"
     if result.status == "stopped":
-        code = EXIT_SIGTERM if stop.reason == "SIGTERM" else EXIT_SIGINT
+        code = _stop_code(stop)
         err.print(f"stopped: {result.message} {where}", markup=False)
         raise typer.Exit(code)
     err.print(f"failed: {result.message} {where}", markup=False)
     raise typer.Exit(EXIT_FAILED)
+
+
+def _stop_code(stop: StopRequest) -> int:
+    return {"SIGTERM": EXIT_SIGTERM, "SIGHUP": EXIT_SIGHUP}.get(stop.reason, EXIT_SIGINT)
+
+
+def _report_equilibrium(result: RunResult, quiet: bool) -> None:
+    check = result.summary.get("initial_equilibrium")
+    if quiet or not check:
+        return
+    ratio = check.get("unbalanced_force_ratio")
+    err.print(
+        f"initial equilibrium after {check.get('stage')!r}: unbalanced-force ratio "
+        f"{ratio if ratio is None else format(ratio, '.3g')}, largest speed at its end "
+        f"{check.get('max_speed_m_s', 0.0):.3g} m/s",
+        markup=False,
+    )
+
+
+def _print_warnings(model: Project) -> None:
+    from projects.checks import project_warnings
+
+    for warning in project_warnings(model):
+        err.print(f"warning: {warning}", markup=False)
 
 
 @cli.command()
@@ -337,6 +387,7 @@ def validate(
         list[str] | None,
         typer.Option("--set", "-s", metavar="KEY=VALUE", help="Override a project key (repeatable)."),
     ] = None,
+    force: Annotated[bool, typer.Option("--force", help="Skip the size limits.")] = False,
 ) -> None:
     """Check a project: every problem, or what it would run."""
     from projects.runner import check_project
@@ -344,9 +395,10 @@ def validate(
 
     model = load_or_exit(project, overrides)
     try:
-        resolved = check_project(model)
+        resolved = check_project(model, force=force)
     except ProjectError as exc:
         fail(f"{project}: {exc}")
+    _print_warnings(model)
     grid = resolved.config.grid
     nx, ny = grid.cells
     numerics = resolved.config.numerics
@@ -366,7 +418,8 @@ def render(
     results: Annotated[Path, typer.Argument(help="Results folder (or its project file).", show_default=False)],
     frame: Annotated[str, typer.Option("--frame", "-f", help="Frame number or 'last'.")] = "last",
     field: Annotated[str, typer.Option("--field", help="Field to colour by.")] = "displacement",
-    output: Annotated[Path | None, typer.Option("-o", "--output", help="PNG file (default: in the results folder).")] = None,
+    output: Annotated[Path | None, typer.Option(
+        "-o", "--output", help="PNG file (default: beside the results folder, NAME_FIELD_FRAME.png).")] = None,
     size: Annotated[str, typer.Option("--size", help="Image size WIDTHxHEIGHT in pixels.")] = "1600x900",
     mechanism: Annotated[bool, typer.Option(
         "--mechanism", help="A strength-reduction run's mechanism with Bishop's circle and the trials.")] = False,
@@ -383,6 +436,24 @@ def render(
             path = render_mechanism(res, output, size=width_height)
         else:
             path = render_frame(res, index, field, output, size=width_height)
+    except (ValueError, ResultsError) as exc:
+        fail(str(exc))
+    out.print(str(path), markup=False)
+
+
+@cli.command()
+def report(
+    results: Annotated[Path, typer.Argument(help="Results folder (or its project file).", show_default=False)],
+    output: Annotated[Path | None, typer.Option("-o", "--output", help="Folder for report.html and its "
+                                                "pictures (default: RESULTS/report).")] = None,
+) -> None:
+    """Write the hazard report of a run: HTML with the measures, envelopes, targets and pictures."""
+    from app.report import write_report
+    from projects.results import ResultsError
+
+    res = _open_results(results)
+    try:
+        path = write_report(res.path, output)
     except (ValueError, ResultsError) as exc:
         fail(str(exc))
     out.print(str(path), markup=False)

@@ -466,7 +466,9 @@ def render_frame(
     field : str
         A key of :data:`FIELDS`.
     path : path-like, optional
-        Output PNG. Default: ``<results>/<field>_<frame>.png``.
+        Output PNG. Default: beside the results folder (never inside it, a re-run may replace
+        it): ``NAME_<field>_<frame>.png`` for ``NAME.results``
+        (:func:`projects.results_folder.export_path`).
     size : (int, int)
         Image width and height, pixels.
     cmap : str, optional
@@ -482,7 +484,9 @@ def render_frame(
     res = _as_results(results)
     field_info(field)
     j = _frame_index(res, frame)
-    out = Path(path) if path is not None else res.path / f"{field}_{j:05d}.png"
+    from projects.results_folder import export_path
+
+    out = Path(path) if path is not None else export_path(res.path, f"{field}_{j:05d}")
     scene = _scene_for(res, field, [j], size, cmap, clim)
     try:
         scene.show(j)

@@ -12,7 +12,7 @@ the list owns the overlap.
 from geometry.importers import outline_from_csv, outline_from_mesh
 from geometry.polygons import is_simple, owner_of_points, points_in_polygon, polygon_area, self_intersections
 from geometry.seeding import Seeds, seed_gauss, seed_lattice
-from geometry.templates import SlopeLayer, slope_profile
+from geometry.templates import SlopeLayer, slope_domain, slope_profile
 
 __all__ = [
     "Seeds",
@@ -26,5 +26,6 @@ __all__ = [
     "seed_gauss",
     "seed_lattice",
     "self_intersections",
+    "slope_domain",
     "slope_profile",
 ]

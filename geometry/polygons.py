@@ -214,36 +214,52 @@ def self_intersections(polygon_m: np.ndarray) -> list[tuple[int, int]]:
         return []
     a = p[edge_ids]
     d = np.roll(a, -1, axis=0) - a
+    i, j = _candidate_pairs(a, a + d, max(tol, tol / scale))
+    hit = _pairs_intersect(a, d, i, j, k, tol)
+    return sorted(zip(edge_ids[i[hit]].tolist(), edge_ids[j[hit]].tolist()))
 
-    pairs: list[tuple[int, int]] = []
-    for i in range(k - 1):
-        j = np.arange(i + 1, k)
-        ax, ay = a[i]
-        dx, dy = d[i]
-        bx, by = ax + dx, ay + dy
-        cx, cy = a[j, 0], a[j, 1]
-        ex, ey = d[j, 0], d[j, 1]
-        fx, fy = cx + ex, cy + ey
-        # Orientation of each segment's end points relative to the other segment.
-        o1 = _cross(dx, dy, cx - ax, cy - ay)
-        o2 = _cross(dx, dy, fx - ax, fy - ay)
-        o3 = _cross(ex, ey, ax - cx, ay - cy)
-        o4 = _cross(ex, ey, bx - cx, by - cy)
-        s1, s2, s3, s4 = (np.where(np.abs(o) <= tol, 0.0, np.sign(o)) for o in (o1, o2, o3, o4))
-        proper = (s1 * s2 < 0) & (s3 * s4 < 0)
-        touch = (
-            ((s1 == 0) & _within_box(ax, ay, bx, by, cx, cy, tol))
-            | ((s2 == 0) & _within_box(ax, ay, bx, by, fx, fy, tol))
-            | ((s3 == 0) & _within_box(cx, cy, fx, fy, ax, ay, tol))
-            | ((s4 == 0) & _within_box(cx, cy, fx, fy, bx, by, tol))
-        )
-        hit = proper | touch
-        # Neighbours always share a vertex; they only count when they fold back.
-        adjacent = (j == i + 1) | ((i == 0) & (j == k - 1))
-        fold = (s1 == 0) & (s2 == 0) & (dx * ex + dy * ey < 0)
-        hit = np.where(adjacent, fold, hit)
-        pairs.extend((int(edge_ids[i]), int(edge_ids[jj])) for jj in j[hit])
-    return sorted(pairs)
+
+def _candidate_pairs(start: np.ndarray, end: np.ndarray, pad: float) -> tuple[np.ndarray, np.ndarray]:
+    """Edge pairs ``i < j`` whose bounding boxes (grown by ``pad``) overlap: an R-tree query
+    (shapely's STRtree), so the work grows with the edges and their near neighbours, not with
+    all pairs."""
+    import shapely
+
+    lo = np.minimum(start, end) - pad
+    hi = np.maximum(start, end) + pad
+    boxes = shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1])
+    tree = shapely.STRtree(boxes)
+    query, found = tree.query(boxes)  # envelopes overlap: for boxes that is the test itself
+    keep = query < found
+    return query[keep].astype(np.int64), found[keep].astype(np.int64)
+
+
+def _pairs_intersect(a: np.ndarray, d: np.ndarray, i: np.ndarray, j: np.ndarray, k: int, tol: float) -> np.ndarray:
+    """Exact orientation test of edge pairs (i, j): crossing or touching, or folding back for
+    neighbours (which always share a vertex)."""
+    ax, ay = a[i, 0], a[i, 1]
+    dx, dy = d[i, 0], d[i, 1]
+    bx, by = ax + dx, ay + dy
+    cx, cy = a[j, 0], a[j, 1]
+    ex, ey = d[j, 0], d[j, 1]
+    fx, fy = cx + ex, cy + ey
+    # Orientation of each segment's end points relative to the other segment.
+    o1 = _cross(dx, dy, cx - ax, cy - ay)
+    o2 = _cross(dx, dy, fx - ax, fy - ay)
+    o3 = _cross(ex, ey, ax - cx, ay - cy)
+    o4 = _cross(ex, ey, bx - cx, by - cy)
+    s1, s2, s3, s4 = (np.where(np.abs(o) <= tol, 0.0, np.sign(o)) for o in (o1, o2, o3, o4))
+    proper = (s1 * s2 < 0) & (s3 * s4 < 0)
+    touch = (
+        ((s1 == 0) & _within_box(ax, ay, bx, by, cx, cy, tol))
+        | ((s2 == 0) & _within_box(ax, ay, bx, by, fx, fy, tol))
+        | ((s3 == 0) & _within_box(cx, cy, fx, fy, ax, ay, tol))
+        | ((s4 == 0) & _within_box(cx, cy, fx, fy, bx, by, tol))
+    )
+    hit = proper | touch
+    adjacent = (j == i + 1) | ((i == 0) & (j == k - 1))
+    fold = (s1 == 0) & (s2 == 0) & (dx * ex + dy * ey < 0)
+    return np.where(adjacent, fold, hit)
 
 
 def _within_box(px, py, qx, qy, rx, ry, tol):
@@ -284,12 +300,27 @@ def is_simple(polygon_m: np.ndarray) -> bool:
     bool
     """
     p = as_polygon(polygon_m)
-    if distinct_vertex_count(p) < 3:
-        return False
-    scale = float(np.max(np.abs(p - p.mean(axis=0)))) or 1.0
-    if polygon_area(p) <= _REL_TOL * scale * scale:
+    if distinct_vertex_count(p) < 3 or has_zero_area(p):
         return False
     return not self_intersections(p)
+
+
+def has_zero_area(polygon_m: np.ndarray) -> bool:
+    """Whether a polygon's area is zero to round-off (relative to its size squared).
+
+    Parameters
+    ----------
+    polygon_m : array_like, shape (K, 2), m
+
+    Returns
+    -------
+    bool
+    """
+    p = as_polygon(polygon_m)
+    if len(p) < 3:
+        return True
+    scale = float(np.max(np.abs(p - p.mean(axis=0)))) or 1.0
+    return polygon_area(p) <= _REL_TOL * scale * scale
 
 
 def check_simple(polygon_m: np.ndarray, name: str = "polygon_m") -> np.ndarray:
@@ -320,7 +351,7 @@ def check_simple(polygon_m: np.ndarray, name: str = "polygon_m") -> np.ndarray:
         shown = ", ".join(f"{i}-{j}" for i, j in crossings[:5])
         more = f" and {len(crossings) - 5} more" if len(crossings) > 5 else ""
         raise ValueError(f"{name} is self-intersecting: edges {shown}{more} cross")
-    if not is_simple(p):
+    if has_zero_area(p):
         raise ValueError(f"{name} has zero area")
     return p
 

@@ -195,3 +195,57 @@ def _clip_half_plane(polygon: np.ndarray, y_cut: float, keep_above: bool) -> np.
             t = (y_cut - cur[1]) / (nxt[1] - cur[1])
             out.append(np.array([cur[0] + t * (nxt[0] - cur[0]), y_cut]))
     return np.array(out)
+
+
+def slope_domain(
+    polygons: Sequence[np.ndarray],
+    cell_size_m: float,
+    runout_length_m: float = 0.0,
+    headroom_fraction: float = 0.25,
+) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The grid box for a slope template: the bodies rest on the base and touch the walls.
+
+    The grid origin is the lower-left corner of the bodies' bounding box, so the foundation
+    lies on the bottom wall and against the left wall (no gap a body could fall or slide
+    across: such a gap reads as settlement of a slope that should stand still). On the right
+    the wall touches the bodies when their width is a whole number of cells and
+    ``runout_length_m`` is 0; otherwise the box reaches at least one whole cell beyond them
+    (a gap below a cell would also be a fall). Above, ``headroom_fraction`` of the height is
+    added, at least two cells. Sizes are whole numbers of cells.
+
+    Parameters
+    ----------
+    polygons : sequence of array_like, each shape (K_i, 2), m
+        The body outlines (e.g. from :func:`slope_profile`).
+    cell_size_m : float, m
+        Background-grid cell size, > 0.
+    runout_length_m : float, m
+        Extra room to the right of the bodies, >= 0.
+    headroom_fraction : float
+        Room above the bodies as a fraction of their height, >= 0.
+
+    Returns
+    -------
+    origin_m : (float, float), m
+    size_m : (float, float), m
+
+    Raises
+    ------
+    ValueError
+        Naming the argument for a bad cell size, length or fraction, or no polygons.
+    """
+    dx = _check_number("cell_size_m", cell_size_m, allow_zero=False)
+    extra = _check_number("runout_length_m", runout_length_m, allow_zero=True)
+    room = _check_number("headroom_fraction", headroom_fraction, allow_zero=True)
+    if len(polygons) == 0:
+        raise ValueError("polygons must hold at least one body outline")
+    points = np.concatenate([np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in polygons])
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    width, height = float(hi[0] - lo[0]), float(hi[1] - lo[1])
+    tol = 1e-9 * max(width, height, dx)
+    cells_x = math.ceil((width + extra) / dx - 1e-9)
+    if cells_x * dx - width > tol and cells_x * dx - width < dx - tol:
+        cells_x += 1  # a gap of a fraction of a cell: make it more than a cell
+    cells_y = math.ceil((height * (1.0 + room)) / dx - 1e-9)
+    cells_y = max(cells_y, math.ceil(height / dx - 1e-9) + 2)
+    return (float(lo[0]), float(lo[1])), (cells_x * dx, cells_y * dx)

@@ -9,6 +9,7 @@ the file are filled in (gravity-stage damping 0.7, K0 per material), domain side
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from collections.abc import Sequence
@@ -150,6 +151,8 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
         scatter=numerics.advanced.scatter,
     )
     output = sc.Output(interval_s=project.output.interval_s, fields=tuple(project.output.fields))
+    from projects.hazard import envelope_config
+
     return sc.SimulationConfig(
         grid=grid,
         materials=materials,
@@ -157,6 +160,7 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
         gravity_m_s2=domain.gravity_m_s2,
         numerics=solver_numerics,
         output=output,
+        envelopes=envelope_config(project),
     )
 
 
@@ -251,6 +255,13 @@ class ResolvedRun:
     particle_body: np.ndarray | None
     estimate: dict
 
+    def seeded(self) -> ResolvedRun:
+        """This run with its particles seeded (itself when they are)."""
+        if self.particles is not None:
+            return self
+        particles, body_index = _seed_particles(self.project, self.config)
+        return dataclasses.replace(self, particles=particles, particle_body=body_index)
+
     @property
     def material_names(self) -> tuple[str, ...]:
         return self.project.material_names
@@ -343,21 +354,68 @@ def resolve(project: Project, overrides: Sequence[str] = (), *, arch: str | None
         project = apply_overrides(project, overrides)
     project = apply_preset(project)
     config = solver_config(project, arch_override=arch)
-    particles, body_index = _seed_particles(project, config) if seed else (None, None)
-    return ResolvedRun(project=project, config=config, particles=particles, particle_body=body_index,
-                       estimate=estimate(project))
+    resolved = ResolvedRun(project=project, config=config, particles=None, particle_body=None,
+                           estimate=estimate(project))
+    return resolved.seeded() if seed else resolved
+
+
+#: Counts beyond this are reported as this (an estimate of 1e300 cells stays a number).
+MAX_COUNT = 2**62
+#: Engine state per particle: floats (x, x0, v: 2 each; C, stress: 4 each; mass, density,
+#: plastic strain) and bytes (material id int32; active, yielded, band int8).
+ENGINE_FLOATS_PER_PARTICLE = 17
+ENGINE_BYTES_PER_PARTICLE = 7
+#: Host copies per particle: the built particles (float64 positions, volumes, velocities,
+#: int64 material and body ids), bytes.
+HOST_BYTES_PER_PARTICLE = 56
+#: Frames in memory at once: the writer's queue (3), the one being encoded and its encoding.
+FRAMES_IN_MEMORY = 5
+#: Floats and bytes per particle of one frame in memory (positions, displacement, velocity:
+#: 2 each; stress 4; plastic strain 1 / material id 4, active 1, float64 world positions 16).
+FRAME_FLOATS_PER_PARTICLE = 11
+FRAME_BYTES_PER_PARTICLE = 21
+#: Grid fields per node (mass; momentum, force, old velocity: 2 each) and ghost layers.
+FLOATS_PER_NODE = 7
+GRID_PAD = 2
+#: Bytes per particle of a frame file, uncompressed, for each output field, and what every
+#: frame holds (points 12 - 24 far from the origin -, active 1, particle id 4, vertex cell 16).
+FILE_BYTES_PER_FIELD = {"displacement": 12, "velocity": 12, "stress": 16, "plastic_strain": 4, "material": 4}
+FILE_BYTES_ALWAYS = 12 + 1 + 4 + 16
+#: Bytes of one row of series.csv and of the fixed files (pvd entry per frame, summary, project).
+SERIES_BYTES_PER_FRAME = 400
+FIXED_FILE_BYTES = 1 << 20
+#: Bytes per seeding candidate: lattice seeding tests sub-cell centres of the bodies' bounding
+#: box in blocks (positions, owners and masks of one block).
+SEEDING_BLOCK_BYTES = 2_000_000 * 48
+
+
+def _count(value: float) -> int:
+    """A non-negative count from a float estimate; inf and NaN become :data:`MAX_COUNT`."""
+    if not math.isfinite(value) or value >= MAX_COUNT:
+        return MAX_COUNT
+    return max(0, int(math.ceil(value - 1e-9)))
+
+
+def _ratio(numerator: float, denominator: float) -> float:
+    """``numerator / denominator`` without ZeroDivision or OverflowError (inf instead)."""
+    try:
+        value = numerator / denominator
+    except (ZeroDivisionError, OverflowError):
+        return math.inf
+    return value if math.isfinite(value) else math.inf
 
 
 def estimate(project: Project) -> dict[str, object]:
-    """Cheap size estimates of a run, without seeding (:func:`resolve` gives it for a project).
+    """Size estimates of a run without seeding or allocating (:func:`resolve` gives it).
 
-    ``project`` is the project as it runs (preset applied: :func:`resolve` does that).
-
-    The particle count is the bodies' total area times ``(per_cell / cell_size_m)**2``
-    (overlaps counted twice; exact for grid-aligned rectangles with lattice seeding). With
-    ``cfl`` the time step is ``cfl * dx / c_p`` with the largest p-wave speed of all
-    materials of all stages; the solver also counts the particle speed in the critical step,
-    so its steps are at least as many as estimated.
+    A pure function of the project as it runs (preset applied: :func:`resolve` does that). The particle count is the bodies'
+    total area times ``(per_cell / cell_size_m)**2`` (overlaps counted twice; exact for
+    grid-aligned rectangles with lattice seeding). With ``cfl`` the time step is
+    ``cfl * dx / c_p`` with the largest p-wave speed of all materials of all stages; the solver
+    also counts the particle speed in the critical step, so its steps are at least as many as
+    estimated. Memory counts the engine's particle and grid fields, the host copies of the
+    particles and the frames in flight; disk counts the frame files uncompressed (zlib saves
+    some of it) plus ``series.csv``. Counts too large for a number are :data:`MAX_COUNT`.
 
     Parameters
     ----------
@@ -367,15 +425,30 @@ def estimate(project: Project) -> dict[str, object]:
     -------
     dict
         ``particles`` (int), ``grid_cells`` (int), ``grid_shape`` ((int, int)),
-        ``time_step_s`` (float, s), ``time_step_source`` ("time_step_s" or "cfl"),
+        ``grid_nodes`` (int, with ghost layers), ``seeding_candidates`` (int, lattice points
+        tested), ``time_step_s`` (float, s), ``time_step_source`` ("time_step_s" or "cfl"),
         ``max_p_wave_speed_m_s`` (float), ``simulated_time_s`` (float, s, all stages),
-        ``steps`` (int, all stages), ``frames`` (int, about one per ``output.interval_s``).
+        ``steps`` (int, all stages), ``frames`` (int, about one per ``output.interval_s``),
+        ``bytes_per_particle`` and ``bytes_per_node`` (int, memory), ``memory_bytes`` (int),
+        ``frame_bytes`` (int, one frame file), ``disk_bytes`` (int, the results folder),
+        ``cell_size_m``, ``output_interval_s`` (float, the inputs the limits name).
     """
     dx = project.domain.cell_size_m
-    area = sum(polygon_area(np.asarray(b.polygon_m)) for b in project.bodies)
-    particles = int(round(area * (project.particles.per_cell / dx) ** 2))
-    grid = sc.Grid(origin_m=project.domain.origin_m, size_m=project.domain.size_m, cell_size_m=dx)
-    nx, ny = grid.cells
+    per_cell = project.particles.per_cell
+    polygons = [np.asarray(b.polygon_m, dtype=np.float64) for b in project.bodies]
+    area = sum(polygon_area(p) for p in polygons)
+    linear = _ratio(per_cell, dx)
+    density = linear * linear  # (per_cell / dx)**2 without OverflowError
+    particles = _count(area * density if math.isfinite(density) else math.inf)
+    lo = np.min([p.min(axis=0) for p in polygons], axis=0)
+    hi = np.max([p.max(axis=0) for p in polygons], axis=0)
+    box = float(np.prod(hi - lo + 2.0 * dx / per_cell))
+    candidates = _count(box * density if math.isfinite(density) else math.inf)
+    nx = _count(_ratio(project.domain.size_m[0], dx))
+    ny = _count(_ratio(project.domain.size_m[1], dx))
+    nx, ny = max(1, nx), max(1, ny)
+    cells = _count(float(nx) * float(ny))
+    nodes = _count(float(nx + 1 + 2 * GRID_PAD) * float(ny + 1 + 2 * GRID_PAD))
     speeds = [solver_material(n, m).p_wave_speed_m_s for t in material_tables(project) for n, m in t.items()]
     speeds.extend(solver_material(n, m).p_wave_speed_m_s for n, m in project.materials.items())
     c_p = max(speeds)
@@ -385,18 +458,43 @@ def estimate(project: Project) -> dict[str, object]:
     else:
         dt, source = numerics.cfl * dx / c_p, "cfl"
     durations = [stage.duration_s or 0.0 for stage in project.stages]
-    steps = sum(math.ceil(d / dt - 1e-9) for d in durations if d > 0.0)
+    steps = _count(sum(_ratio(d, dt) for d in durations if d > 0.0))
     total = float(sum(durations))
+    intervals = _ratio(total, project.output.interval_s)
+    frames = _count(math.floor(intervals + 1e-9) + 1.0 if math.isfinite(intervals) else math.inf)
+
+    float_bytes = 8 if numerics.precision == "f64" else 4
+    per_particle = (
+        ENGINE_FLOATS_PER_PARTICLE * float_bytes + ENGINE_BYTES_PER_PARTICLE + HOST_BYTES_PER_PARTICLE
+        + FRAMES_IN_MEMORY * (FRAME_FLOATS_PER_PARTICLE * float_bytes + FRAME_BYTES_PER_PARTICLE)
+    )
+    per_node = FLOATS_PER_NODE * float_bytes
+    memory = _count(float(particles) * per_particle + float(nodes) * per_node
+                    + min(float(candidates) * 48.0, SEEDING_BLOCK_BYTES))
+    file_per_particle = FILE_BYTES_ALWAYS + sum(
+        FILE_BYTES_PER_FIELD.get(name, 0) for name in project.output.fields
+    )
+    frame_bytes = _count(float(particles) * file_per_particle + 2048.0)
+    disk = _count(float(frames) * (frame_bytes + SERIES_BYTES_PER_FRAME) + FIXED_FILE_BYTES)
     return {
         "particles": particles,
-        "grid_cells": nx * ny,
+        "grid_cells": cells,
         "grid_shape": (nx, ny),
+        "grid_nodes": nodes,
+        "seeding_candidates": candidates,
         "time_step_s": dt,
         "time_step_source": source,
         "max_p_wave_speed_m_s": c_p,
         "simulated_time_s": total,
         "steps": steps,
-        "frames": int(math.floor(total / project.output.interval_s + 1e-9)) + 1,
+        "frames": frames,
+        "bytes_per_particle": per_particle,
+        "bytes_per_node": per_node,
+        "memory_bytes": memory,
+        "frame_bytes": frame_bytes,
+        "disk_bytes": disk,
+        "cell_size_m": dx,
+        "output_interval_s": project.output.interval_s,
     }
 
 

@@ -3,7 +3,8 @@
 - :func:`load_project` / :func:`loads_project` parse and validate (every problem at once,
   TOML syntax errors with line and column).
 - :func:`save_project` / :func:`dumps_project` write a project back. Saving is atomic (a
-  temporary file in the same folder, flushed and synced, then renamed over the target), and
+  temporary file in the same folder, flushed and synced, then renamed over the target; a
+  symbolic link is followed and the file's mode kept: :func:`write_text_atomic`), and
   ``load(save(p)) == p`` exactly: floats are written with ``repr``, which round-trips.
   Comments of the original file are not kept.
 - :func:`apply_overrides` applies ``KEY=VALUE`` overrides (the command line's ``--set``):
@@ -86,6 +87,13 @@ class _TomlSyntaxError(Exception):
 
 
 def _parse(text: str) -> dict[str, Any]:
+    try:
+        return _parse_toml(text)
+    except RecursionError:
+        raise _TomlSyntaxError("TOML syntax error: arrays or tables nested too deeply") from None
+
+
+def _parse_toml(text: str) -> dict[str, Any]:
     if tomllib is not None:
         try:
             return tomllib.loads(text)
@@ -125,7 +133,13 @@ def loads_project(text: str, overrides: Sequence[str] = (), source: str | None =
     ------
     ProjectError
         Listing every problem found.
+
+    Notes
+    -----
+    A UTF-8 byte-order mark at the start (some Windows editors write one) is ignored.
     """
+    if text.startswith("\ufeff"):
+        text = text[1:]
     data = parse_toml(text, source)
     try:
         if overrides:
@@ -133,6 +147,9 @@ def loads_project(text: str, overrides: Sequence[str] = (), source: str | None =
         return validate_project(data)
     except ProjectError as exc:
         raise ProjectError(exc.problems, source) from None
+    except RecursionError:
+        problem = Problem("", None, "values nested too deeply to be a project")
+        raise ProjectError([problem], source) from None
 
 
 def load_project(path: str | os.PathLike[str], overrides: Sequence[str] = ()) -> Project:
@@ -232,6 +249,13 @@ def dumps_project(project: Project) -> str:
     doc["stages"] = stages
 
     doc["output"] = _table(data["output"])
+    if data.get("hazard"):
+        doc["hazard"] = _table(data["hazard"])
+    if data.get("targets"):
+        targets = tomlkit.aot()
+        for target in data["targets"]:
+            targets.append(_table(target))
+        doc["targets"] = targets
     return tomlkit.dumps(doc)
 
 
@@ -267,26 +291,52 @@ def _points(points: list[list[float]]) -> tomlkit.items.Array:
 
 
 def save_project(project: Project, path: str | os.PathLike[str]) -> None:
-    """Write a project file atomically.
-
-    The text goes to a temporary file in the target's folder, is flushed and synced to disk,
-    and then renamed over the target (``os.replace``), so a reader sees the old file or the
-    new one, never a partial one; a failure leaves the old file untouched. An existing
-    file's permission bits are kept.
+    """Write a project file atomically (see :func:`write_text_atomic`).
 
     Parameters
     ----------
     project : Project
     path : path-like
-        Target file; its folder must exist.
+        Target file; its folder must exist. A symbolic link is followed: the file it points
+        to is replaced, the link stays.
 
     Raises
     ------
     OSError
         When the folder is not writable or the disk is full (the target is unchanged).
     """
-    path = Path(path)
-    text = dumps_project(project)
+    write_text_atomic(path, dumps_project(project))
+    logger.debug("saved project %s", path)
+
+
+def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
+    """Replace a text file atomically, durably, keeping its permissions and its links.
+
+    The text goes to a uniquely named temporary file in the target's folder, is flushed and
+    synced to disk, gets the existing file's permission bits (new files: 0644) and is renamed
+    over the target (``os.replace``), so a reader sees the old file or the new one, never a
+    partial one; a failure removes the temporary file and leaves the old file untouched. A
+    symbolic link (also a chain of them) is followed: the file it points to is written, the
+    link stays a link. Used for project files, also for the workbench's saves of projects
+    that do not validate.
+
+    Parameters
+    ----------
+    path : path-like
+    text : str
+        Written as UTF-8 with ``\\n`` line ends.
+
+    Returns
+    -------
+    Path
+        The file written (the link's target for a link).
+
+    Raises
+    ------
+    OSError
+        When the folder is not writable or the disk is full (the target is unchanged).
+    """
+    path = Path(os.path.realpath(Path(path).expanduser()))
     try:
         mode = stat.S_IMODE(os.stat(path).st_mode)
     except FileNotFoundError:
@@ -304,7 +354,7 @@ def save_project(project: Project, path: str | os.PathLike[str]) -> None:
             os.unlink(tmp_name)
         raise
     _sync_folder(path.parent)
-    logger.debug("saved project %s", path)
+    return path
 
 
 def _write(handle: Any, text: str) -> None:

@@ -27,6 +27,7 @@ last complete frame; :class:`Results` reports such a run as ``"interrupted"``.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
@@ -35,12 +36,11 @@ import math
 import os
 import queue
 import re
-import shutil
 import threading
 import time
 import zlib
 from collections import OrderedDict
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -50,6 +50,20 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from projects.results_folder import (
+    BASE_PATTERNS,
+    MARKER_NAME,
+    RESERVE_NAME,
+    FolderLock,
+    ResultsError,
+    ResultsExistError,
+    ResultsLockedError,
+    lock_folder,
+    open_results_dir,
+    read_marker,
+    remove_temp_files,
+    write_marker,
+)
 from solver.config import Diagnostics, Frame
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -113,10 +127,6 @@ _VTK_TYPES: dict[str, str] = {
 _NUMPY_TYPES = {v: np.dtype(k).newbyteorder("<") for k, v in _VTK_TYPES.items()}
 
 
-class ResultsError(Exception):
-    """A results folder cannot be written, or what is read is not a results folder."""
-
-
 def runout_version() -> str:
     """The installed version of Runout, or ``"unknown"`` when it is not installed."""
     from importlib import metadata
@@ -132,11 +142,19 @@ def runout_version() -> str:
 
 
 def _atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to a temporary sibling, then move it over ``path`` (atomic on POSIX)."""
+    """Write ``data`` to a temporary sibling, then move it over ``path`` (atomic on POSIX).
+
+    A failed write (full disk, ...) removes the temporary file before the error goes on.
+    """
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
 
 
 def _atomic_write_text(path: Path, text: str) -> None:
@@ -188,6 +206,44 @@ def read_checkpoint(path: str | os.PathLike[str]) -> Any:
     except (OSError, ValueError, KeyError, zlib.error) as err:
         raise ResultsError(f"cannot read the checkpoint {path}: {err}") from err
     return Checkpoint(run=run, arrays=arrays, fingerprint=fingerprint)
+#: Bytes kept on disk during a run for the final ``summary.json`` (see :func:`_write_reserve`).
+RESERVE_BYTES = 1 << 16
+#: Points are written in float64 when the domain lies farther from zero than this many times
+#: its size (float32 would then resolve positions more coarsely than for a domain at the origin).
+FAR_FROM_ORIGIN = 16.0
+
+
+def _write_reserve(path: Path) -> None:
+    """Hold :data:`RESERVE_BYTES` of disk that the writer gives up to close on a full disk."""
+    with open(path, "wb") as fh:
+        fh.write(b"\0" * RESERVE_BYTES)
+
+
+def points_dtype_for(domain: Mapping[str, Any] | None) -> str | None:
+    """The dtype of a results folder's points: ``"<f4"``, or ``"<f8"`` far from the origin.
+
+    Parameters
+    ----------
+    domain : mapping, optional
+        ``origin_m`` and ``size_m`` of the grid box (the summary's ``domain``).
+
+    Returns
+    -------
+    str or None
+        None when the domain is not known (each frame decides from its own positions).
+    """
+    try:
+        origin = np.asarray(domain["origin_m"], dtype=np.float64)  # type: ignore[index]
+        size = np.asarray(domain["size_m"], dtype=np.float64)  # type: ignore[index]
+    except (TypeError, KeyError, ValueError):
+        return None
+    return _dtype_for_box(origin, origin + size)
+
+
+def _dtype_for_box(lo: np.ndarray, hi: np.ndarray) -> str:
+    reach = float(np.max(np.abs(np.concatenate([lo, hi])))) if lo.size else 0.0
+    extent = float(np.max(hi - lo)) if lo.size else 0.0
+    return "<f8" if reach > FAR_FROM_ORIGIN * max(extent, 1e-300) else "<f4"
 
 
 def _json_default(value: Any) -> Any:
@@ -217,32 +273,25 @@ def is_results_dir(path: str | os.PathLike[str]) -> bool:
     )
 
 
-def prepare_results_dir(path: str | os.PathLike[str]) -> Path:
-    """Make ``path`` an empty folder for a new run.
+def prepare_results_dir(path: str | os.PathLike[str], *, overwrite: bool = False) -> Path:
+    """Make ``path`` ready for a new run (see :mod:`projects.results_folder`); no lock is kept.
 
-    A missing folder is created (with its parents); an empty folder is used as is; an existing
-    results folder is deleted and recreated. Any other existing path is left alone and
-    :class:`ResultsError` is raised, so a mistyped ``--out`` never wipes unrelated files.
+    A missing folder is created (with its parents); an empty folder is used as is; an earlier
+    run's results are replaced only with ``overwrite`` (and then only that run's own files are
+    removed); any other non-empty folder is refused.
 
     Returns
     -------
     Path
         The absolute folder path.
+
+    Raises
+    ------
+    ResultsExistError, ResultsLockedError, ResultsError
     """
-    path = Path(path).expanduser().absolute()
-    if path.exists():
-        if not path.is_dir():
-            raise ResultsError(f"{path} exists and is not a folder")
-        if any(path.iterdir()):
-            if not is_results_dir(path):
-                raise ResultsError(
-                    f"{path} exists, is not empty and is not a results folder; "
-                    "refusing to overwrite it (choose another output folder)"
-                )
-            logger.info("replacing the results folder %s", path)
-            shutil.rmtree(path)
-    path.mkdir(parents=True, exist_ok=True)
-    return path
+    folder, lock = open_results_dir(path, overwrite=overwrite)
+    lock.release()
+    return folder
 
 
 # --------------------------------------------------------------------------------------------
@@ -278,7 +327,9 @@ def _as_file_array(name: str, values: np.ndarray) -> np.ndarray:
     return values
 
 
-def encode_vtp(fields: Mapping[str, np.ndarray], time_s: float, level: int = 1) -> bytes:
+def encode_vtp(
+    fields: Mapping[str, np.ndarray], time_s: float, level: int = 1, points_dtype: str | None = None
+) -> bytes:
     """Encode one frame as a VTK XML PolyData file.
 
     Parameters
@@ -290,18 +341,24 @@ def encode_vtp(fields: Mapping[str, np.ndarray], time_s: float, level: int = 1) 
         Simulated time, stored as the field data ``TimeValue``.
     level : int
         zlib compression level (1 is fast and gets most of the gain on float data).
+    points_dtype : {"<f4", "<f8"}, optional
+        Type of the points. Default: float32, or float64 when the positions lie farther from
+        zero than :data:`FAR_FROM_ORIGIN` times their extent (real-world coordinates).
 
     Returns
     -------
     bytes
         The complete file content.
     """
-    positions = np.asarray(fields["positions"], dtype="<f4")
+    positions = np.asarray(fields["positions"], dtype=np.float64)
     n = len(positions)
     if positions.shape != (n, 2):
         raise ValueError(f"positions must have shape (N, 2), got {positions.shape}")
+    if points_dtype is None:
+        finite = positions[np.all(np.isfinite(positions), axis=1)]
+        points_dtype = _dtype_for_box(finite.min(axis=0), finite.max(axis=0)) if len(finite) else "<f4"
     active = np.asarray(fields.get("active", np.ones(n, bool)), dtype=bool)
-    points = np.zeros((n, 3), "<f4")
+    points = np.zeros((n, 3), points_dtype)
     points[:, :2] = positions
     connectivity = np.flatnonzero(active).astype("<i8")
     offsets = np.arange(1, len(connectivity) + 1, dtype="<i8")
@@ -496,8 +553,10 @@ class ResultsWriter:
     Parameters
     ----------
     out_dir : path-like
-        The results folder; prepared with :func:`prepare_results_dir` (an existing results
-        folder there is replaced).
+        The results folder (see :mod:`projects.results_folder`): created when missing, locked
+        while the writer is open, marked as a Runout results folder. An earlier run's results
+        there are replaced only with ``overwrite`` (only its own files are removed); any other
+        non-empty folder is refused.
     project_text : str
         The resolved project (TOML) that runs, saved as ``project.toml``.
     meta : dict
@@ -513,6 +572,17 @@ class ResultsWriter:
         ``keep_frames`` frames (and their ``series.csv`` rows) stay, the later ones (written
         after the checkpoint the run resumes from) are removed, and new frames continue the
         numbering. The summary keeps the earlier run's entries.
+    overwrite : bool
+        Replace an earlier run's results in ``out_dir``.
+
+    Raises
+    ------
+    ResultsExistError
+        ``out_dir`` holds an earlier run's results and ``overwrite`` is False.
+    ResultsLockedError
+        Another running process writes into ``out_dir``.
+    ResultsError
+        ``out_dir`` cannot be used or written (one line naming the folder and the reason).
     """
 
     def __init__(
@@ -523,18 +593,20 @@ class ResultsWriter:
         *,
         queue_size: int = 3,
         compression_level: int = 1,
+        overwrite: bool = False,
         keep_frames: int | None = None,
     ) -> None:
-        try:
-            if keep_frames is None:
-                self.out_dir = prepare_results_dir(out_dir)
-                self._frames_dir = self.out_dir / FRAMES_DIR
-                self._frames_dir.mkdir()
-            else:
-                self.out_dir = Path(out_dir).expanduser().absolute()
-                self._frames_dir = self.out_dir / FRAMES_DIR
-        except OSError as err:
-            raise ResultsError(f"cannot write results to {out_dir}: {err}") from err
+        self._patterns: list[str] = list(BASE_PATTERNS)
+        if keep_frames is None:
+            self.out_dir, self._lock = open_results_dir(out_dir, overwrite=overwrite, patterns=self._patterns)
+        else:  # resuming: the earlier run's own folder, locked again, nothing cleared
+            self.out_dir = Path(out_dir).expanduser().absolute()
+            marker = read_marker(self.out_dir)
+            if marker is None:
+                raise ResultsError(f"{self.out_dir} is not a results folder of Runout (no {MARKER_NAME})")
+            self._lock = lock_folder(self.out_dir)
+            self._patterns = list(dict.fromkeys([*self._patterns, *marker["files"]]))
+        self._frames_dir = self.out_dir / FRAMES_DIR
         self._level = compression_level
         self._started = time.perf_counter()
         self._pvd_entries: list[tuple[float, str]] = []
@@ -542,10 +614,15 @@ class ResultsWriter:
         earlier: dict[str, Any] = {}
         series_rows: list[list[str]] = []
         if keep_frames is not None:
-            earlier, series_rows = self._take_over(keep_frames)
+            try:
+                earlier, series_rows = self._take_over(keep_frames)
+            except BaseException:
+                self._lock.release()
+                raise
         self._closed = False
         self._error: BaseException | None = None
         self._last: Diagnostics | None = None
+        self._points_dtype = points_dtype_for(meta.get("domain"))
         self.summary: dict[str, Any] = {
             "status": RUNNING,
             "message": "",
@@ -569,6 +646,8 @@ class ResultsWriter:
             self.summary["resumed_at_frame"] = keep_frames
 
         try:
+            self._frames_dir.mkdir(exist_ok=True)
+            _write_reserve(self.out_dir / RESERVE_NAME)
             _atomic_write_text(self.out_dir / PROJECT_NAME, project_text)
             if keep_frames is not None:  # the kept rows, written whole before the file is replaced
                 _atomic_write_text(self.out_dir / SERIES_NAME, _csv_text([list(SERIES_COLUMNS), *series_rows]))
@@ -582,7 +661,11 @@ class ResultsWriter:
             self._write_pvd()
             self._write_summary()
         except OSError as err:
-            raise ResultsError(f"cannot write results to {self.out_dir}: {err}") from err
+            self._abandon()
+            raise ResultsError(f"cannot write results to {self.out_dir}: {err.strerror or err}") from err
+        except BaseException:
+            self._abandon()
+            raise
 
         self._queue: queue.Queue[Any] = queue.Queue(maxsize=max(1, queue_size))
         self._thread = threading.Thread(
@@ -638,6 +721,13 @@ class ResultsWriter:
         index = self._submitted
         self._submitted += 1
         self._queue.put((index, frame.diagnostics, dict(frame.fields)))
+
+    def submit(self, job: Callable[[], None]) -> None:
+        """Queue ``job()`` to run in the writer thread after the frames queued before it (files that
+        accompany the frames, e.g. the hazard envelopes); its errors fail the writer like a frame's."""
+        if self._closed:
+            raise ResultsError("the results writer is closed")
+        self._queue.put(job)
 
     def flush(self) -> None:
         """Wait until every queued frame is on disk."""
@@ -709,10 +799,53 @@ class ResultsWriter:
         if extra:
             self.summary.update(extra)
         try:
+            self._write_final_summary()
+        finally:
+            self._abandon()
+        return self.summary
+
+    def own(self, pattern: str) -> None:
+        """Record a file (``fnmatch`` pattern relative to the folder) as written by this run.
+
+        Capabilities that add files to the results folder (checkpoints, reports) call this
+        before writing them, so that a later ``overwrite`` removes them and nothing else.
+        """
+        if pattern not in self._patterns:
+            self._patterns.append(pattern)
+            write_marker(self.out_dir, self._patterns)
+
+    def _write_final_summary(self) -> None:
+        """The final summary, also on a full disk: the reserve is given up for it, and as a
+        last resort the old summary is overwritten in place."""
+        try:
             self._write_summary()
+            return
+        except OSError as err:
+            logger.warning("writing the final summary failed (%s); retrying with the reserved space", err)
+        remove_temp_files(self.out_dir, self._patterns)
+        with contextlib.suppress(OSError):
+            (self.out_dir / RESERVE_NAME).unlink()
+        try:
+            self._write_summary()
+            return
+        except OSError:
+            remove_temp_files(self.out_dir, self._patterns)
+        try:
+            with open(self.out_dir / SUMMARY_NAME, "r+b") as fh:
+                fh.truncate(0)
+                fh.write(self._summary_bytes())
         except OSError as err:
             logger.error("could not write %s: %s", self.out_dir / SUMMARY_NAME, err)
-        return self.summary
+
+    def _abandon(self) -> None:
+        """Leave the folder: no temporary files, no reserve, no lock (idempotent)."""
+        with contextlib.suppress(OSError):
+            if getattr(self, "_series", None) is not None:
+                self._series.close()
+        remove_temp_files(self.out_dir, self._patterns, os.getpid())
+        with contextlib.suppress(OSError):
+            (self.out_dir / RESERVE_NAME).unlink()
+        self._lock.release()
 
     def __enter__(self) -> ResultsWriter:
         return self
@@ -734,7 +867,10 @@ class ResultsWriter:
                 if item is _Stop:
                     return
                 if self._error is None:
-                    self._write_one(*item)
+                    if callable(item):
+                        item()
+                    else:
+                        self._write_one(*item)
             except Exception as err:  # noqa: BLE001 - reported to the caller via write_frame/close
                 logger.error("writing a results frame failed: %s", err,
                              exc_info=logger.isEnabledFor(logging.DEBUG))
@@ -744,7 +880,7 @@ class ResultsWriter:
 
     def _write_one(self, index: int, diag: Diagnostics, fields: dict[str, np.ndarray]) -> None:
         name = f"frame_{index:05d}.vtp"
-        data = encode_vtp(fields, diag.time_s, self._level)
+        data = encode_vtp(fields, diag.time_s, self._level, points_dtype=self._points_dtype)
         _atomic_write_bytes(self._frames_dir / name, data)
         self._csv.writerow(
             [
@@ -780,9 +916,11 @@ class ResultsWriter:
     def _write_pvd(self) -> None:
         _atomic_write_text(self.out_dir / PVD_NAME, _pvd_text(self._pvd_entries))
 
+    def _summary_bytes(self) -> bytes:
+        return (json.dumps(self.summary, indent=2, default=_json_default) + "\n").encode("utf-8")
+
     def _write_summary(self) -> None:
-        text = json.dumps(self.summary, indent=2, default=_json_default) + "\n"
-        _atomic_write_text(self.out_dir / SUMMARY_NAME, text)
+        _atomic_write_bytes(self.out_dir / SUMMARY_NAME, self._summary_bytes())
 
 
 # --------------------------------------------------------------------------------------------
@@ -1013,7 +1151,7 @@ class Results:
 
         j = self._index(i)
         raw = read_vtp(self._files[j])
-        points = np.array(raw.pop("Points"), dtype=np.float32)
+        points = np.array(raw.pop("Points"))  # float32, or float64 for real-world coordinates
         connectivity = raw.pop("connectivity")
         raw.pop("offsets", None)
         verts = np.column_stack([np.ones(len(connectivity), np.int64), connectivity]).ravel()

@@ -7,9 +7,11 @@ Ctrl-C, instability, any solver error, a results disk error) the writer is close
 rejects, both as :class:`~projects.schema.ProjectError`; an output folder that must not be
 replaced, :class:`~projects.results.ResultsError`) are raised before anything is written.
 
-Output folder policy: by default ``NAME.results/`` next to the project file ``NAME.toml``. An
-existing *results* folder there is deleted when the run starts (so the folder always belongs to
-one run and a killed run leaves only its own frames); any other non-empty folder is refused.
+Output folder policy (:mod:`projects.results_folder`): by default ``NAME.results/`` next to the
+project file ``NAME.toml``. A folder holding an earlier run's results is replaced only with
+``overwrite=True`` (the command line's ``--overwrite``), and then only the files that run wrote
+are removed; any other non-empty folder is refused; a folder another run is writing into is
+refused. The folder is locked while the run writes.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from projects.results import ResultsError, ResultsWriter, is_results_dir
+from projects.results_folder import check_results_dir
 from solver.config import InstabilityError, SolverError
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -86,22 +89,27 @@ class StopRequest:
         return self._event.is_set()
 
 
+def process_age_s() -> float | None:
+    """Seconds since this process started (Linux ``/proc``; None elsewhere)."""
+    try:
+        with open("/proc/self/stat", encoding="ascii") as handle:
+            start_ticks = int(handle.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime", encoding="ascii") as handle:
+            uptime_s = float(handle.read().split()[0])
+        return uptime_s - start_ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def default_results_dir(project_path: str | os.PathLike[str]) -> Path:
     """``NAME.results`` next to the project file ``NAME.toml``."""
     path = Path(project_path)
     return path.with_name(path.stem + RESULTS_SUFFIX)
 
 
-def _check_out_dir(out_dir: Path) -> None:
-    """Refuse early (before any solver work) an output folder that must not be replaced."""
-    if out_dir.exists():
-        if not out_dir.is_dir():
-            raise ResultsError(f"{out_dir} exists and is not a folder")
-        if any(out_dir.iterdir()) and not is_results_dir(out_dir):
-            raise ResultsError(
-                f"{out_dir} exists, is not empty and is not a results folder; "
-                "refusing to overwrite it (choose another output folder)"
-            )
+def _check_out_dir(out_dir: Path, overwrite: bool = False) -> None:
+    """Refuse early (before any solver work) an output folder that must not be used."""
+    check_results_dir(out_dir, overwrite=overwrite)
 
 
 def _solver_rejects(err: Exception) -> Exception:
@@ -111,23 +119,46 @@ def _solver_rejects(err: Exception) -> Exception:
     return ProjectError([Problem("", None, f"the solver rejects this run: {err}")])
 
 
-def check_project(project: Project | ResolvedRun, *, arch: str | None = None) -> ResolvedRun:
+def check_project(
+    project: Project | ResolvedRun,
+    *,
+    arch: str | None = None,
+    force: bool = False,
+    out_dir: str | os.PathLike[str] | None = None,
+) -> ResolvedRun:
     """Resolve a project into its run and apply the solver's input checks, without running it.
+
+    The size of the run is checked first (:func:`projects.limits.check_limits` on the resolved
+    run's estimate), before any memory is taken for particles.
+
+    Parameters
+    ----------
+    project : Project or ResolvedRun
+    arch : {"cpu", "gpu", "auto"}, optional
+    force : bool
+        Skip the size limits (the command line's ``--force``).
+    out_dir : path-like, optional
+        Where the results would go (for the free-disk check).
 
     Returns
     -------
     projects.build.ResolvedRun
+        Seeded.
 
     Raises
     ------
     projects.schema.ProjectError
-        For problems of the project and for runs the solver would refuse (particles outside
-        the grid, inconsistent stages, ...).
+        For problems of the project, runs beyond the size limits and runs the solver would
+        refuse (particles outside the grid, inconsistent stages, ...).
     """
     from projects.build import ResolvedRun, resolve
+    from projects.limits import check_limits
     from solver.simulation import validate
 
-    resolved = project if isinstance(project, ResolvedRun) else resolve(project, arch=arch)
+    resolved = project if isinstance(project, ResolvedRun) else resolve(project, arch=arch, seed=False)
+    if resolved.particles is None:
+        check_limits(resolved.estimate, force=force, out_dir=out_dir)
+        resolved = resolved.seeded()
     try:
         validate(resolved.config, resolved.particles)
     except SolverError as err:
@@ -144,6 +175,8 @@ def run_project(
     cancel: Callable[[], bool] | None = None,
     on_frame: Callable[[Frame], None] | None = None,
     on_progress: Callable[[Progress], None] | None = None,
+    overwrite: bool = False,
+    force: bool = False,
     start_from: str | os.PathLike[str] | None = None,
 ) -> RunResult:
     """Run a project and write its results folder as frames arrive.
@@ -153,8 +186,9 @@ def run_project(
     project : Project or ResolvedRun
         The validated project (overrides applied), or its resolved run.
     out_dir : path-like, optional
-        Results folder. Default: :func:`default_results_dir` of ``project_path``. An existing
-        results folder there is replaced; another non-empty folder is refused.
+        Results folder. Default: :func:`default_results_dir` of ``project_path``. An earlier
+        run's results there are replaced only with ``overwrite``; another non-empty folder is
+        refused.
     project_path : path-like, optional
         The project file (for the default folder and the summary).
     arch : {"cpu", "gpu", "auto"}, optional
@@ -166,6 +200,10 @@ def run_project(
         Called with every frame after it is handed to the writer (live views).
     on_progress : callable, optional
         Called with the solver's :class:`~solver.simulation.Progress`.
+    overwrite : bool
+        Replace an earlier run's results in ``out_dir`` (only that run's own files).
+    force : bool
+        Run even beyond the size limits (:mod:`projects.limits`).
     start_from : path-like, optional
         A checkpoint (``checkpoint.npz`` or the results folder holding it) of another run of the
         same particles: this run's stages start from its particle state (positions, velocities,
@@ -183,9 +221,13 @@ def run_project(
     ValueError
         Neither ``out_dir`` nor ``project_path`` given.
     projects.schema.ProjectError
-        The project cannot be resolved into a run, or the solver rejects the run.
+        The project cannot be resolved into a run, the solver rejects the run, or the run is
+        beyond the size limits (without ``force``).
     projects.results.ResultsError
-        ``out_dir`` exists and is not a results folder; ``start_from`` holds no usable checkpoint.
+        ``out_dir`` cannot be used: an earlier run's results without ``overwrite``
+        (:class:`~projects.results.ResultsExistError`), another run writing into it
+        (:class:`~projects.results.ResultsLockedError`), not a results folder, not writable;
+        ``start_from`` holds no usable checkpoint.
     """
     from projects.document import dumps_project
     from projects.results import read_checkpoint
@@ -195,12 +237,12 @@ def run_project(
             raise ValueError("give out_dir or project_path (the results go next to the project file)")
         out_dir = default_results_dir(project_path)
     out_path = Path(out_dir).expanduser().absolute()
-    _check_out_dir(out_path)
+    _check_out_dir(out_path, overwrite)
     path = Path(project_path).absolute() if project_path is not None else None
     initial = read_checkpoint(start_from) if start_from is not None else None
 
     started = time.perf_counter()
-    resolved = check_project(project, arch=arch)
+    resolved = check_project(project, arch=arch, force=force, out_dir=out_path)
     sim = _simulation(resolved)
     try:
         if initial is not None:
@@ -208,7 +250,7 @@ def run_project(
         meta = _meta(resolved, sim, path)
         if start_from is not None:
             meta["started_from"] = str(Path(start_from).absolute())
-        writer = ResultsWriter(out_path, dumps_project(resolved.project), meta)
+        writer = ResultsWriter(out_path, dumps_project(resolved.project), meta, overwrite=overwrite)
         return _run(sim, resolved, writer, started, cancel, on_frame, on_progress)
     finally:
         sim.close()
@@ -245,7 +287,7 @@ def resume_run(
     if checkpoint.run["cursor"]["phase"] == "done":
         raise ResultsError(f"the run in {out_path} is complete: nothing to resume")
     started = time.perf_counter()
-    resolved = check_project(load_project(out_path / PROJECT_NAME), arch=arch)
+    resolved = check_project(load_project(out_path / PROJECT_NAME), arch=arch, force=True)
     sim = _simulation(resolved)
     try:
         try:
@@ -324,10 +366,21 @@ def _run(
     on_frame: Callable[[Frame], None] | None,
     on_progress: Callable[[Progress], None] | None,
 ) -> RunResult:
+    from projects.hazard import HazardOutput, settings
     from projects.results import write_checkpoint
-    from projects.strength import strength_reduction
+    from projects.strength import TRIALS_NAME, strength_reduction
 
     driver = strength_reduction(resolved)  # None unless the project has a strength-reduction stage
+    hazard = None
+    if writer is not None:
+        from projects import hazard as hazard_files
+
+        for name in (hazard_files.HAZARD_JSON, hazard_files.PROFILE_CSV, hazard_files.TARGETS_CSV,
+                     hazard_files.HAZARD_VTI):
+            writer.own(name)
+        if driver is not None:
+            writer.own(TRIALS_NAME)
+        hazard = HazardOutput(writer.out_dir, sim, settings(resolved.project), writer.submit)
     setup_s = time.perf_counter() - started
     status, message = "failed", "the run ended unexpectedly"
     loop_start = time.perf_counter()
@@ -346,6 +399,7 @@ def _run(
         for frame in frames:
             if writer is not None:
                 writer.write_frame(frame)
+                hazard.write()  # the envelopes with every frame: a killed run keeps them
             if on_frame is not None:
                 on_frame(frame)
             t = frame.diagnostics.time_s
@@ -367,13 +421,21 @@ def _run(
         status, message = "failed", str(err)
     except ResultsError as err:
         status, message = "failed", str(err)
-    except OSError as err:
-        status, message = "failed", f"writing results failed: {err}"
+    except OSError as err:  # a results disk error raised outside the writer thread
+        status, message = "failed", f"writing results failed: {err.strerror or err}"
     except Exception as err:  # noqa: BLE001 - any solver failure must still close the folder
         # the traceback is for developers; users get the message in the summary
         logger.error("the run failed: %s", err, exc_info=logger.isEnabledFor(logging.DEBUG))
         status, message = "failed", f"{type(err).__name__}: {err}"
+    except BaseException as err:  # SystemExit and the like: record it, then let it go on
+        status, message = "failed", f"ended by {type(err).__name__}"
+        raise
     finally:
+        if hazard is not None and status in ("completed", "stopped"):
+            try:
+                hazard.write(status)
+            except Exception as err:  # noqa: BLE001 - the run's own outcome stands; say what is missing
+                logger.error("writing the hazard files failed: %s", err)
         loop_s = time.perf_counter() - loop_start
         particles = resolved.particle_count
         steps = sim.steps - steps0
@@ -383,7 +445,10 @@ def _run(
             "wall_time_s": time.perf_counter() - started,
             "particle_steps_per_s": particles * steps / loop_s if loop_s > 0 else 0.0,
         }
-        extra = {"setup_time_s": setup_s}
+        extra = {"setup_time_s": setup_s, **_equilibrium(sim)}
+        if sim.first_step_at is not None and process_age_s() is not None:
+            # process start to the end of its first step: what a run as a process costs to start
+            extra["startup_s"] = process_age_s() - (time.perf_counter() - sim.first_step_at)
         if driver is not None:
             extra.update(driver.summary())
             if writer is not None:
@@ -397,3 +462,9 @@ def _run(
             summary = {"status": status, "message": message, **numbers, **extra}
     logger.info("run %s: %s", summary["status"], summary["message"])
     return RunResult(summary["status"], summary["message"], writer.out_dir if writer else Path(), summary)
+
+
+def _equilibrium(sim: Any) -> dict[str, Any]:
+    """The initial equilibrium check of the solver, when it made one (for ``summary.json``)."""
+    check = getattr(sim, "equilibrium", None)
+    return {"initial_equilibrium": check} if check else {}

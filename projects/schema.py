@@ -42,8 +42,9 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from geometry.polygons import distinct_vertex_count, has_zero_area, self_intersections
+from projects.units import QuantityError, parse_quantity
 from solver import config as sc
-from geometry.polygons import distinct_vertex_count, is_simple, self_intersections
 
 logger = logging.getLogger(__name__)
 
@@ -79,7 +80,8 @@ DEFAULT_CFL = sc.DEFAULT_CFL
 #: Damping coefficient of a gravity stage that gives none.
 DEFAULT_GRAVITY_DAMPING = 0.7
 
-_SECTION_ORDER = ("runout", "domain", "materials", "bodies", "particles", "numerics", "stages", "output")
+_SECTION_ORDER = ("runout", "domain", "materials", "bodies", "particles", "numerics", "stages", "output",
+                  "hazard", "targets")
 _BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
 _VALUE_WIDTH = 60
 # Context flag: the caller runs the multi-key rules itself (on the raw input).
@@ -211,8 +213,13 @@ def _number_type(
     lt: float | None = None,
     le: float | None = None,
     optional: bool = False,
+    unit: str | None = None,
 ) -> Any:
-    """An annotated float with a range, its message built from the bounds (``must be > 0``)."""
+    """An annotated float with a range, its message built from the bounds (``must be > 0``).
+
+    With ``unit`` (``"Pa"``, ``"kg/m3"``) a string such as ``"5 kPa"`` is read with
+    :func:`projects.units.parse_quantity` and kept in SI.
+    """
     parts = []
     if gt is not None:
         parts.append(f"> {_fmt_bound(gt)}")
@@ -227,6 +234,11 @@ def _number_type(
     def before(value: Any) -> Any:
         if value is None and optional:
             return None
+        if unit is not None and isinstance(value, str):
+            try:
+                return parse_quantity(value, unit)
+            except QuantityError as err:
+                raise _fail(err.reason) from None
         return _to_number(value)
 
     def after(value: float | None) -> float | None:
@@ -311,7 +323,7 @@ def _simple_polygon(points: tuple[tuple[float, float], ...]) -> tuple[tuple[floa
         shown = ", ".join(f"{i} and {j}" for i, j in crossings[:3])
         more = f" (and {len(crossings) - 3} more pairs)" if len(crossings) > 3 else ""
         raise _fail(f"not a simple polygon: edges {shown} cross or touch{more}")
-    if not is_simple(arr):
+    if has_zero_area(arr):
         raise _fail("not a simple polygon: it has zero area")
     return points
 
@@ -347,6 +359,12 @@ OptAngleDeg = _number_type(ge=0.0, lt=90.0, optional=True)
 OptCfl = _number_type(gt=0.0, le=1.0, optional=True)
 OptFraction = _number_type(gt=0.0, lt=1.0, optional=True)
 DampingCoefficient = _number_type(ge=0.0, lt=1.0)
+# Stresses, moduli and densities also accept text with a unit ("5 kPa", "18 kN/m3"), kept in SI.
+PositivePa = _number_type(gt=0.0, unit="Pa")
+OptPositivePa = _number_type(gt=0.0, optional=True, unit="Pa")
+OptNonNegativePa = _number_type(ge=0.0, optional=True, unit="Pa")
+Density = _number_type(gt=0.0, unit="kg/m3")
+OptDensity = _number_type(gt=0.0, optional=True, unit="kg/m3")
 Int = Annotated[int, BeforeValidator(_to_int)]
 Str = Annotated[str, BeforeValidator(_to_str)]
 OptName = Annotated[
@@ -428,25 +446,25 @@ class Material(_Model):
     """``[materials.<name>]``: one material. The plastic keys are for Drucker-Prager only."""
 
     model: Annotated[Literal[MATERIAL_MODELS], _choice(MATERIAL_MODELS)]
-    density_kg_m3: Positive
-    youngs_modulus_pa: Positive
+    density_kg_m3: Density
+    youngs_modulus_pa: PositivePa
     poisson_ratio: PoissonRatio
-    cohesion_pa: OptNonNegative = None
+    cohesion_pa: OptNonNegativePa = None
     friction_angle_deg: OptAngleDeg = None
     dilatancy_angle_deg: OptAngleDeg = None
-    tensile_strength_pa: OptNonNegative = None
+    tensile_strength_pa: OptNonNegativePa = None
 
 
 class MaterialChange(_Model):
     """``[stages.material_changes.<name>]``: new values of a material's numeric keys."""
 
-    density_kg_m3: OptPositive = None
-    youngs_modulus_pa: OptPositive = None
+    density_kg_m3: OptDensity = None
+    youngs_modulus_pa: OptPositivePa = None
     poisson_ratio: _number_type(ge=0.0, lt=0.5, optional=True) = None
-    cohesion_pa: OptNonNegative = None
+    cohesion_pa: OptNonNegativePa = None
     friction_angle_deg: OptAngleDeg = None
     dilatancy_angle_deg: OptAngleDeg = None
-    tensile_strength_pa: OptNonNegative = None
+    tensile_strength_pa: OptNonNegativePa = None
 
 
 class Body(_Model):
@@ -584,6 +602,51 @@ def _raise_array() -> Any:
     raise _fail("must be an array")
 
 
+def _to_bool(value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise _fail("must be true or false")
+    return value
+
+
+class Hazard(_Model):
+    """``[hazard]``: envelopes, run-out measures and their thresholds (see projects/hazard.py).
+
+    Keys left out take scene-scaled defaults when the run is built (projects.hazard.settings).
+    """
+
+    enabled: Annotated[bool, BeforeValidator(_to_bool)] = True
+    cell_size_m: OptPositive = None
+    update_every_steps: Annotated[
+        int, BeforeValidator(_to_int), AfterValidator(lambda v: _in_int_range(v, 1, 100000))
+    ] = 10
+    flow_height_threshold_m: OptPositive = None
+    deposit_threshold_m: OptPositive = None
+    mobilised_displacement_m: OptPositive = None
+    kinetic_energy_fraction: _number_type(gt=0.0, lt=1.0) = 0.01
+
+
+class Target(_Model):
+    """``[[targets]]``: a named place whose hazard is recorded: a vertical line ``x_m`` or a point
+    ``point_m``."""
+
+    name: MaterialName
+    x_m: _number_type(optional=True) = None
+    point_m: Annotated[tuple[float, float] | None, BeforeValidator(lambda v: v if v is None else _to_pair(v))] = None
+
+    @model_validator(mode="after")
+    def _one_place(self) -> Target:
+        if (self.x_m is None) == (self.point_m is None):
+            raise _fail("give x_m (a vertical line) or point_m (a point [x, y]), exactly one of them")
+        return self
+
+    @property
+    def xy(self) -> tuple[float, float | None]:
+        """(x, y) of a point target, (x, None) of a line."""
+        if self.point_m is not None:
+            return (self.point_m[0], self.point_m[1])
+        return (float(self.x_m), None)
+
+
 class Project(_Model):
     """A whole project file (schema version 1).
 
@@ -599,6 +662,8 @@ class Project(_Model):
     numerics: Numerics = Numerics()
     stages: Annotated[list[Stage], _nonempty_list("stage ([[stages]])")]
     output: Output = Output()
+    hazard: Hazard = Hazard()
+    targets: list[Target] = []
 
     @model_validator(mode="after")
     def _rules(self, info: ValidationInfo) -> Project:
@@ -825,6 +890,38 @@ def _rule_problems(data: Mapping[str, Any]) -> list[Problem]:
     problems += _body_rules(_array(data.get("bodies")), materials, domain)
     problems += _numerics_rules(_table(data.get("numerics")))
     problems += _stage_rules(_array(data.get("stages")), materials)
+    problems += _hazard_rules(_table(data.get("hazard")), _array(data.get("targets")), domain)
+    return problems
+
+
+def _hazard_rules(hazard: Mapping[str, Any], targets: list[Any], domain: Mapping[str, Any]) -> list[Problem]:
+    """Hazard raster no larger than the domain; targets inside the domain, names unique."""
+    problems = []
+    origin = _pair(domain.get("origin_m", (0.0, 0.0)))
+    size = _pair(domain.get("size_m"))
+    cell = _num(hazard.get("cell_size_m"))
+    if size and cell and min(size) > 0.0 and cell > min(size):
+        problems.append(Problem("hazard.cell_size_m", cell, f"larger than the domain ({size[0]:g} x {size[1]:g} m)"))
+    seen: set[str] = set()
+    for i, target in enumerate(targets):
+        if not isinstance(target, Mapping):
+            continue
+        name = target.get("name")
+        if isinstance(name, str):
+            if name in seen:
+                problems.append(Problem(f"targets.{i}.name", name, "another target has this name; names must be unique"))
+            seen.add(name)
+        if not (origin and size):
+            continue
+        x = _num(target.get("x_m"))
+        if x is not None and not origin[0] <= x <= origin[0] + size[0]:
+            problems.append(Problem(f"targets.{i}.x_m", x, f"must lie in the domain, x from {origin[0]:g} "
+                                    f"to {origin[0] + size[0]:g} m"))
+        point = _pair(target.get("point_m"))
+        if point is not None and not (origin[0] <= point[0] <= origin[0] + size[0]
+                                      and origin[1] <= point[1] <= origin[1] + size[1]):
+            problems.append(Problem(f"targets.{i}.point_m", list(point), "must lie in the domain "
+                                    f"[{origin[0]:g}, {origin[0] + size[0]:g}] x [{origin[1]:g}, {origin[1] + size[1]:g}] m"))
     return problems
 
 

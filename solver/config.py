@@ -180,6 +180,35 @@ class Output:
 
 
 @dataclass(frozen=True)
+class Target:
+    """A place whose hazard history is recorded: a vertical line at ``x_m`` (``y_m`` None) or the
+    point ``(x_m, y_m)``."""
+
+    name: str
+    x_m: float
+    y_m: float | None = None
+
+
+@dataclass(frozen=True)
+class EnvelopeConfig:
+    """Hazard envelopes accumulated on the device during the dynamic stages (solver.envelopes).
+
+    ``cell_size_m`` is the raster cell (square, from the grid's origin over the grid box);
+    ``every_steps`` the steps between updates (every output frame is an update too);
+    ``flow_height_threshold_m`` the flow height above which a column counts as reached (first
+    arrival, run-out of the peak-height envelope); ``targets`` the places whose time series are
+    recorded; ``ground_m`` optional (nx,) heights of rigid ground under the raster columns (m),
+    raised to wherever the initial material surface is higher.
+    """
+
+    cell_size_m: float
+    every_steps: int = 10
+    flow_height_threshold_m: float = 0.0
+    targets: tuple[Target, ...] = ()
+    ground_m: tuple[float, ...] | None = None
+
+
+@dataclass(frozen=True)
 class SimulationConfig:
     grid: Grid
     materials: tuple[Material, ...]
@@ -187,6 +216,8 @@ class SimulationConfig:
     gravity_m_s2: tuple[float, float] = (0.0, -9.81)
     numerics: Numerics = Numerics()
     output: Output = Output()
+    #: hazard envelopes (None: none are accumulated)
+    envelopes: EnvelopeConfig | None = None
 
 
 @dataclass(frozen=True, eq=False)

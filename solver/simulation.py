@@ -15,6 +15,19 @@ velocities and ``factor`` ``Numerics.speed_bound_factor`` (3). The kinetic energ
 ``1/2 M v_bound^2`` (runaway energy). With ``guard = "stop"`` the first unstable particle stops
 the run with :class:`InstabilityError`; with ``"remove"`` unstable particles leave the computation
 and are counted (the stability studies count survivors this way).
+
+Coordinates: the engine works relative to the grid's origin (its particles and grid start at
+zero), so that float32 keeps its resolution for projects in real-world coordinates (UTM metres,
+an origin near 500000, 4000000); frames give positions in the project's coordinates again, in
+float64 (``origin + relative``). Displacements are differences of relative positions.
+
+Initial equilibrium: at the end of a k0 or gravity stage the run measures how far the initial
+state is from equilibrium (:meth:`Simulation.equilibrium_check`): one undamped probe step of the
+current time step from rest under full gravity, undone afterwards, gives every particle's
+unbalanced force ``m_p dv_p / dt``; the *unbalanced-force ratio* is the sum of their magnitudes
+over the total weight ``sum m_p |g|`` (0 in equilibrium, 1 for a body in free fall). It is kept
+in :attr:`Simulation.equilibrium` with the largest unbalanced acceleration and, for a gravity
+stage, the largest speed at its end (before the velocities are zeroed), and logged.
 """
 
 from __future__ import annotations
@@ -26,6 +39,7 @@ import math
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -48,6 +62,8 @@ log = logging.getLogger(__name__)
 
 #: Steps between guard / CFL / auto-stop checks (each check syncs with the device).
 CHECK_EVERY = 20
+#: Unbalanced-force ratio above which the initial state is reported as out of equilibrium.
+EQUILIBRIUM_WARN_RATIO = 0.05
 
 
 @dataclass
@@ -160,12 +176,16 @@ class Simulation:
         np_float = np.float32 if self.precision == "f32" else np.float64
         g = np.asarray(config.gravity_m_s2, dtype=float)
         self.speed_bound_m_s = self._speed_bound(g)
+        #: the grid origin, m: the engine works in coordinates relative to it (float64 here)
+        self.origin_m = np.asarray(config.grid.origin_m, dtype=np.float64)
+        local_grid = dataclasses.replace(config.grid, origin_m=(0.0, 0.0))
         self.engine = Engine(
-            config.grid, config.materials, len(particles), config.numerics.scheme, np_float,
+            local_grid, config.materials, len(particles), config.numerics.scheme, np_float,
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
             damping=damping_support or any(st.damping > 0 for st in config.stages), scatter=config.numerics.scatter,
         )
-        self.engine.load_particles(particles.positions_m, particles.volumes_m2, particles.material_ids,
+        self.engine.load_particles(np.asarray(particles.positions_m, dtype=np.float64) - self.origin_m,
+                                   particles.volumes_m2, particles.material_ids,
                                    particles.velocities_m_s)
         self.total_time_s = float(sum(st.duration_s for st in config.stages if st.kind != "k0"))
         self.time_s = 0.0
@@ -173,9 +193,20 @@ class Simulation:
         self.status = "ready"
         self.message = ""
         self.last_frame: Frame | None = None
+        #: the initial equilibrium check of the k0 or gravity stage (empty without one)
+        self.equilibrium: dict[str, Any] = {}
         self._materials = config.materials
+        # hazard envelopes (solver.envelopes): started at the first dynamic stage, updated every few
+        # steps and at every frame
+        self.envelopes = None
+        if config.envelopes is not None:
+            from solver.envelopes import Envelopes
+
+            self.envelopes = Envelopes(self.engine, config.envelopes, config.grid)
         self._closed = False
         self.cursor = _Cursor()
+        #: ``time.perf_counter()`` at the end of this process's first step (None before it)
+        self.first_step_at: float | None = None
         self.fingerprint = fingerprint(config, particles)
 
     # ------------------------------------------------------------------ helpers
@@ -209,11 +240,15 @@ class Simulation:
             momentum_y=d["momentum_y"], max_speed_m_s=d["max_speed"], unstable_particles=d["unstable"],
             lost_particles=d["lost"], total_mass_kg_per_m=d["mass"], yielding_particles=d["yielding"],
         )
+        if self.envelopes is not None:
+            self.envelopes.sync(self.time_s)  # envelopes are never below a frame's values
         want = self.config.output.fields
         e = self.engine
-        fields: dict[str, np.ndarray] = {"positions": e.x.to_numpy(), "active": e.active.to_numpy().astype(bool)}
+        relative = e.x.to_numpy()
+        fields: dict[str, np.ndarray] = {"positions": relative.astype(np.float64) + self.origin_m,
+                                         "active": e.active.to_numpy().astype(bool)}
         if "displacement" in want:
-            fields["displacement"] = fields["positions"] - e.x0.to_numpy()
+            fields["displacement"] = relative - e.x0.to_numpy()
         if "velocity" in want:
             fields["velocity"] = e.v.to_numpy()
         if "stress" in want:
@@ -271,13 +306,19 @@ class Simulation:
             raise SolverError(f"no checkpoint can be taken in phase {self.cursor.phase!r}")
         run = {"time_s": self.time_s, "steps": self.steps, "total_time_s": self.total_time_s,
                "message": self.message, "cursor": dataclasses.asdict(self.cursor)}
-        return Checkpoint(run=run, arrays=self.engine.state(), fingerprint=self.fingerprint)
+        arrays = self.engine.state()
+        if self.envelopes is not None:  # a resumed run continues its envelopes
+            arrays.update({f"envelopes/{k}": v for k, v in self.envelopes.state().items()})
+        return Checkpoint(run=run, arrays=arrays, fingerprint=self.fingerprint)
 
     def restore(self, checkpoint: Checkpoint) -> None:
         """Continue from ``checkpoint`` (taken from a run of the same configuration and particles)."""
         if checkpoint.fingerprint != self.fingerprint:
             raise SolverError("the checkpoint belongs to another configuration or particle set")
-        self.engine.load_state(checkpoint.arrays)
+        self.engine.load_state({k: v for k, v in checkpoint.arrays.items() if "/" not in k})
+        if self.envelopes is not None:
+            self.envelopes.load_state({k.split("/", 1)[1]: v for k, v in checkpoint.arrays.items()
+                                       if k.startswith("envelopes/")})
         run = checkpoint.run
         self.time_s = float(run["time_s"])
         self.steps = int(run["steps"])
@@ -290,6 +331,56 @@ class Simulation:
         if table != self._materials:
             self.engine.materials.load(table)
             self._materials = table
+    def equilibrium_check(self, stage: Stage, dt: float, max_speed_m_s: float) -> dict[str, Any]:
+        """Measure the unbalanced force of the current state (the engine is left as it was).
+
+        Parameters
+        ----------
+        stage : Stage
+            The initial-stress stage that just ended.
+        dt : float, s
+            The probe step (the run's current time step).
+        max_speed_m_s : float, m/s
+            The largest particle speed at the end of the stage (0 for k0).
+
+        Returns
+        -------
+        dict
+            ``stage``, ``type``, ``unbalanced_force_ratio`` (-), ``max_unbalanced_acceleration_m_s2``,
+            ``max_speed_m_s``, ``probe_time_step_s``.
+        """
+        e = self.engine
+        g = np.asarray(self.config.gravity_m_s2, dtype=float)
+        saved = e.state()
+        try:
+            active = saved["active"].astype(bool)
+            mass = saved["m"].astype(np.float64)[active]
+            v0 = saved["v"].astype(np.float64)
+            e.step(dt, (g[0], g[1]), 0.0)
+            dv = (e.v.to_numpy().astype(np.float64) - v0)[active]
+        finally:
+            e.load_state(saved)
+        accel = np.linalg.norm(dv, axis=1) / dt if dt > 0 else np.zeros(len(dv))
+        weight = float(mass.sum() * np.linalg.norm(g))
+        unbalanced = float((mass * accel).sum())
+        ratio = unbalanced / weight if weight > 0 else 0.0
+        check = {
+            "stage": stage.name,
+            "type": stage.kind,
+            "unbalanced_force_ratio": ratio if math.isfinite(ratio) else None,
+            "max_unbalanced_acceleration_m_s2": float(accel.max(initial=0.0)),
+            "max_speed_m_s": float(max_speed_m_s),
+            "probe_time_step_s": float(dt),
+        }
+        text = (f"initial equilibrium after stage {stage.name!r}: unbalanced-force ratio {ratio:.3g}, "
+                f"largest unbalanced acceleration {check['max_unbalanced_acceleration_m_s2']:.3g} m/s2, "
+                f"largest speed at its end {max_speed_m_s:.3g} m/s")
+        if not ratio <= EQUILIBRIUM_WARN_RATIO:
+            log.warning("%s: above %g, the initial state is not in equilibrium (a k0 stage on sloping "
+                        "ground? use a gravity stage)", text, EQUILIBRIUM_WARN_RATIO)
+        else:
+            log.info(text)
+        return check
 
     # ------------------------------------------------------------------ the run
     def run(self, cancel: Callable[[], bool] | None = None,
@@ -328,7 +419,10 @@ class Simulation:
                     e.set_stress(k0_stress(self.particles, self._materials, cfg.gravity_m_s2,
                                            cfg.grid.cell_size_m, stage.k0, e.active.to_numpy().astype(bool),
                                            e.x.to_numpy()))
+                    self.equilibrium = self.equilibrium_check(stage, c.dt_s, float(e.diagnostics()["max_speed"]))
                     continue
+                if stage.kind == "dynamic" and self.envelopes is not None and not self.envelopes.started:
+                    self.envelopes.start(self.time_s)  # the release: ground surface and initial state
                 c.phase, c.stage_start_s, c.stage_steps, c.peak_ke, c.reason = "loop", self.time_s, 0, 0.0, ""
                 if c.next_output_s <= self.time_s + 1e-12 and c.last_output_step != self.steps:
                     frame = self._frame(stage, index, 0.0, c.dt_s, e.diagnostics())
@@ -348,9 +442,13 @@ class Simulation:
                     else:
                         gravity = g_full
                     e.step(h, (gravity[0], gravity[1]), damping)
+                    if self.first_step_at is None:  # start-up ends here (kernels compiled or loaded)
+                        self.first_step_at = time.perf_counter()
                     self.steps += 1
                     c.stage_steps += 1
                     self.time_s += h
+                    if self.envelopes is not None:
+                        self.envelopes.after_step(self.time_s)
                     at_output = self.time_s >= c.next_output_s - 1e-9 * interval
                     if c.stage_steps % CHECK_EVERY == 0 or at_output:
                         d = e.diagnostics()
@@ -384,8 +482,10 @@ class Simulation:
                     break
                 if stage.kind == "gravity":
                     # quasi-static initial state: drop the velocities, measure displacement from here
+                    end_speed = float(e.diagnostics()["max_speed"])
                     e.set_velocity(np.zeros((n, 2)))
                     e.reset_reference()
+                    self.equilibrium = self.equilibrium_check(stage, c.dt_s, end_speed)
                 c.phase = "end"
                 if c.last_output_step != self.steps:
                     d = e.diagnostics()

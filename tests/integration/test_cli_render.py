@@ -35,7 +35,7 @@ def test_render_png(make_results, tmp_path):
 
     last = runout("render", str(folder), "--size", "320x200", cwd=tmp_path)
     assert last.returncode == 0, last.stderr
-    assert Path(last.stdout.strip()) == folder / "displacement_00003.png"
+    assert Path(last.stdout.strip()) == folder.parent / "synthetic_displacement_00003.png"
 
 
 def test_render_errors_are_one_line(make_results, tmp_path):

@@ -92,16 +92,27 @@ def test_run_writes_a_complete_results_folder(project, tmp_path):
     assert res.series["kinetic_energy_J_per_m"].max() > 0  # it moved
 
 
-def test_run_replaces_old_results_and_quiet_prints_nothing(project, tmp_path):
+def test_rerun_needs_overwrite_and_keeps_what_the_run_did_not_write(project, tmp_path):
     out = tmp_path / "custom"
-    out.mkdir()
-    (out / "summary.json").write_text("{}")
-    (out / "stale.txt").write_text("from an older run")
-    proc = runout("run", str(project), "--arch", "cpu", "--out", str(out), "--quiet", cwd=tmp_path)
+    first = runout("run", str(project), "--arch", "cpu", "--out", str(out), "--quiet", cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    (out / "notes.txt").write_text("mine")
+    (out / "frames" / "sketch.png").write_bytes(b"png")
+    frames = sorted(p.name for p in (out / "frames").glob("frame_*.vtp"))
+
+    again = runout("run", str(project), "--arch", "cpu", "--out", str(out), "--quiet", cwd=tmp_path)
+    assert again.returncode == 1
+    assert again.stderr.count("\n") == 1 and "--overwrite" in again.stderr
+    assert "Traceback" not in again.stderr
+    assert sorted(p.name for p in (out / "frames").glob("frame_*.vtp")) == frames
+
+    proc = runout("run", str(project), "--arch", "cpu", "--out", str(out), "--quiet", "--overwrite", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout == ""
-    assert not (out / "stale.txt").exists()
+    assert (out / "notes.txt").read_text() == "mine"
+    assert (out / "frames" / "sketch.png").read_bytes() == b"png"
     assert Results(out).status == "completed"
+    assert not list(out.rglob("*.tmp")) and not (out / ".runout-results.lock").exists()
 
 
 def test_run_refuses_an_unrelated_folder(project, tmp_path):
@@ -133,13 +144,14 @@ def test_unstable_run_fails_with_a_one_line_reason(project, tmp_path):
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
-@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)], ids=["SIGTERM", "SIGINT"])
+@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130), (signal.SIGHUP, 129)],
+                         ids=["SIGTERM", "SIGINT", "SIGHUP"])
 def test_signals_stop_the_run_cleanly(project, tmp_path, sig, code):
     stage = _last_dynamic_stage(project)
     out = tmp_path / "long.results"
     proc = subprocess.Popen(
         [sys.executable, "-m", "app.cli", "run", str(project), "--arch", "cpu", "-q", "--out", str(out),
-         "--set", f"stages.{stage}.duration_s=1000"],
+         "--set", f"stages.{stage}.duration_s=100"],
         cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(),
     )
     try:
@@ -164,6 +176,7 @@ def test_signals_stop_the_run_cleanly(project, tmp_path, sig, code):
     assert res.status == "stopped"
     assert len(res) >= 2
     assert res.times[-1] == pytest.approx(res.summary["simulated_time_s"])
+    assert not list(out.rglob("*.tmp")) and not (out / ".runout-results.lock").exists()
 
 
 def test_validate_ok_and_problems(project, tmp_path):

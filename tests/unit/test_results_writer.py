@@ -35,7 +35,7 @@ def test_folder_layout_and_round_trip(make_results):
     path = make_results(n_frames=4)
     frames = synthetic_frames(4)
     assert sorted(p.name for p in path.iterdir()) == [
-        "frames", "particles.pvd", "project.toml", "series.csv", "summary.json"
+        ".runout-results", "frames", "particles.pvd", "project.toml", "series.csv", "summary.json"
     ]
     assert sorted(p.name for p in (path / "frames").iterdir()) == [
         f"frame_{i:05d}.vtp" for i in range(4)
@@ -193,7 +193,10 @@ def test_context_manager_records_an_exception_as_failed(tmp_path):
 
 def test_existing_results_folder_is_replaced_other_folders_are_refused(tmp_path, make_results):
     old = make_results("old.results", n_frames=4)
-    writer = ResultsWriter(old, "", {})
+    with pytest.raises(ResultsError, match="--overwrite"):
+        ResultsWriter(old, "", {})
+    assert len(Results(old)) == 4
+    writer = ResultsWriter(old, "", {}, overwrite=True)
     writer.write_frame(synthetic_frames(1)[0])
     writer.close("completed")
     assert len(Results(old)) == 1  # no frames left over from the old run
@@ -201,8 +204,8 @@ def test_existing_results_folder_is_replaced_other_folders_are_refused(tmp_path,
     precious = tmp_path / "documents"
     precious.mkdir()
     (precious / "thesis.tex").write_text("do not delete")
-    with pytest.raises(ResultsError, match="refusing to overwrite"):
-        prepare_results_dir(precious)
+    with pytest.raises(ResultsError, match="not a results folder"):
+        prepare_results_dir(precious, overwrite=True)
     assert (precious / "thesis.tex").read_text() == "do not delete"
     (tmp_path / "afile").write_text("x")
     with pytest.raises(ResultsError, match="not a folder"):

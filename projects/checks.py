@@ -1,0 +1,195 @@
+"""Warnings about projects that are valid but probably not what the engineer meant.
+
+:func:`project_warnings` lists them (``runout validate`` and ``runout run`` print them, the
+workbench shows them):
+
+- a body within one cell of a closed wall (fixed, slip or friction) without touching it: it
+  falls or slides onto the wall at the start and the settlement reads as deformation;
+- a k0 stage where the ground slopes: geostatic stresses are no equilibrium under a slope
+  (many particles yield at once); a gravity stage is the initial stress for sloping ground.
+
+:func:`recommended_initial_stage` is the default initial-stress stage for a new project (the
+slope template): gravity loading where the ground slopes, k0 where it is level.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from projects.schema import DEFAULT_GRAVITY_DAMPING, Project
+
+#: Faces steeper than this (degrees from the level normal to gravity) make the ground "sloping".
+SLOPE_TOLERANCE_DEG = 2.0
+#: Faces steeper than this count as walls, not slopes (a column's sides).
+WALL_ANGLE_DEG = 88.0
+#: Gaps below this fraction of a cell count as touching.
+TOUCH_TOLERANCE = 1e-6
+#: A gravity stage lasts this many fundamental periods ``4 H / c_s`` of the deposit.
+GRAVITY_STAGE_PERIODS = 3.0
+
+_CLOSED = ("fixed", "slip", "friction")
+
+
+@dataclass(frozen=True)
+class Face:
+    """An upward-facing inclined face of a body."""
+
+    body: int
+    angle_deg: float
+    length_m: float
+
+
+def _up(project: Project) -> np.ndarray:
+    g = np.asarray(project.domain.gravity_m_s2, dtype=np.float64)
+    norm = float(np.linalg.norm(g))
+    return -g / norm if norm > 0 else np.array([0.0, 1.0])
+
+
+def sloping_faces(project: Project) -> list[Face]:
+    """Upward-facing faces of the bodies' outlines inclined to the level (normal to gravity).
+
+    A face counts when it is steeper than :data:`SLOPE_TOLERANCE_DEG` and less steep than
+    :data:`WALL_ANGLE_DEG`, faces up (against gravity), is longer than a cell and is not
+    covered by another body (its midpoint lies in no other body).
+
+    Returns
+    -------
+    list of Face
+    """
+    from geometry.polygons import counter_clockwise, points_in_polygon
+
+    up = _up(project)
+    dx = project.domain.cell_size_m
+    polygons = [counter_clockwise(np.asarray(b.polygon_m, dtype=np.float64)) for b in project.bodies]
+    lo_sin = math.sin(math.radians(SLOPE_TOLERANCE_DEG))
+    hi_sin = math.sin(math.radians(WALL_ANGLE_DEG))
+    faces = []
+    for index, poly in enumerate(polygons):
+        edges = np.roll(poly, -1, axis=0) - poly
+        lengths = np.linalg.norm(edges, axis=1)
+        keep = lengths > dx
+        if not keep.any():
+            continue
+        t = edges[keep] / lengths[keep, None]
+        normal = np.column_stack([t[:, 1], -t[:, 0]])  # outward for a counter-clockwise outline
+        rise = np.abs(t @ up)
+        facing = normal @ up > 0
+        inclined = facing & (rise > lo_sin) & (rise < hi_sin)
+        mids = (poly[keep] + 0.5 * edges[keep])[inclined]
+        # a hair outside the face: is it covered by another body?
+        probe = mids + 1e-6 * dx * normal[inclined]
+        covered = np.zeros(len(mids), bool)
+        for other, poly2 in enumerate(polygons):
+            if other != index and len(mids):
+                covered |= points_in_polygon(probe, poly2)
+        for rise_k, length_k, hidden in zip(rise[inclined], lengths[keep][inclined], covered):
+            if not hidden:
+                faces.append(Face(index, math.degrees(math.asin(min(1.0, rise_k))), float(length_k)))
+    return faces
+
+
+def ground_slope_deg(project: Project) -> float:
+    """The steepest exposed upward-facing face of the bodies, degrees (0 for level ground)."""
+    faces = sloping_faces(project)
+    return max((f.angle_deg for f in faces), default=0.0)
+
+
+def _wall_gaps(project: Project) -> list[str]:
+    domain = project.domain
+    dx = domain.cell_size_m
+    x0, y0 = domain.origin_m
+    # the grid has whole cells: its right and top walls lie where the last cell ends
+    cells = [max(1, math.ceil(size / dx - 1e-9)) for size in domain.size_m]
+    x1, y1 = x0 + cells[0] * dx, y0 + cells[1] * dx
+    warnings = []
+    for index, body in enumerate(project.bodies):
+        pts = np.asarray(body.polygon_m, dtype=np.float64)
+        gaps = {
+            "left": (pts[:, 0].min() - x0, "x", x0),
+            "right": (x1 - pts[:, 0].max(), "x", x1),
+            "bottom": (pts[:, 1].min() - y0, "y", y0),
+            "top": (y1 - pts[:, 1].max(), "y", y1),
+        }
+        for side, (gap, axis, wall) in gaps.items():
+            kind = getattr(domain.boundaries, side).type
+            if kind not in _CLOSED or not TOUCH_TOLERANCE * dx < gap < dx:
+                continue
+            warnings.append(
+                f"bodies.{index} ({body.name!r}) is {gap:.3g} m from the {side} wall ({kind}) without touching "
+                f"it, less than a cell ({dx:g} m): it will move onto the wall at the start and the settlement "
+                f"looks like deformation; move it to touch the wall ({axis} = {wall:g} m) or leave a gap of "
+                "several cells"
+            )
+    return warnings
+
+
+def _k0_on_slope(project: Project) -> list[str]:
+    k0 = [i for i, stage in enumerate(project.stages) if stage.type == "k0"]
+    if not k0:
+        return []
+    faces = sloping_faces(project)
+    if not faces:
+        return []
+    steepest = max(faces, key=lambda f: f.angle_deg)
+    body = project.bodies[steepest.body]
+    return [
+        f"stages.{k0[0]}.type = \"k0\": the ground slopes ({steepest.angle_deg:.3g} degrees in bodies.{steepest.body}, "
+        f"{body.name!r}) and geostatic (K0) stresses are not in equilibrium under a slope (many particles yield "
+        "at once); use a gravity stage for sloping ground"
+    ]
+
+
+def project_warnings(project: Project) -> list[str]:
+    """Everything about a valid project that probably is not what the engineer meant.
+
+    Parameters
+    ----------
+    project : Project
+
+    Returns
+    -------
+    list of str
+        One line each, naming the key and what to do.
+    """
+    return [*_wall_gaps(project), *_k0_on_slope(project)]
+
+
+def recommended_initial_stage(project: Project) -> dict[str, Any]:
+    """The initial-stress stage a new project should start with (a ``[[stages]]`` table).
+
+    Gravity loading where the ground slopes (:func:`ground_slope_deg` > 0), lasting
+    :data:`GRAVITY_STAGE_PERIODS` fundamental periods ``4 H / c_s`` of the deposit (``H`` its
+    height along gravity, ``c_s`` the slowest shear-wave speed of its materials), at least one
+    second, with the default damping; k0 where the ground is level.
+
+    Parameters
+    ----------
+    project : Project
+
+    Returns
+    -------
+    dict
+        ``{"name": "initial stress", "type": "gravity", "duration_s": ..., "damping": {...}}``
+        or ``{"name": "initial stress", "type": "k0"}``.
+    """
+    if not sloping_faces(project):
+        return {"name": "initial stress", "type": "k0"}
+    up = _up(project)
+    heights = np.concatenate([np.asarray(b.polygon_m, dtype=np.float64) @ up for b in project.bodies])
+    height = float(heights.max() - heights.min())
+    speeds = []
+    for material in project.materials.values():
+        shear = material.youngs_modulus_pa / (2.0 * (1.0 + material.poisson_ratio))
+        speeds.append(math.sqrt(shear / material.density_kg_m3))
+    period = 4.0 * height / min(speeds)
+    duration = max(1.0, float(f"{GRAVITY_STAGE_PERIODS * period:.2g}"))
+    return {
+        "name": "initial stress",
+        "type": "gravity",
+        "duration_s": duration,
+        "damping": {"type": "local", "coefficient": DEFAULT_GRAVITY_DAMPING},
+    }

@@ -1,0 +1,181 @@
+"""Size limits of a run, checked on the estimate before anything is allocated.
+
+:func:`check_limits` compares :func:`projects.build.estimate` (a pure function of the project)
+with two kinds of limit and raises :class:`~projects.schema.ProjectError`, one line per limit
+exceeded, naming the project key that drives the size, the estimate and the limit:
+
+- stated limits (:data:`LIMITS`): what Runout is meant to run (particles, grid cells, seeding
+  candidates, time steps, frames);
+- what the machine has: the memory available now (``MemAvailable`` of ``/proc/meminfo``) and
+  the free disk where the results go.
+
+``force=True`` (the command line's ``--force``) skips the check, for the determined.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from projects.schema import Problem, ProjectError
+
+
+@dataclass(frozen=True)
+class Limit:
+    """One stated limit: the estimate's key, its largest allowed value and the project key
+    blamed (the one whose value is shown), with words for the message."""
+
+    estimate_key: str
+    maximum: float
+    project_key: str
+    what: str
+
+
+#: Stated limits (documented in docs/project-format.md, "Size limits").
+LIMITS: tuple[Limit, ...] = (
+    Limit("grid_cells", 2e8, "domain.cell_size_m", "grid cells (domain.size_m / cell_size_m)"),
+    Limit("particles", 1e8, "domain.cell_size_m", "particles (body area x (per_cell / cell_size_m)^2)"),
+    Limit("seeding_candidates", 1e9, "domain.cell_size_m", "seeding points tested (the bodies' bounding box)"),
+    Limit("steps", 1e8, "numerics.time_step_s", "time steps (simulated time / time step)"),
+    Limit("frames", 1e5, "output.interval_s", "frames (simulated time / output.interval_s)"),
+)
+
+
+def _fmt(value: float) -> str:
+    return f"{value:,.0f}" if value < 1e7 else f"{value:.3g}"
+
+
+def _bytes(value: float) -> str:
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if value >= size:
+            return f"{value / size:.3g} {unit}"
+    return f"{value:.0f} B"
+
+
+def available_memory_bytes() -> int | None:
+    """Memory available to a new run now (Linux ``MemAvailable``), or None where unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def free_disk_bytes(path: str | os.PathLike[str]) -> int | None:
+    """Free disk space for the folder ``path`` (or its nearest existing parent), or None."""
+    folder = Path(path).expanduser().absolute()
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    try:
+        return int(shutil.disk_usage(folder).free)
+    except OSError:
+        return None
+
+
+def _key_value(estimate: Mapping[str, Any], limit: Limit) -> tuple[str, Any]:
+    if limit.project_key == "numerics.time_step_s" and estimate.get("time_step_source") == "cfl":
+        return "numerics.cfl", None
+    value = {"domain.cell_size_m": estimate.get("cell_size_m"),
+             "numerics.time_step_s": estimate.get("time_step_s"),
+             "output.interval_s": estimate.get("output_interval_s")}.get(limit.project_key)
+    return limit.project_key, value
+
+
+def limit_problems(
+    estimate: Mapping[str, Any],
+    *,
+    out_dir: str | os.PathLike[str] | None = None,
+    memory_bytes: int | None = None,
+    disk_bytes: int | None = None,
+) -> list[Problem]:
+    """The limits an estimate exceeds, one :class:`Problem` each (empty when none).
+
+    Parameters
+    ----------
+    estimate : mapping
+        :func:`projects.build.estimate` of the project.
+    out_dir : path-like, optional
+        The results folder (free disk is checked there when given).
+    memory_bytes, disk_bytes : int, optional
+        What the machine has; default: measured now (memory) and at ``out_dir`` (disk).
+
+    Returns
+    -------
+    list of Problem
+    """
+    problems = []
+    for limit in LIMITS:
+        value = float(estimate.get(limit.estimate_key, 0) or 0)
+        if value > limit.maximum:
+            key, shown = _key_value(estimate, limit)
+            extra = ""
+            if limit.estimate_key == "steps":
+                extra = (f"; {estimate.get('simulated_time_s', 0):.3g} s simulated with a time step of "
+                         f"{estimate.get('time_step_s', 0):.3g} s")
+            problems.append(Problem(key, shown, f"the run would take about {_fmt(value)} {limit.what}, more "
+                                    f"than the limit of {_fmt(limit.maximum)}{extra}; --force runs it anyway"))
+    if memory_bytes is None:
+        memory_bytes = available_memory_bytes()
+    need = float(estimate.get("memory_bytes", 0) or 0)
+    if memory_bytes is not None and need > memory_bytes:
+        problems.append(Problem(
+            "domain.cell_size_m", estimate.get("cell_size_m"),
+            f"the run would need about {_bytes(need)} of memory, more than the {_bytes(memory_bytes)} "
+            f"available ({_fmt(float(estimate.get('particles', 0)))} particles, "
+            f"{_fmt(float(estimate.get('grid_nodes', 0)))} grid nodes); --force runs it anyway"))
+    if disk_bytes is None and out_dir is not None:
+        disk_bytes = free_disk_bytes(out_dir)
+    need = float(estimate.get("disk_bytes", 0) or 0)
+    if disk_bytes is not None and need > disk_bytes:
+        where = f" in {Path(out_dir).expanduser().absolute()}" if out_dir is not None else ""
+        problems.append(Problem(
+            "output.interval_s", estimate.get("output_interval_s"),
+            f"the results would take about {_bytes(need)} of disk ({_fmt(float(estimate.get('frames', 0)))} "
+            f"frames of {_bytes(float(estimate.get('frame_bytes', 0)))}), more than the {_bytes(disk_bytes)} "
+            f"free{where}; --force runs it anyway"))
+    return problems
+
+
+def check_limits(
+    estimate: Mapping[str, Any],
+    *,
+    force: bool = False,
+    out_dir: str | os.PathLike[str] | None = None,
+    memory_bytes: int | None = None,
+    disk_bytes: int | None = None,
+) -> None:
+    """Raise :class:`ProjectError` when the estimated run exceeds a limit (unless ``force``).
+
+    Parameters
+    ----------
+    estimate : mapping
+        :func:`projects.build.estimate` of the (preset-applied) project.
+    force : bool
+        Skip the check.
+    out_dir, memory_bytes, disk_bytes
+        See :func:`limit_problems`.
+
+    Raises
+    ------
+    ProjectError
+        One problem per limit exceeded: ``KEY = VALUE: the run would take about N ..., more
+        than the limit of M; --force runs it anyway``.
+    """
+    if force:
+        return
+    problems = limit_problems(estimate, out_dir=out_dir, memory_bytes=memory_bytes, disk_bytes=disk_bytes)
+    if problems:
+        raise ProjectError(problems)
+
+
+__all__ = ["LIMITS", "Limit", "available_memory_bytes", "check_limits", "free_disk_bytes", "limit_problems"]

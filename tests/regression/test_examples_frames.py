@@ -1,0 +1,69 @@
+"""Every shipped example gives the frames it gave before (digests of every frame array).
+
+The digests in ``tests/data/example_frames.json`` were written by this file's ``write`` mode at
+the commit named in the file, before the one-run-path refactoring (runs as processes,
+checkpoints, ``resolve``). Each example runs 200 to 400 steps with its own settings and the
+scatter ``auto`` picks on this machine (serial below 10,000 particles, split above, on a CPU with
+few threads: both repeat bit for bit). A change that alters the numbers of a scene fails here; if
+the change is meant (a physics fix), write the digests again and say so in the commit.
+
+Write them: ``python tests/regression/test_examples_frames.py write [COMMIT]``.
+"""
+
+import hashlib
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+DIGESTS = REPO / "tests" / "data" / "example_frames.json"
+#: example -> overrides that keep its run short (a few hundred steps, a few frames)
+SHORT = {
+    "tiny_column": ["stages.1.duration_s=0.04", "output.interval_s=0.01"],
+    "sand_column": ["stages.0.duration_s=0.004", "output.interval_s=0.001"],
+    "slope_sun_song_2015": ["stages.0.duration_s=0.02", "stages.1.duration_s=0.01", "stages.2.duration_s=0.01",
+                            "output.interval_s=0.01"],
+    "bui2008_aluminium_bars": ["stages.1.duration_s=0.004", "output.interval_s=0.002"],
+}
+
+
+def frame_digests(example: str, out_dir: Path) -> list[str]:
+    """Run the shortened example into ``out_dir``; one sha256 per frame over all its arrays."""
+    sys.path.insert(0, str(REPO))
+    from projects.document import load_project
+    from projects.results import Results
+    from projects.runner import run_project
+
+    project = load_project(REPO / "projects" / "examples" / f"{example}.toml", SHORT[example])
+    result = run_project(project, out_dir)
+    assert result.status == "completed", result.message
+    results = Results(out_dir)
+    digests = []
+    for i in range(len(results)):
+        frame = results.frame(i)
+        h = hashlib.sha256()
+        for name in sorted(frame):
+            h.update(name.encode())
+            h.update(np.ascontiguousarray(frame[name]).tobytes())
+        digests.append(h.hexdigest())
+    return digests
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("example", sorted(SHORT))
+def test_example_frames_are_unchanged(example, tmp_path):
+    expected = json.loads(DIGESTS.read_text())["frames"][example]
+    assert frame_digests(example, tmp_path / example) == expected
+
+
+if __name__ == "__main__" and len(sys.argv) >= 2 and sys.argv[1] == "write":
+    import tempfile
+
+    commit = sys.argv[2] if len(sys.argv) > 2 else "working tree"
+    with tempfile.TemporaryDirectory() as tmp:
+        data = {"commit": commit, "frames": {name: frame_digests(name, Path(tmp) / name) for name in sorted(SHORT)}}
+    DIGESTS.write_text(json.dumps(data, indent=1) + "\n")
+    print(f"wrote {DIGESTS}")

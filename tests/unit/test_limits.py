@@ -1,0 +1,114 @@
+"""Sizes are estimated and checked before anything is allocated; errors name key, estimate, limit."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from typer.testing import CliRunner
+
+from projects.build import MAX_COUNT, estimate
+from projects.document import apply_overrides, load_project
+from projects.limits import LIMITS, check_limits, limit_problems
+from projects.runner import check_project
+from projects.schema import ProjectError
+from tests.conftest import TINY_PROJECT
+
+PLENTY = 1 << 50  # bytes: a machine that never runs out
+
+
+@pytest.fixture(scope="module")
+def tiny():
+    return load_project(TINY_PROJECT)
+
+
+def test_the_estimate_of_the_tiny_example(tiny):
+    e = estimate(tiny)
+    # 0.12 m x 0.24 m at 2 x 2 points per 0.02 m cell: 6 x 12 cells x 4 = 288, exact for lattice seeding
+    assert e["particles"] == 288
+    assert e["grid_shape"] == (30, 15) and e["grid_cells"] == 450
+    assert e["grid_nodes"] == (30 + 5) * (15 + 5)
+    assert e["steps"] == 250 and e["frames"] == 6
+    assert e["bytes_per_particle"] > 17 * 4 and e["bytes_per_node"] == 7 * 4
+    assert e["memory_bytes"] >= 288 * e["bytes_per_particle"] + e["grid_nodes"] * e["bytes_per_node"]
+    assert e["disk_bytes"] >= e["frames"] * e["frame_bytes"]
+    check_limits(e, memory_bytes=PLENTY, disk_bytes=PLENTY)
+
+
+def test_f64_needs_more_memory_per_particle(tiny):
+    f32 = estimate(tiny)
+    f64 = estimate(apply_overrides(tiny, ["numerics.precision=f64"]))
+    assert f64["bytes_per_particle"] > f32["bytes_per_particle"]
+    assert f64["bytes_per_node"] == 2 * f32["bytes_per_node"]
+
+
+@pytest.mark.parametrize(
+    "override, key, what",
+    [
+        ("domain.cell_size_m=1e-5", "domain.cell_size_m", "grid cells"),
+        ("domain.cell_size_m=5e-324", "domain.cell_size_m", "grid cells"),  # denormal: was NaN to int
+        ("numerics.time_step_s=1e-300", "numerics.time_step_s", "time steps"),
+        ("stages.1.duration_s=1e300", "numerics.time_step_s", "time steps"),
+        ("output.interval_s=1e-9", "output.interval_s", "frames"),
+    ],
+)
+def test_runs_beyond_the_stated_limits_are_refused_naming_key_estimate_and_limit(tiny, override, key, what):
+    try:
+        project = apply_overrides(tiny, [override])
+    except ProjectError as err:
+        # In a process where Taichi has run, the CPU treats denormals as zero (Taichi sets the
+        # DAZ/FTZ flags), so 5e-324 > 0 is false and the schema refuses the value itself: also a
+        # one-line error naming the key. In a fresh process (the command line) the limits do.
+        assert override.endswith("5e-324") and str(err).startswith(key) and "\n" not in str(err)
+        return
+    e = estimate(project)  # never raises, whatever the sizes
+    with pytest.raises(ProjectError) as info:
+        check_limits(e, memory_bytes=PLENTY, disk_bytes=PLENTY)
+    problems = [p for p in info.value.problems if what in p.message]
+    assert problems, str(info.value)
+    assert problems[0].path == key
+    assert "more than the limit of" in problems[0].message and "--force" in problems[0].message
+    assert all("\n" not in str(p) for p in info.value.problems)
+    check_limits(e, force=True, memory_bytes=1, disk_bytes=1)  # the determined may
+
+
+def test_a_huge_domain_is_refused_before_anything_is_built(tiny):
+    project = apply_overrides(tiny, ["domain.size_m=[1e9, 1e9]"])
+    e = estimate(project)
+    assert e["grid_cells"] == MAX_COUNT or e["grid_cells"] > 1e20
+    with pytest.raises(ProjectError, match="grid cells"):
+        check_project(project)
+
+
+def test_memory_and_disk_of_the_machine(tiny):
+    e = estimate(tiny)
+    problems = limit_problems(e, memory_bytes=1000, disk_bytes=1000, out_dir="/somewhere/r.results")
+    assert [p.path for p in problems] == ["domain.cell_size_m", "output.interval_s"]
+    assert "of memory, more than the 1 kB available" in problems[0].message
+    assert "of disk" in problems[1].message and "free in /somewhere/r.results" in problems[1].message
+
+
+def test_the_stated_limits_are_documented():
+    text = (TINY_PROJECT.parents[2] / "docs" / "project-format.md").read_text()
+    for limit in LIMITS:
+        assert f"{limit.maximum:.3g}" in text or f"{limit.maximum:,.0f}" in text, limit
+
+
+def test_validate_on_the_command_line_refuses_and_force_accepts(tmp_path):
+    from app.cli import cli
+
+    runner = CliRunner()
+    bad = runner.invoke(cli, ["validate", str(TINY_PROJECT), "--set", "output.interval_s=1e-9"])
+    assert bad.exit_code == 1
+    assert "output.interval_s = 1e-09: the run would take about" in bad.stderr
+    assert "Traceback" not in bad.output
+    forced = runner.invoke(cli, ["validate", str(TINY_PROJECT), "--set", "output.interval_s=1e-9", "--force"])
+    assert forced.exit_code == 0, forced.output
+    assert forced.stdout.startswith("ok: 288 particles")
+
+
+def test_estimate_counts_are_finite_numbers(tiny):
+    e = estimate(apply_overrides(tiny, ["domain.cell_size_m=5e-324"]))
+    for key in ("particles", "grid_cells", "steps", "frames", "memory_bytes", "disk_bytes"):
+        assert isinstance(e[key], int) and 0 <= e[key] <= MAX_COUNT, key
+    assert math.isfinite(e["time_step_s"])
