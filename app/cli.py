@@ -489,8 +489,25 @@ def study(
     raise typer.Exit(0 if result.passed else 4)
 
 
+def _interrupt(_signum: int, _frame: object) -> None:
+    """Ctrl-C outside a run: one line, then the command unwinds (typer exits with 130)."""
+    global INTERRUPT_SHOWN
+    if not INTERRUPT_SHOWN:
+        INTERRUPT_SHOWN = True
+        err.print("error: interrupted (Ctrl-C)", markup=False)
+    raise KeyboardInterrupt
+
+
+#: Whether the one line about a Ctrl-C has been printed (``python -m app`` prints none then).
+INTERRUPT_SHOWN = False
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point (``runout``)."""
+    if _in_main_thread():
+        # `run` turns Ctrl-C into a clean stop while it runs (stop_on_signals) and comes back
+        # to this handler afterwards
+        signal.signal(signal.SIGINT, _interrupt)
     # Taichi prints a banner on import; keep standard output for results
     os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "0")
     # `run` redirects stdout around the solver; without this Taichi, imported meanwhile, would
