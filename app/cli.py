@@ -348,12 +348,12 @@ def validate(
     force: Annotated[bool, typer.Option("--force", help="Skip the size limits.")] = False,
 ) -> None:
     """Check a project: every problem, or what it would run."""
-    from projects.runner import check_project
+    from projects.runner import check_project, default_results_dir
     from projects.schema import ProjectError
 
     model = load_or_exit(project, overrides)
     try:
-        built = check_project(model, force=force)
+        built = check_project(model, force=force, out_dir=default_results_dir(project))
     except ProjectError as exc:
         fail(f"{project}: {exc}")
     _print_warnings(model)
