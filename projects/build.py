@@ -218,7 +218,10 @@ def build_simulation(project: Project, *, arch_override: str | None = None) -> B
     """
     project = apply_preset(project)
     config = solver_config(project, arch_override=arch_override)
-    seeds = seed_bodies(project)
+    try:
+        seeds = seed_bodies(project)
+    except ValueError as err:  # what the size limits did not stop (--force): one line, no traceback
+        raise ProjectError([Problem("domain.cell_size_m", project.domain.cell_size_m, f"cannot seed the bodies: {err}")]) from None
     counts = np.bincount(seeds.body_index, minlength=len(project.bodies))
     empty = [
         Problem(

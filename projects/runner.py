@@ -270,6 +270,9 @@ def run_project(
         sim = Simulation(built.config, built.particles)
     except SolverError as err:
         raise _solver_rejects(err) from None
+    except (MemoryError, OverflowError, RuntimeError, ValueError) as err:  # e.g. --force past the limits
+        first_line = (str(err).strip().splitlines() or [""])[0]
+        raise _solver_rejects(f"{type(err).__name__}: {first_line}") from None
     try:
         writer = ResultsWriter(out_path, dumps_project(project), _meta(project, built, sim, path),
                                overwrite=overwrite)
