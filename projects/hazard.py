@@ -35,6 +35,7 @@ Definitions (all thresholds are in ``hazard.json`` under ``thresholds``):
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import json
 import logging
@@ -319,27 +320,25 @@ def measures(snap: Mapping[str, Any], hs: HazardSettings, gravity_m_s2: tuple[fl
 # files
 
 
-def _num(value: float) -> str:
-    return "" if not np.isfinite(value) else repr(float(value))
+def _csv_text(columns: tuple[str, ...], table: np.ndarray) -> str:
+    """CSV with a header row; numbers with 9 significant digits (the envelopes are float32 or
+    better), empty fields for NaN (never reached)."""
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow(columns)
+    if len(table):
+        body = io.StringIO()
+        np.savetxt(body, np.asarray(table, float), fmt="%.9g", delimiter=",")
+        buf.write(body.getvalue().replace("nan", ""))
+    return buf.getvalue()
 
 
 def profile_csv(snap: Mapping[str, Any]) -> str:
     prof = profile(snap)
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(PROFILE_COLUMNS)
-    for row in zip(*(prof[c] for c in PROFILE_COLUMNS)):
-        w.writerow([_num(v) for v in row])
-    return buf.getvalue()
+    return _csv_text(PROFILE_COLUMNS, np.column_stack([prof[c] for c in PROFILE_COLUMNS]))
 
 
 def targets_csv(snap: Mapping[str, Any]) -> str:
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(snap["series_columns"])
-    for row in np.asarray(snap["series"]):
-        w.writerow([_num(v) for v in row])
-    return buf.getvalue()
+    return _csv_text(tuple(snap["series_columns"]), np.asarray(snap["series"]))
 
 
 def vti_bytes(snap: Mapping[str, Any]) -> bytes:
@@ -399,10 +398,15 @@ def vti_bytes(snap: Mapping[str, Any]) -> bytes:
     return head + b"".join(blobs) + b"\n</AppendedData>\n</VTKFile>\n"
 
 
+@functools.lru_cache(maxsize=1)
+def _version() -> str:
+    return runout_version()
+
+
 def hazard_document(snap: Mapping[str, Any], hs: HazardSettings, gravity_m_s2: tuple[float, float],
                     targets: tuple[sc.Target, ...], status: str) -> dict[str, Any]:
     """The content of ``hazard.json``."""
-    doc = {"status": status, "runout_version": runout_version()}
+    doc = {"status": status, "runout_version": _version()}
     doc.update(measures(snap, hs, gravity_m_s2, targets))
     nx, ny = snap["shape"]
     doc["raster"] = {"origin_m": list(snap["origin_m"]), "cell_size_m": snap["cell_size_m"], "shape": [nx, ny]}
