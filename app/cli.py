@@ -331,7 +331,16 @@ def _factor_line(result: RunResult) -> str:
     le = result.summary.get("limit_equilibrium") or {}
     if le.get("factor_of_safety") is not None:
         line += f"; Bishop {le['factor_of_safety']:.3f}"
-    if fos.get("runout_max_displacement_m") is not None:
+    runout = None
+    try:  # the hazard measures of the run-out stage, when the run wrote them
+        import json
+
+        runout = json.loads((Path(result.out_dir) / "hazard.json").read_text(encoding="utf-8")).get("runout_distance_m")
+    except (OSError, ValueError):
+        runout = None
+    if runout is not None:
+        line += f"; if it fails it runs out {runout:.3g} m (hazard.json runout_distance_m)"
+    elif fos.get("runout_max_displacement_m") is not None:
         line += f"; if it fails it runs out {fos['runout_max_displacement_m']:.3g} m (largest displacement)"
     return line
 
