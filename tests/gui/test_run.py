@@ -52,7 +52,7 @@ def test_a_run_is_a_child_process_shown_live_from_its_folder(window, tiny_file, 
     # the throughput of this run feeds the next estimate
     rate, measured = window.settings.throughput("cpu")
     assert measured and rate == pytest.approx(result.summary["particle_steps_per_s"])
-    assert "measured on this machine" in window.run_panel.runtime.text()
+    assert "measured on this machine" in window.run_panel.rate_info.text()
     # the folder holds results now: a new run asks before replacing them
     asked = []
     window.ask_replace_results = lambda path: (asked.append(path), "cancel")[1]
