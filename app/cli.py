@@ -65,6 +65,11 @@ class Arch(str, Enum):
     gpu = "gpu"
 
 
+class ProgressMode(str, Enum):
+    rich = "rich"
+    jsonl = "jsonl"
+
+
 # --------------------------------------------------------------------------------------------
 # shared helpers (also for commands defined in other modules)
 
@@ -234,6 +239,75 @@ class _RunProgress:
         )
 
 
+class _JsonProgress:
+    """Machine-readable progress of ``runout run --progress jsonl``: one JSON object per line.
+
+    Events (key ``event``), in this order:
+
+    - ``started``: ``out_dir`` (the results folder), ``particles``, ``total_time_s``; sent once
+      the results folder exists (before the first progress or frame event);
+    - ``progress``: ``time_s``, ``total_time_s`` (s), ``stage``, ``step``, ``steps_per_s``,
+      ``particle_steps_per_s``; at most every :attr:`INTERVAL_S` seconds;
+    - ``frame``: ``index`` and ``time_s`` of a frame handed to the results writer (it is on disk,
+      listed in ``particles.pvd``, shortly after);
+    - ``finished``: ``status`` ("completed", "stopped", "failed", or "error" when the run could
+      not start: invalid project, refused folder), ``message``, ``out_dir`` and the final
+      ``summary`` (absent for "error").
+
+    Consumers (the workbench) read the frames themselves from the results folder; this stream
+    only says when to look.
+    """
+
+    INTERVAL_S = 0.1
+
+    def __init__(self, stream: Any, out_dir: Path) -> None:
+        self.stream = stream
+        self.out_dir = out_dir
+        self.frames = 0
+        self._started = False
+        self._last = 0.0
+
+    def emit(self, event: str, **fields: Any) -> None:
+        import json
+
+        line = json.dumps({"event": event, **fields}, default=str)
+        try:
+            self.stream.write(line + "\n")
+            self.stream.flush()
+        except (OSError, ValueError):  # the reader went away: the run goes on regardless
+            pass
+
+    def _start(self) -> None:
+        if self._started:
+            return
+        import json
+
+        self._started = True
+        summary: dict[str, Any] = {}
+        try:
+            summary = json.loads((self.out_dir / "summary.json").read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            pass
+        self.emit("started", out_dir=str(self.out_dir), particles=summary.get("particles"),
+                  total_time_s=summary.get("total_time_s"))
+
+    def progress(self, p: Any) -> None:
+        import time
+
+        self._start()
+        now = time.perf_counter()
+        if now - self._last < self.INTERVAL_S:
+            return
+        self._last = now
+        self.emit("progress", time_s=p.time_s, total_time_s=p.total_time_s, stage=p.stage, step=p.step,
+                  steps_per_s=p.steps_per_s, particle_steps_per_s=p.particle_steps_per_s)
+
+    def frame(self, frame: Any) -> None:
+        self._start()
+        self.emit("frame", index=self.frames, time_s=float(frame.diagnostics.time_s))
+        self.frames += 1
+
+
 def _summary_line(result: RunResult) -> str:
     s = result.summary
     return (
@@ -300,6 +374,11 @@ def run(
         typer.Option("--start-from", help="Start the project's stages from the particle state of another "
                      "run's checkpoint (its results folder or checkpoint.npz).", show_default=False),
     ] = None,
+    progress_mode: Annotated[
+        ProgressMode,
+        typer.Option("--progress", help="rich: a progress bar on standard error; jsonl: one JSON object "
+                     "per line on standard output (started, warning, progress, frame, finished) for programs."),
+    ] = ProgressMode.rich,
 ) -> None:
     """Run a project and write its results folder (or continue one with --resume).
 
@@ -307,29 +386,47 @@ def run(
     non-empty folder is refused; a folder another run is writing into is refused.
     """
     from projects.results import ResultsError
-    from projects.runner import StopRequest, resume_run, run_project
+    from projects.runner import StopRequest, default_results_dir, resume_run, run_project
     from projects.schema import ProjectError
 
     if (project is None) == (resume is None):
         fail("give a project file, or --resume RESULTS (not both)")
     if resume is not None and (out_dir is not None or overrides or start_from is not None):
         fail("--resume continues a run as it was: no --out, --set or --start-from with it")
-    if quiet:
+    jsonl = progress_mode is ProgressMode.jsonl
+    if quiet or jsonl:
         _setup_logging(verbose=False, quiet=True)
+    where_to = resume if resume is not None else out_dir if out_dir is not None else default_results_dir(project)
+    events = _JsonProgress(sys.stdout, Path(where_to).expanduser().absolute()) if jsonl else None
     stop = StopRequest()
     with stop_on_signals(stop):
         try:
-            model = load_or_exit(project, overrides) if project is not None else None
+            if project is None:
+                model = None
+            elif events is None:
+                model = load_or_exit(project, overrides)
+            else:
+                model = _load_or_report(project, overrides, events)
             if stop.requested:
+                if events is not None:
+                    events.emit("finished", status="error", message=f"stopped by {stop.reason} before the run started",
+                                out_dir=str(events.out_dir))
                 fail(f"stopped by {stop.reason} before the run started", _stop_code(stop))
-            if not quiet and model is not None:
+            if model is not None and events is not None:
+                from projects.checks import project_warnings
+
+                for warning in project_warnings(model):
+                    events.emit("warning", message=str(warning))
+            elif not quiet and model is not None:
                 _print_warnings(model)
             # Taichi prints "[Taichi] Starting on arch=..." to stdout; keep stdout for results
             chatter = io.StringIO() if quiet else sys.stderr
-            with _RunProgress(quiet) as progress, contextlib.redirect_stdout(chatter):
+            with _RunProgress(quiet or jsonl) as progress, contextlib.redirect_stdout(chatter):
+                on_progress = progress.update if events is None else events.progress
+                on_frame = None if events is None else events.frame
                 if resume is not None:
                     result = resume_run(resume, arch=arch.value if arch is not None else None,
-                                        cancel=stop, on_progress=progress.update)
+                                        cancel=stop, on_progress=on_progress, on_frame=on_frame)
                 else:
                     result = run_project(
                         model,
@@ -337,7 +434,8 @@ def run(
                         project_path=project,
                         arch=arch.value if arch is not None else None,
                         cancel=stop,
-                        on_progress=progress.update,
+                        on_progress=on_progress,
+                        on_frame=on_frame,
                         overwrite=overwrite,
                         force=force,
                         start_from=start_from,
@@ -345,12 +443,20 @@ def run(
                 if result.status == "completed":
                     progress.finish()
         except (ProjectError, ResultsError) as exc:
+            if events is not None:
+                events.emit("finished", status="error", message=str(exc), out_dir=str(events.out_dir))
             fail(str(exc))
         except KeyboardInterrupt:
+            if events is not None:
+                events.emit("finished", status="error", message="stopped before the run started",
+                            out_dir=str(events.out_dir))
             fail("stopped before the run started", EXIT_SIGINT)
-    _report_equilibrium(result, quiet)
+    if events is not None:
+        events.emit("finished", status=result.status, message=result.message, out_dir=str(result.out_dir),
+                    summary=result.summary)
+    _report_equilibrium(result, quiet or jsonl)
     if result.status == "completed":
-        if not quiet:
+        if not quiet and not jsonl:
             out.print(_summary_line(result), markup=False)
             fos = _factor_line(result)
             if fos:
@@ -363,6 +469,18 @@ def run(
         raise typer.Exit(code)
     err.print(f"failed: {result.message} {where}", markup=False)
     raise typer.Exit(EXIT_FAILED)
+
+
+def _load_or_report(path: Path, overrides: list[str] | None, events: _JsonProgress) -> Project:
+    """:func:`load_or_exit` that also sends a ``finished`` event with status "error"."""
+    from projects.document import load_project
+    from projects.schema import ProjectError
+
+    try:
+        return load_project(path, overrides or ())
+    except ProjectError as exc:
+        events.emit("finished", status="error", message=str(exc), out_dir=str(events.out_dir))
+        fail(str(exc))
 
 
 def _stop_code(stop: StopRequest) -> int:
@@ -399,12 +517,12 @@ def validate(
     force: Annotated[bool, typer.Option("--force", help="Skip the size limits.")] = False,
 ) -> None:
     """Check a project: every problem, or what it would run."""
-    from projects.runner import check_project
+    from projects.runner import check_project, default_results_dir
     from projects.schema import ProjectError
 
     model = load_or_exit(project, overrides)
     try:
-        resolved = check_project(model, force=force)
+        resolved = check_project(model, force=force, out_dir=default_results_dir(project))
     except ProjectError as exc:
         fail(f"{project}: {exc}")
     _print_warnings(model)
@@ -456,10 +574,17 @@ def report(
     output: Annotated[Path | None, typer.Option("-o", "--output", help="Folder for report.html and its "
                                                 "pictures (default: RESULTS/report).")] = None,
 ) -> None:
-    """Write the hazard report of a run: HTML with the measures, envelopes, targets and pictures."""
+    """Write the report of a run (hazard: measures, envelopes, targets, pictures) or of a sweep or
+    calibration folder (exceedance, probability profile, sensitivity; misfit landscape)."""
     from app.report import write_report
     from projects.results import ResultsError
+    from sweeps.sweep import is_sweep_dir
 
+    if is_sweep_dir(results):  # sweep.csv or calibration.csv: app/sweep_commands.py
+        from app.sweep_commands import sweep_report
+
+        sweep_report(results, output)
+        return
     res = _open_results(results)
     try:
         path = write_report(res.path, output)
@@ -567,8 +692,31 @@ def study(
     raise typer.Exit(0 if result.passed else 4)
 
 
+def _interrupt(_signum: int, _frame: object) -> None:
+    """Ctrl-C outside a run: one line, then the command unwinds (typer exits with 130)."""
+    global INTERRUPT_SHOWN
+    if not INTERRUPT_SHOWN:
+        INTERRUPT_SHOWN = True
+        err.print("error: interrupted (Ctrl-C)", markup=False)
+    raise KeyboardInterrupt
+
+
+#: Whether the one line about a Ctrl-C has been printed (``python -m app`` prints none then).
+INTERRUPT_SHOWN = False
+
+
+# sweep and calibrate (sweeps on Ray): app/sweep_commands.py
+from app.sweep_commands import register as _register_sweep_commands  # noqa: E402
+
+_register_sweep_commands(cli)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point (``runout``)."""
+    if _in_main_thread():
+        # `run` turns Ctrl-C into a clean stop while it runs (stop_on_signals) and comes back
+        # to this handler afterwards
+        signal.signal(signal.SIGINT, _interrupt)
     # Taichi prints a banner on import; keep standard output for results
     os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "0")
     # `run` redirects stdout around the solver; without this Taichi, imported meanwhile, would

@@ -335,6 +335,9 @@ def _simulation(resolved: ResolvedRun) -> Any:
                           damping_support=settings_of(resolved.project) is not None)
     except SolverError as err:
         raise _solver_rejects(err) from None
+    except (MemoryError, OverflowError, RuntimeError, ValueError) as err:  # e.g. --force past the limits
+        first_line = (str(err).strip().splitlines() or [""])[0]
+        raise _solver_rejects(f"{type(err).__name__}: {first_line}") from None
 
 
 def _start_from(sim: Any, checkpoint: Any, source: Any) -> None:

@@ -5,8 +5,9 @@ and below (never by ``solver``, ``geometry`` or ``projects``), and only when the
 
 Modules: :mod:`~app.gui.main_window` (the window), :mod:`~app.gui.document` (the project model
 and its undo stack), :mod:`~app.gui.panels` and :mod:`~app.gui.fields` (the editors),
-:mod:`~app.gui.scene_view` (the 2D model view and drawing), :mod:`~app.gui.run_worker` and
-:mod:`~app.gui.run_panel` (runs), :mod:`~app.gui.results_view` and :mod:`~app.gui.curves`
+:mod:`~app.gui.scene_view` (the 2D model view and drawing), :mod:`~app.gui.run_process` and
+:mod:`~app.gui.run_panel` (runs: each a ``runout run`` child process; this process never imports
+Taichi), :mod:`~app.gui.results_view` and :mod:`~app.gui.curves`
 (results), :mod:`~app.gui.dialogs`, :mod:`~app.gui.settings` (recent files, material library).
 """
 
@@ -24,8 +25,6 @@ def configure_environment() -> None:
     """Environment the embedded views need; call before Qt or VTK is imported."""
     # pyvistaqt goes through qtpy: make it pick PySide6 even when another binding is installed
     os.environ.setdefault("QT_API", "pyside6")
-    # Taichi prints a banner on import (in the solver thread); keep the terminal quiet
-    os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "0")
 
 
 def main(project_path: str | os.PathLike[str] | None = None, argv: list[str] | None = None) -> int:

@@ -118,14 +118,16 @@ class SeriesCurves(_Canvas):
             self.data[key].append(float(getattr(diagnostics, attr)))
         self._push()
 
-    def set_series(self, series: dict[str, np.ndarray]) -> None:
-        """Show the columns of a results folder's ``series.csv``."""
+    def set_series(self, series: dict[str, np.ndarray], now: bool = True) -> None:
+        """Show the columns of a results folder's ``series.csv`` (redrawn at once, or with the
+        next scheduled redraw when ``now`` is False: a run under way)."""
         self.data = {"time_s": [float(v) for v in series.get("time_s", [])]}
         for key, *_ in SERIES_CURVES:
             column = series.get(key, [])
             self.data[key] = [float(v) for v in column] if len(column) == len(self.data["time_s"]) else []
         self._push()
-        self.redraw_now()
+        if now:
+            self.redraw_now()
 
     def _push(self) -> None:
         t = self.data["time_s"]
@@ -169,6 +171,53 @@ class HistoryCurve(_Canvas):
         self.times, self.values = np.zeros(0), np.zeros(0)
         self.line.set_data([], [])
         self.axes[0].set_title("Pick a particle in the view (click)", fontsize=8)
+        self.redraw_now()
+
+
+class MonitorCurves(_Canvas):
+    """Displacement and speed against time at monitoring points (one line per point)."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(2, parent)
+        self.axes[0].set_ylabel("Displacement (m)", fontsize=8)
+        self.axes[1].set_ylabel("Speed (m/s)", fontsize=8)
+        self.axes[0].set_title("Add a point by its coordinates", fontsize=8)
+        self.histories: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]] = []
+
+    def show_histories(self, histories: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]) -> None:
+        """``(label, times_s, displacement_m, speed_m_s)`` per point."""
+        self.histories = histories
+        for ax in self.axes:
+            for line in list(ax.lines):
+                line.remove()
+        for label, t, disp, speed in histories:
+            self.axes[0].plot(t, disp, linewidth=1.3, marker=".", markersize=3, label=label)
+            self.axes[1].plot(t, speed, linewidth=1.3, marker=".", markersize=3, label=label)
+        self.axes[0].set_title(f"{len(histories)} monitoring point(s)" if histories else
+                               "Add a point by its coordinates", fontsize=8)
+        if histories:
+            self.axes[0].legend(fontsize=7, loc="best")
+        elif self.axes[0].get_legend() is not None:
+            self.axes[0].get_legend().remove()
+        self.redraw_now()
+
+
+class ProfileCurve(_Canvas):
+    """A field along a cross-section line, against the distance from its start."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(1, parent)
+        (self.line,) = self.axes[0].plot([], [], color="#1a73e8", linewidth=1.2, marker=".", markersize=3)
+        self.axes[0].set_xlabel("distance along the section (m)", fontsize=8)
+        self.axes[0].set_title("Give the section's end points", fontsize=8)
+        self.distance = np.zeros(0)
+        self.values = np.zeros(0)
+
+    def show_profile(self, distance_m: np.ndarray, values: np.ndarray, label: str, title: str) -> None:
+        self.distance, self.values = np.asarray(distance_m, float), np.asarray(values, float)
+        self.line.set_data(self.distance, self.values)
+        self.axes[0].set_ylabel(label, fontsize=8)
+        self.axes[0].set_title(title, fontsize=8)
         self.redraw_now()
 
 

@@ -227,7 +227,8 @@ def editable_data(data: Any) -> dict[str, Any] | None:
     """``data`` when its tables have the shapes the panels can show (maybe with bad values), else None.
 
     A file with wrong values (a negative density, a dilatancy above friction, a body outside the
-    domain) can be opened and fixed in the workbench; one whose structure is broken (``bodies``
+    domain) or unknown keys (typos: listed as problems, removable in the run panel) can be
+    opened and fixed in the workbench; one whose structure is broken (``bodies``
     is not an array of tables) can only be fixed in a text editor.
     """
     if not isinstance(data, Mapping):
@@ -242,9 +243,6 @@ def editable_data(data: Any) -> dict[str, Any] | None:
         "stages": list,
         "output": Mapping,
     }
-    for key in data:
-        if key not in shapes:
-            return None
     for key, shape in shapes.items():
         if key in data and not isinstance(data[key], shape):
             return None
@@ -377,6 +375,17 @@ class ProjectDocument(QObject):
     @property
     def material_names(self) -> list[str]:
         return list(self._data.get("materials", {}))
+
+    def unknown_keys(self) -> list[str]:
+        """Key paths the schema does not know (typos in a file), as its problems name them."""
+        return [p.path for p in self.problems if p.path and p.message.startswith("unknown key")]
+
+    def remove_unknown_keys(self) -> list[str]:
+        """Remove every unknown key (one undo step); the paths removed."""
+        paths = self.unknown_keys()
+        if paths:
+            self.edit("remove unknown keys", lambda d: [set_path(d, path, None) for path in paths])
+        return paths
 
     def problems_at(self, prefix: str) -> list[Problem]:
         """Problems whose key path is ``prefix`` or below it."""

@@ -4,7 +4,9 @@ Each editor knows its dotted key path. As the user types, the text is checked wi
 schema's own rule for that key (:func:`app.gui.document.check_value`), so the message is the one
 ``runout validate`` would print; a bad value is shown in red with the message as tooltip and in
 the panel's message line, and is never written to the project. A value the schema accepts is
-committed as one undo step when editing finishes. Problems that involve several keys (found by
+committed as one undo step when editing finishes. Number fields accept a unit after the number
+("5 kPa", "20 kN/m3" for a unit weight into a density; see :mod:`app.gui.units`) and store SI.
+A field left red blocks Run (:meth:`app.gui.main_window.MainWindow.invalid_fields`). Problems that involve several keys (found by
 validating the whole project) are shown in orange on the editor of the key they name.
 """
 
@@ -26,6 +28,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.gui.document import ProjectDocument, check_value, format_number, parse_number
+from app.gui.units import parse_quantity
 
 logger = logging.getLogger(__name__)
 
@@ -105,9 +108,9 @@ class NumberField(_Bound):
     def _parse(self, text: str) -> tuple[Any, str]:
         if not text.strip():
             return None, "" if self.optional else "required"
-        number = parse_number(text)
+        number, error = parse_quantity(text, self.unit.text())  # "5 kPa" -> 5000.0 in a Pa field
         if number is None:
-            return None, "must be a number"
+            return None, error
         if self.path is None:
             return number, ""
         return number, check_value(self.path, number) or ""

@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import logging
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
-from PySide6.QtCore import QSize, Qt, QTimer
-from PySide6.QtGui import QAction, QActionGroup, QCloseEvent, QKeySequence
+from PySide6.QtCore import QSize, Qt, QTimer, QUrl, qVersion
+from PySide6.QtGui import QAction, QActionGroup, QCloseEvent, QDesktopServices, QKeySequence
 from PySide6.QtWidgets import (
     QApplication,
     QDialog,
@@ -44,7 +45,7 @@ from app.gui.panels import (
 )
 from app.gui.results_view import CompareView, ResultsView
 from app.gui.run_panel import RunPanel
-from app.gui.run_worker import RunWorker
+from app.gui.run_process import RunOutcome, RunProcess
 from app.gui.scene_view import SceneView
 from app.gui.settings import MaterialLibrary, Settings
 from projects.schema import ProjectError
@@ -55,6 +56,38 @@ APP_NAME = "Runout"
 PROJECT_FILTER = "Runout project (*.toml);;All files (*)"
 #: Shortest time between two live frames drawn during a run (ms).
 LIVE_INTERVAL_MS = 200
+#: Interval of rereading the followed run's folder between frame events (ms).
+POLL_MS = 500
+
+
+#: Where the documentation is read online when the workbench runs from an installed package.
+DOCS_ONLINE = "https://github.com/runout/runout/blob/main/docs/gui.md"
+
+
+def documentation_url() -> QUrl:
+    """The workbench's manual: ``docs/gui.md`` of the checkout it runs from, else online."""
+    local = Path(__file__).resolve().parents[2] / "docs" / "gui.md"
+    return QUrl.fromLocalFile(str(local)) if local.is_file() else QUrl(DOCS_ONLINE)
+
+
+def _gravity_for_slopes(data: dict[str, Any]) -> list[str]:
+    """Replace a k0 initial stage by gravity loading where the ground slopes (K0 is no
+    equilibrium there: :func:`projects.checks.recommended_initial_stage`); what was changed."""
+    from projects.checks import recommended_initial_stage
+    from projects.schema import validate_project
+
+    stages = data.get("stages") or []
+    if not stages or not isinstance(stages[0], dict) or stages[0].get("type") != "k0":
+        return []
+    try:
+        recommended = recommended_initial_stage(validate_project(data))
+    except (ProjectError, ValueError, ArithmeticError):
+        return []
+    if recommended.get("type") != "gravity":
+        return []
+    stages[0] = {**recommended, "name": stages[0].get("name", recommended["name"])}
+    return [f"The ground slopes: the initial stress comes from gravity loading over "
+            f"{recommended['duration_s']:g} s (K0 is no equilibrium on a slope)"]
 
 
 class MainWindow(QMainWindow):
@@ -73,11 +106,11 @@ class MainWindow(QMainWindow):
         self.settings = settings or Settings()
         self.library = library or MaterialLibrary(self.settings.folder)
         self.doc = ProjectDocument(parent=self)
-        self.worker: RunWorker | None = None
-        self.last_worker: RunWorker | None = None
+        self.runs: list[RunProcess] = []
+        self.followed: RunProcess | None = None
+        self.last_run: RunProcess | None = None
         self._live_frames = 0
-        self._run_started = 0.0
-        self.last_result: Any = None
+        self.last_result: RunOutcome | None = None
         self.compare: CompareView | None = None
         self._shut = False
         self.setWindowTitle(APP_NAME)
@@ -127,10 +160,15 @@ class MainWindow(QMainWindow):
         self._estimate_timer.setSingleShot(True)
         self._estimate_timer.setInterval(150)
         self._estimate_timer.timeout.connect(self.run_panel.update_estimate)
-        self._live_timer = QTimer(self)
-        self._live_timer.setSingleShot(True)
-        self._live_timer.setInterval(LIVE_INTERVAL_MS)
-        self._live_timer.timeout.connect(self._take_frames)
+        # the followed run's folder is reread after a frame event (at most every LIVE_INTERVAL_MS)
+        # and, because frames reach the disk a little after their event, every POLL_MS
+        self._refresh_timer = QTimer(self)
+        self._refresh_timer.setSingleShot(True)
+        self._refresh_timer.setInterval(LIVE_INTERVAL_MS)
+        self._refresh_timer.timeout.connect(self._refresh_live)
+        self._poll_timer = QTimer(self)
+        self._poll_timer.setInterval(POLL_MS)
+        self._poll_timer.timeout.connect(self._refresh_live)
         self._update_title()
         self.run_panel.update_estimate()
 
@@ -190,6 +228,8 @@ class MainWindow(QMainWindow):
         a["particles"].setChecked(True)
         a["fit"] = self._action("&Fit view", self.scene.fit, "F")
         a["slope"] = self._action("Slope from &template…", self.slope_dialog)
+        a["import_body"] = self._action("&Import slope profile…", self.import_body_dialog, "Ctrl+I",
+                                        "A body from a CSV or DXF profile (closed down to a base) or a mesh outline")
         a["delete_vertex"] = self._action("Delete &vertex", self.scene.delete_selected_vertex)
         a["run"] = self._action("&Run", self.start_run, "F5", "Run the project in the background")
         a["run"].setIcon(style.standardIcon(QStyle.StandardPixmap.SP_MediaPlay))
@@ -219,13 +259,16 @@ class MainWindow(QMainWindow):
         model = bar.addMenu("&Model")
         model.addActions([a["select"], a["draw"], a["snap"], a["particles"], a["fit"]])
         model.addSeparator()
-        model.addAction(a["slope"])
+        model.addActions([a["slope"], a["import_body"]])
         run = bar.addMenu("&Run")
         run.addActions([a["run"], a["cancel"]])
         view = bar.addMenu("&View")
         view.addAction(a["compare"])
         help_menu = bar.addMenu("&Help")
-        help_menu.addAction(self._action("&About Runout", self._about))
+        a["docs"] = self._action("&Documentation", self.open_documentation, QKeySequence.StandardKey.HelpContents,
+                                 "The workbench's manual (docs/gui.md) and the project-file reference")
+        a["about"] = self._action("&About Runout", self._about)
+        help_menu.addActions([a["docs"], a["about"]])
 
         tools = self.addToolBar("Main")
         tools.setObjectName("main-toolbar")
@@ -253,6 +296,8 @@ class MainWindow(QMainWindow):
         self.run_panel.runRequested.connect(self.start_run)
         self.run_panel.cancelRequested.connect(self.cancel_run)
         self.run_panel.problemActivated.connect(self.go_to_problem)
+        self.run_panel.runSelected.connect(self._select_run)
+        self.run_panel.removeUnknownRequested.connect(self.remove_unknown_keys)
 
     def _mode_changed(self, mode: str) -> None:
         self.actions_["draw" if mode == "draw" else "select"].setChecked(True)
@@ -267,8 +312,21 @@ class MainWindow(QMainWindow):
         default = self._default_out_dir()
         self.run_panel.out_dir.setPlaceholderText(str(default))
 
+    def about_text(self) -> str:
+        """Version and where the documentation is (Help ▸ About)."""
+        from projects.results import runout_version
+
+        docs = documentation_url()
+        return (f"<b>Runout {runout_version()}</b><br>Landslide run-out analysis with the material point method."
+                f"<br><br>Documentation: <a href=\"{docs.toString()}\">{docs.toString()}</a>"
+                f"<br>Python {sys.version.split()[0]}, Qt {qVersion()}")
+
     def _about(self) -> None:
-        QMessageBox.about(self, "About Runout", "Runout: landslide run-out analysis with the material point method.")
+        QMessageBox.about(self, "About Runout", self.about_text())
+
+    def open_documentation(self) -> bool:
+        """Open the manual in the desktop's viewer (Help ▸ Documentation)."""
+        return bool(QDesktopServices.openUrl(documentation_url()))
 
     # -- questions (replaceable in scripts and tests) -----------------------------------------------
 
@@ -429,17 +487,28 @@ class MainWindow(QMainWindow):
     def open_results(self, path: str | os.PathLike[str]) -> bool:
         from projects.results import ResultsError
 
-        if self.worker is not None:
-            self.show_error("Run in progress", "Wait for the run to end (or cancel it) before opening results.")
-            return False
         try:
             self.results_view.open_results(path)
         except (ResultsError, OSError) as err:
             self.show_error("Cannot open results", str(err))
             return False
+        self._unfollow()
         self.settings.add_recent(path, "results")
         self.tabs.setCurrentWidget(self.results_view)
         return True
+
+    def _unfollow(self) -> None:
+        """Stop showing a run (it goes on, listed in the run panel, where it can be chosen again)."""
+        if self.followed is None:
+            return
+        self.followed = None
+        self._refresh_timer.stop()
+        self._poll_timer.stop()
+        self.actions_["cancel"].setEnabled(False)
+        self.run_panel.set_running(False)
+        self.run_panel.runs.blockSignals(True)
+        self.run_panel.runs.setCurrentRow(-1)
+        self.run_panel.runs.blockSignals(False)
 
     def show_compare(self) -> CompareView:
         if self.compare is None:
@@ -462,10 +531,14 @@ class MainWindow(QMainWindow):
             self.show_error("Cannot open results", str(err))
 
     def _export_path(self, suffix: str) -> Path:
+        """Default file of an export: beside the results folder, never inside it (a re-run may
+        replace the folder)."""
         results = self.results_view.results
-        base = results.path if results is not None else Path.cwd()
         field = self.results_view.controls.field_name
-        return base / f"{field}_{self.results_view.frame_index:05d}{suffix}"
+        if results is None:
+            return Path.cwd() / f"{field}_{self.results_view.frame_index:05d}{suffix}"
+        folder = Path(results.path)
+        return folder.parent / f"{folder.stem}_{field}_{self.results_view.frame_index:05d}{suffix}"
 
     def export_picture_dialog(self) -> None:
         if self.results_view.results is None:
@@ -488,31 +561,55 @@ class MainWindow(QMainWindow):
         if self.results_view.results is None:
             self.show_error("Nothing to export", "Open a results folder (or run the project) first.")
             return
-        dialog = ExportDialog("movie", self._export_path(".mp4").with_name(
-            f"{self.results_view.controls.field_name}.mp4"), self)
+        frame_png = self._export_path(".png")
+        movie = frame_png.with_name(frame_png.stem.rsplit("_", 1)[0] + ".mp4")  # without the frame number
+        dialog = ExportDialog("movie", movie, self)
         if dialog.exec() != QDialog.DialogCode.Accepted:
             return
-        progress = QProgressDialog("Rendering frames…", "", 0, len(self.results_view.results), self)
-        progress.setCancelButton(None)
+        self.export_animation(dialog.path.text(), dialog.fps.value(), dialog.size_px)
+
+    def export_animation(self, path: str | os.PathLike[str], fps: float, size: tuple[int, int]) -> Path | None:
+        """Write every frame as a movie with a progress dialog that can cancel it (the partial
+        file is removed); None when cancelled or failed (the user was told)."""
+        n = len(self.results_view.results) if self.results_view.results is not None else 0
+        progress = QProgressDialog("Rendering frames…", "Cancel", 0, max(n, 1), self)
+        progress.setWindowTitle("Export animation")
         progress.setWindowModality(Qt.WindowModality.WindowModal)
+        progress.setMinimumDuration(0)
+        progress.setValue(0)
         progress.show()
+        self.export_progress = progress
+        QApplication.processEvents()
+
+        class Cancelled(Exception):
+            pass
 
         def step(done: int, total: int) -> None:
             progress.setMaximum(total)
             progress.setValue(done)
+            progress.setLabelText(f"Rendering frame {done} of {total}…")
             QApplication.processEvents()
+            if progress.wasCanceled():
+                raise Cancelled
 
+        target = Path(path)
         try:
-            path = self.results_view.export_animation(dialog.path.text(), dialog.fps.value(), dialog.size_px, step)
+            written = self.results_view.export_animation(target, fps, size, step)
+        except Cancelled:
+            target.unlink(missing_ok=True)
+            self.statusBar().showMessage("Export cancelled; no movie written", 6000)
+            return None
         except (ValueError, OSError) as err:
             self.show_error("Export failed", str(err))
-            return
+            return None
         finally:
             progress.close()
-        self.statusBar().showMessage(f"Wrote {path}", 6000)
+        self.statusBar().showMessage(f"Wrote {written}", 6000)
+        return written
 
     def export_curves_dialog(self) -> None:
-        start = str(self._export_path(".csv").with_name("curves.csv"))
+        frame_csv = self._export_path(".csv")
+        start = str(frame_csv.with_name(frame_csv.stem.rsplit("_", 2)[0] + "_curves.csv"))
         path, _ = QFileDialog.getSaveFileName(self, "Export curves", start, "CSV (*.csv)")
         if not path:
             return
@@ -554,10 +651,92 @@ class MainWindow(QMainWindow):
             if fit:
                 d["domain"]["origin_m"] = origin
                 d["domain"]["size_m"] = size
+            changed.extend(_gravity_for_slopes(d))
 
+        changed: list[str] = []
         self.doc.edit("slope from template", mutate)
         self.doc.selection.set(None)
         self.scene.fit()
+        if changed:
+            self.statusBar().showMessage(changed[0], 10000)
+        return True
+
+    def remove_unknown_keys(self) -> list[str]:
+        """Remove the keys the schema does not know (typos from a file) as one undo step."""
+        removed = self.doc.remove_unknown_keys()
+        if removed:
+            self.statusBar().showMessage("Removed unknown keys: " + ", ".join(removed), 8000)
+        return removed
+
+    def ask_import(self) -> tuple[str, str, float | None] | None:
+        """The file, the material and the base height (None: the profile's lowest point) of an import."""
+        from PySide6.QtWidgets import QInputDialog
+
+        from app.gui.imports import IMPORT_FILTER
+
+        start = str(self.doc.path.parent) if self.doc.path else str(Path.cwd())
+        path, _ = QFileDialog.getOpenFileName(self, "Import slope profile", start, IMPORT_FILTER)
+        if not path:
+            return None
+        names = self.doc.material_names or ["soil"]
+        material, ok = QInputDialog.getItem(self, "Import slope profile", "Material of the new body", names, 0, False)
+        if not ok:
+            return None
+        text, ok = QInputDialog.getText(self, "Import slope profile",
+                                        "Base height of an open profile (m; empty: its lowest point)")
+        if not ok:
+            return None
+        from app.gui.units import parse_quantity
+
+        base, _err = parse_quantity(text, "m") if text.strip() else (None, "")
+        return path, material, base
+
+    def import_body_dialog(self) -> bool:
+        answer = self.ask_import()
+        return self.import_body(*answer) if answer else False
+
+    def import_body(self, path: str | os.PathLike[str], material: str | None = None,
+                    base_y_m: float | None = None) -> bool:
+        """Add a body from a CSV or DXF profile or a mesh outline (one undo step); the domain grows
+        to hold it when it does not (keeping its cell size, a margin of a tenth of the body)."""
+        import numpy as np
+
+        from app.gui.imports import read_outline
+
+        try:
+            outline = read_outline(path, base_y_m)
+        except (ValueError, OSError) as err:
+            self.show_error("Cannot import", str(err))
+            return False
+        material = material or (self.doc.material_names[0] if self.doc.material_names else "soil")
+        name = Path(path).stem
+        lo, hi = outline.min(axis=0), outline.max(axis=0)
+        origin = self.doc.get("domain.origin_m") or [0.0, 0.0]
+        size = self.doc.get("domain.size_m") or [1.0, 1.0]
+        d_lo, d_hi = np.asarray(origin, float), np.asarray(origin, float) + np.asarray(size, float)
+        grow = bool(np.any(lo < d_lo) or np.any(hi > d_hi))
+
+        def mutate(d: dict[str, Any]) -> None:
+            names = {b.get("name") for b in d.get("bodies", [])}
+            body_name = name
+            while body_name in names:
+                body_name += "-2"
+            d.setdefault("bodies", []).append(
+                {"name": body_name, "material": material, "polygon_m": [[float(x), float(y)] for x, y in outline]})
+            if grow:
+                # a closed bottom: the base of the body rests on it; room above and to the sides
+                margin = 0.1 * float(max(hi - lo))
+                new_lo = np.minimum(d_lo, [lo[0] - margin, lo[1]])
+                new_hi = np.maximum(d_hi, hi + margin)
+                d["domain"]["origin_m"] = [float(v) for v in new_lo]
+                d["domain"]["size_m"] = [float(v) for v in new_hi - new_lo]
+
+        self.doc.edit(f"import {name}", mutate)
+        self.doc.selection.set(len(self.doc.get("bodies", [])) - 1)
+        self.tabs.setCurrentWidget(self.scene)
+        self.scene.fit()
+        note = "; the domain was enlarged to hold it" if grow else ""
+        self.statusBar().showMessage(f"Imported {name}: {len(outline)} vertices{note}", 8000)
         return True
 
     def go_to_problem(self, path: str) -> None:
@@ -593,11 +772,78 @@ class MainWindow(QMainWindow):
 
     @property
     def running(self) -> bool:
-        return self.worker is not None
+        """Whether any run of this window is still going on."""
+        return any(run.is_running() for run in self.runs)
+
+    def invalid_fields(self) -> list[str]:
+        """Editors shown red (a typed value the schema refuses, not written to the project):
+        one line each, naming the field, its key and what is wrong."""
+        from app.gui.fields import _Bound
+
+        lines = []
+        for editor in self.findChildren(_Bound):
+            error = getattr(editor, "error", "")
+            if error and editor.path:
+                lines.append(f"{editor.label} ({editor.path}): {error}")
+        return lines
+
+    def ask_replace_results(self, path: Path) -> str:
+        """"replace", "new" (a new folder beside it) or "cancel" for an existing results folder."""
+        box = QMessageBox(QMessageBox.Icon.Question, APP_NAME,
+                          f"{path} holds the results of an earlier run. Replace them (the run deletes the "
+                          "folder's frames, series and summary) or write this run to a new folder beside it?",
+                          parent=self)
+        new = box.addButton("New folder", QMessageBox.ButtonRole.AcceptRole)
+        replace = box.addButton("Replace", QMessageBox.ButtonRole.DestructiveRole)
+        box.addButton(QMessageBox.StandardButton.Cancel)
+        box.setDefaultButton(new)
+        box.exec()
+        clicked = box.clickedButton()
+        return "new" if clicked is new else "replace" if clicked is replace else "cancel"
+
+    def _free_folder(self, path: Path) -> Path:
+        """``NAME-2.results``, ``NAME-3.results``, ...: the first that neither exists nor is in use."""
+        busy = {r.out_dir for r in self.runs if r.is_running()}
+        stem, suffix = path.stem, path.suffix
+        for n in range(2, 10_000):
+            candidate = path.with_name(f"{stem}-{n}{suffix}").absolute()
+            if not candidate.exists() and candidate not in busy:
+                return candidate
+        raise OSError(f"no free folder name beside {path}")
+
+    def _choose_out_dir(self) -> tuple[Path, bool] | None:
+        """The folder for a new run and whether to replace the results there: the folder asked
+        for, or a new one beside it when a run of this window writes there or the user does not
+        want earlier results replaced; None: cancelled."""
+        from projects.results import is_results_dir
+
+        out = self.out_dir().expanduser().absolute()
+        busy = {r.out_dir for r in self.runs if r.is_running()}
+        if out in busy:
+            new = self._free_folder(out)
+            self.statusBar().showMessage(f"{out.name} is in use by a run; this one writes to {new.name}", 8000)
+            return new, False
+        if is_results_dir(out):
+            answer = self.ask_replace_results(out)
+            if answer == "cancel":
+                return None
+            if answer == "new":
+                return self._free_folder(out), False
+            return out, True
+        return out, False
 
     def start_run(self) -> bool:
-        """Run the current project in a worker thread; the Results tab shows it live."""
-        if self.worker is not None:
+        """Run the current document in a child process (``runout run``); the Results tab follows it.
+
+        The document is written to a temporary project file for the run (the user's file and any
+        unsaved edits stay as they are). Several runs may go on at once, each in its own folder.
+        """
+        invalid = self.invalid_fields()
+        if invalid:
+            self.run_dock.show()
+            self.show_error("Cannot run", "These fields hold values that are not valid (shown red); the "
+                            "project still has the previous values. Correct them (or undo the typing) "
+                            "before running:\n" + "\n".join(invalid))
             return False
         project = self.doc.project
         if project is None:
@@ -606,112 +852,168 @@ class MainWindow(QMainWindow):
             return False
         if self.scene.mode == "draw":
             self.scene.set_mode("select")
-        out_dir = self.out_dir()
-        worker = RunWorker(project, out_dir, self.doc.path, parent=self)
-        worker.progressed.connect(self._on_progress)
-        worker.frameReady.connect(self._frame_waiting)
-        worker.finishedRun.connect(self._on_finished)
-        worker.failedToStart.connect(self._on_failed)
-        self.worker = worker
-        d = project.domain
-        box = (d.origin_m[0], d.origin_m[0] + d.size_m[0], d.origin_m[1], d.origin_m[1] + d.size_m[1])
-        spacing = d.cell_size_m / project.particles.per_cell
-        self.results_view.begin_live(project.runout.title or self.doc.display_name, box, spacing,
-                                     list(project.material_names))
-        self.run_panel.set_running(True)
-        self.actions_["run"].setEnabled(False)
-        self.actions_["cancel"].setEnabled(True)
-        self.tabs.setCurrentWidget(self.results_view)
-        self.statusBar().showMessage(f"Running… results go to {out_dir}")
-        self._run_started = time.perf_counter()
-        self._live_frames = 0
-        worker.start()
+        chosen = self._choose_out_dir()
+        if chosen is None:
+            return False
+        out_dir, overwrite = chosen
+        name = self.doc.path.stem if self.doc.path is not None else "untitled"
+        run = RunProcess(self.doc.text(), out_dir, name, overwrite=overwrite, parent=self)
+        run.runStarted.connect(lambda _e, r=run: self._run_started(r))
+        run.progressed.connect(lambda e, r=run: self._run_progressed(r, e))
+        run.frameWritten.connect(lambda _e, r=run: self._run_frame(r))
+        run.ended.connect(lambda o, r=run: self._run_ended(r, o))
+        run.title = project.runout.title or self.doc.display_name  # what the live view's header says
+        self.runs.append(run)
+        self.run_panel.add_run(self._run_text(run))
+        self.follow(run)
+        self.statusBar().showMessage(f"Running in a new process… results go to {out_dir}")
+        try:
+            run.start()
+        except OSError as err:
+            self.show_error("The run could not start", str(err))
+            return False
+        self._update_run_item(run)
         return True
 
-    def cancel_run(self) -> None:
-        if self.worker is not None:
-            self.worker.cancel()
-            self.run_panel.progress.setFormat("stopping…")
-            self.statusBar().showMessage("Stopping the run after the current steps…")
+    def _run_text(self, run: RunProcess) -> str:
+        status = run.status
+        if status == "running" and run.last_progress:
+            total = run.last_progress.get("total_time_s") or 0.0
+            fraction = (run.last_progress.get("time_s") or 0.0) / total if total > 0 else 0.0
+            status = f"running {100 * min(1.0, fraction):.0f} %"
+        pid = f"pid {run.pid}, " if run.is_running() and run.pid else ""
+        return f"{run.name} → {run.out_dir.name}\n{status} ({pid}{run.frames} frames)"
 
-    def _on_progress(self, progress: Any) -> None:
+    def _update_run_item(self, run: RunProcess) -> None:
+        if run in self.runs:
+            self.run_panel.set_run_text(self.runs.index(run), self._run_text(run), run.status)
+
+    def follow(self, run: RunProcess) -> None:
+        """Show ``run`` in the Results tab and the run panel (live while it goes on)."""
+        self.followed = run
+        row = self.runs.index(run)
+        if self.run_panel.runs.currentRow() != row:
+            self.run_panel.runs.blockSignals(True)
+            self.run_panel.runs.setCurrentRow(row)
+            self.run_panel.runs.blockSignals(False)
+        self.tabs.setCurrentWidget(self.results_view)
+        if run.outcome is not None:
+            self._refresh_timer.stop()
+            self._poll_timer.stop()
+            self._show_outcome(run, run.outcome, ask=False)
+            return
+        self.run_panel.set_running(True)
+        self.actions_["cancel"].setEnabled(True)
+        self.results_view.follow(run.out_dir, run.title)
+        if run.last_progress is not None:
+            self.run_panel.show_progress(run.last_progress, time.perf_counter() - run.started_at)
+        if run.started_event is not None:
+            self._refresh_live()
+            self._poll_timer.start()
+
+    def _select_run(self, row: int) -> None:
+        if 0 <= row < len(self.runs) and self.runs[row] is not self.followed:
+            self.follow(self.runs[row])
+
+    def cancel_run(self) -> None:
+        """Stop the followed run (SIGTERM; SIGKILL if it has not ended 10 s later)."""
+        run = self.followed
+        if run is not None and run.is_running():
+            run.cancel()
+            self.run_panel.progress.setFormat("stopping…")
+            self._update_run_item(run)
+            self.statusBar().showMessage("Stopping the run after its current steps…")
+
+    def _run_started(self, run: RunProcess) -> None:
+        self._update_run_item(run)
+        if run is self.followed and not self._shut:
+            self._refresh_live()
+            self._poll_timer.start()
+
+    def _run_progressed(self, run: RunProcess, event: dict[str, Any]) -> None:
         if self._shut:
             return
-        self.run_panel.show_progress(progress, time.perf_counter() - self._run_started)
+        self._update_run_item(run)
+        if run is self.followed and not run.cancel_requested:
+            self.run_panel.show_progress(event, time.perf_counter() - run.started_at)
 
-    def _frame_waiting(self) -> None:
-        # the first frame at once, then at most every LIVE_INTERVAL_MS: the view shows the
-        # newest frame, the curves get all
-        if self._live_frames == 0:
-            self._take_frames()
-        elif not self._live_timer.isActive():
-            self._live_timer.start()
-
-    def _take_frames(self) -> None:
-        if self.worker is None or self._shut:
+    def _run_frame(self, run: RunProcess) -> None:
+        if self._shut:
             return
-        frame, diagnostics = self.worker.take()
-        self.results_view.add_live_points(diagnostics)
-        if frame is not None:
-            self.results_view.show_live(frame)
+        self._update_run_item(run)
+        if run is not self.followed:
+            return
+        # the first frame at once, then at most every LIVE_INTERVAL_MS
+        if self.results_view.results is None:
+            self._refresh_live()
+        elif not self._refresh_timer.isActive():
+            self._refresh_timer.start()
+
+    def _refresh_live(self) -> None:
+        if self._shut or self.followed is None or not self.results_view.live:
+            return
+        if self.results_view.refresh():
             self._live_frames += 1
 
-    def _end_worker(self) -> None:
-        self._live_timer.stop()
-        worker, self.worker = self.worker, None
-        if self.last_worker is not None:
-            self.last_worker.deleteLater()
-        self.last_worker = worker  # kept for its timings until the next run ends
-        if worker is not None:
-            worker.wait()
-        self.actions_["run"].setEnabled(True)
-        self.actions_["cancel"].setEnabled(False)
-        self.results_view.end_live()
-
-    def _on_finished(self, result: Any) -> None:
+    def _run_ended(self, run: RunProcess, outcome: RunOutcome) -> None:
         if self._shut:
             return
-        self._end_worker()
-        self.last_result = result
-        self.run_panel.show_result(result.status, result.message, result.summary)
-        summary = result.summary or {}
+        self._update_run_item(run)
+        self.last_result = outcome
+        self.last_run = run
+        summary = outcome.summary or {}
         arch = summary.get("arch")
-        if result.status == "completed" and arch in ("cpu", "gpu"):
+        if outcome.status == "completed" and arch in ("cpu", "gpu"):
             self.settings.record_throughput(arch, float(summary.get("particle_steps_per_s") or 0.0))
             self.settings.set("last_arch", arch)
             self.run_panel.update_estimate()
+        if run is self.followed:
+            self._refresh_timer.stop()
+            self._poll_timer.stop()
+            self._show_outcome(run, outcome, ask=True)
+        else:
+            self.statusBar().showMessage(f"Run {run.name} → {run.out_dir.name} {outcome.status}: {outcome.message}",
+                                         10000)
+
+    def _show_outcome(self, run: RunProcess, outcome: RunOutcome, ask: bool) -> None:
+        """Show how a run ended, and its folder (whatever it holds: frames up to a crash too)."""
         from projects.results import ResultsError
 
-        try:
-            self.results_view.open_results(result.out_dir)
-            self.settings.add_recent(result.out_dir, "results")
-        except (ResultsError, OSError, ValueError) as err:
-            logger.warning("cannot show the results: %s", err)
-        self.statusBar().showMessage(f"Run {result.status}: {result.message}", 10000)
-        if result.status == "failed":
-            self.show_error("The run failed", f"{result.message}\n\nFrames written until then are in {result.out_dir}.")
-
-    def _on_failed(self, message: str) -> None:
-        if self._shut:
+        self.actions_["cancel"].setEnabled(False)
+        self.results_view.end_live()
+        self.run_panel.show_result(outcome.status, outcome.message, outcome.summary)
+        shown = False
+        if outcome.status != "error":
+            try:
+                self.results_view.open_results(outcome.out_dir)
+                self.settings.add_recent(outcome.out_dir, "results")
+                shown = True
+            except (ResultsError, OSError, ValueError) as err:
+                logger.warning("cannot show the results: %s", err)
+        self.statusBar().showMessage(f"Run {outcome.status}: {outcome.message}", 10000)
+        if not ask:
             return
-        self._end_worker()
-        self.last_result = None
-        self.run_panel.show_result("failed", message)
-        self.show_error("The run could not start", message)
+        if outcome.status == "error":
+            self.show_error("The run could not start", outcome.message)
+        elif outcome.status in ("failed", "killed", "crashed"):
+            where = (f"Frames written until then are in {outcome.out_dir}." if shown
+                     else f"No complete frame was written to {outcome.out_dir}.")
+            title = "The run failed" if outcome.status == "failed" else "The run process ended abnormally"
+            self.show_error(title, f"{outcome.message}\n\n{where}")
 
     def wait_for_run(self, timeout_s: float = 60.0) -> bool:
-        """Process events until the running worker has finished (for scripts and tests)."""
+        """Process events until no run of this window goes on (for scripts and tests)."""
         end = time.perf_counter() + timeout_s
-        while self.worker is not None and time.perf_counter() < end:
+        while self.running and time.perf_counter() < end:
             QApplication.processEvents()
             time.sleep(0.01)
-        return self.worker is None
+        return not self.running
 
     # -- closing ---------------------------------------------------------------------------------------
 
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt's name
         if not self._shut:
-            if self.worker is not None and not self.ask_stop_run():
+            if self.running and not self.ask_stop_run():
                 event.ignore()
                 return
             if not self.maybe_save():
@@ -726,11 +1028,15 @@ class MainWindow(QMainWindow):
             return
         self._shut = True
         self._estimate_timer.stop()
-        self._live_timer.stop()
-        if self.worker is not None:
-            self.worker.cancel()
-            self.worker.wait(30_000)
-            self.worker = None
+        self._refresh_timer.stop()
+        self._poll_timer.stop()
+        running = [run for run in self.runs if run.is_running()]
+        for run in running:
+            run.cancel()
+        for run in running:
+            if not run.wait(15_000):
+                run.kill()
+                run.wait(5_000)
         self.scene.close_view()
         self.results_view.close_view()
         if self.compare is not None:

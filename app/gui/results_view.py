@@ -34,7 +34,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.curves import HistoryCurve, SeriesCurves, write_curves_csv
+from app.gui.curves import HistoryCurve, MonitorCurves, ProfileCurve, SeriesCurves, write_curves_csv
 from app.gui.document import parse_number
 from app.render import FIELDS, field_info, field_values, value_range
 
@@ -278,6 +278,17 @@ class ParticleScene(QWidget):
         self._draw_pick()
         self.plotter.render()
 
+    def show_section(self, section: tuple[float, float, float, float] | None) -> None:
+        """Draw the cross-section line (or remove it)."""
+        import pyvista as pv
+
+        self.plotter.remove_actor("section", render=False)
+        if section is not None:
+            x0, y0, x1, y1 = section
+            self.plotter.add_mesh(pv.Line((x0, y0, 0.01), (x1, y1, 0.01)), color="#d93025", line_width=2,
+                                  name="section", render=False, reset_camera=False, pickable=False)
+        self.plotter.render()
+
     def _draw_pick(self) -> None:
         import pyvista as pv
 
@@ -463,11 +474,16 @@ class ResultsView(QWidget):
     """
 
     message = Signal(str)
+    resultsShown = Signal()
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.results: Any = None
         self.live = False
+        self.live_path: Path | None = None
+        self.live_title = ""
+        #: particle histories read so far: (folder, particle, field) -> (times, values)
+        self._histories: dict[tuple[str, int, str], tuple[list[float], list[np.ndarray]]] = {}
         self.frame_index = 0
         self.live_time = 0.0
         self.history: tuple[str, np.ndarray, np.ndarray] | None = None
@@ -482,9 +498,18 @@ class ResultsView(QWidget):
         self.scene.picked.connect(self.pick_particle)
         self.curves = SeriesCurves()
         self.history_plot = HistoryCurve()
+        self.monitor_plot = MonitorCurves()
+        self.profile_plot = ProfileCurve()
+        #: monitoring points (label, x_m, y_m) and their particles in the open results
+        self.monitors: list[tuple[str, float, float]] = []
+        self.monitor_ids: list[int] = []
+        #: the cross-section (x0, y0, x1, y1), m
+        self.section: tuple[float, float, float, float] | None = None
         self.side = QTabWidget()
         self.side.addTab(self.curves, "Run curves")
         self.side.addTab(self.history_plot, "Particle history")
+        self.side.addTab(self._with_inputs(self.monitor_plot, "monitor"), "Monitoring points")
+        self.side.addTab(self._with_inputs(self.profile_plot, "section"), "Cross-section")
         # landslide domains are wide: the curves go below the view, in a row
         split = QSplitter(Qt.Orientation.Vertical)
         split.addWidget(self.scene)
@@ -504,49 +529,201 @@ class ResultsView(QWidget):
         self.scene.close_view()
         self.curves.close_canvas()
         self.history_plot.close_canvas()
+        self.monitor_plot.close_canvas()
+        self.profile_plot.close_canvas()
+
+    def particle_history(self, particle: int, field: str) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`projects.results.Results.particle_history`, kept per particle and field so
+        that a run under way (its folder reread as frames arrive) reads only the new frames."""
+        results = self.results
+        key = (str(results.path), int(particle), field)
+        times, values = self._histories.get(key, ([], []))
+        if len(times) > len(results):  # another folder of the same name: start again
+            times, values = [], []
+        for j in range(len(times), len(results)):
+            arrays = results.frame(j, {field})
+            if field not in arrays:
+                raise KeyError(f"frame {j} has no field {field!r}; it has {sorted(arrays)}")
+            column = arrays[field]
+            if not 0 <= particle < len(column):
+                raise IndexError(f"particle {particle} out of range (0..{len(column) - 1})")
+            times.append(float(results.times[j]))
+            values.append(np.array(column[particle]))
+        self._histories[key] = (times, values)
+        return np.array(times), np.array(values)
+
+    def _with_inputs(self, canvas: QWidget, kind: str) -> QWidget:
+        """A canvas with the coordinate fields that drive it above it."""
+        box = QWidget()
+        layout = QVBoxLayout(box)
+        layout.setContentsMargins(0, 0, 0, 0)
+        row = QHBoxLayout()
+        if kind == "monitor":
+            self.monitor_x, self.monitor_y = QLineEdit(), QLineEdit()
+            for edit, name in ((self.monitor_x, "x"), (self.monitor_y, "y")):
+                edit.setPlaceholderText(f"{name} (m)")
+                edit.setMaximumWidth(90)
+                row.addWidget(QLabel(name))
+                row.addWidget(edit)
+            add = QPushButton("Add point")
+            add.setToolTip("Follow the particle nearest to this point at the start of the run")
+            add.clicked.connect(self._add_monitor_typed)
+            clear = QPushButton("Clear")
+            clear.clicked.connect(self.clear_monitors)
+            row.addWidget(add)
+            row.addWidget(clear)
+        else:
+            self.section_edits = [QLineEdit() for _ in range(4)]
+            for edit, name in zip(self.section_edits, ("x0", "y0", "x1", "y1"), strict=True):
+                edit.setPlaceholderText(f"{name} (m)")
+                edit.setMaximumWidth(80)
+                row.addWidget(QLabel(name))
+                row.addWidget(edit)
+            show = QPushButton("Show profile")
+            show.setToolTip("The shown field along the line, from the particles within one particle "
+                            "spacing of it, in the frame shown")
+            show.clicked.connect(self._section_typed)
+            row.addWidget(show)
+        row.addStretch(1)
+        layout.addLayout(row)
+        layout.addWidget(canvas, 1)
+        return box
+
+    # -- monitoring points and cross-sections ---------------------------------------------------
+
+    def _add_monitor_typed(self) -> None:
+        x, y = parse_number(self.monitor_x.text()), parse_number(self.monitor_y.text())
+        if x is None or y is None:
+            self.message.emit("monitoring point: give x and y in metres")
+            return
+        self.add_monitor(x, y)
+
+    def add_monitor(self, x_m: float, y_m: float, label: str | None = None) -> int | None:
+        """Follow the particle nearest to (x_m, y_m) at the start of the run; its id (None
+        without results). The point is kept for the next results shown (a re-run, say)."""
+        self.monitors.append((label or f"P{len(self.monitors) + 1} ({x_m:g}, {y_m:g})", float(x_m), float(y_m)))
+        self.update_monitors()
+        self.side.setCurrentIndex(2)
+        return self.monitor_ids[-1] if len(self.monitor_ids) == len(self.monitors) else None
+
+    def clear_monitors(self) -> None:
+        self.monitors, self.monitor_ids = [], []
+        self.monitor_plot.show_histories([])
+
+    def update_monitors(self) -> None:
+        """Recompute the monitoring points' particles and histories from the open results."""
+        if self.results is None or not self.monitors:
+            self.monitor_ids = []
+            self.monitor_plot.show_histories([])
+            return
+        first = self.results.frame(0, {"positions", "active"})
+        positions, active = first["positions"], first["active"]
+        candidates = np.flatnonzero(active) if active.any() else np.arange(len(positions))
+        ids, histories = [], []
+        for label, x, y in self.monitors:
+            d2 = ((positions[candidates] - [x, y]) ** 2).sum(axis=1)
+            pid = int(candidates[int(np.argmin(d2))])
+            ids.append(pid)
+            try:
+                times, disp = self.particle_history(pid, "displacement")
+                _t, vel = self.particle_history(pid, "velocity")
+            except (KeyError, IndexError) as err:  # a run that did not write these fields
+                self.message.emit(f"monitoring point {label}: {err}")
+                continue
+            histories.append((f"{label}: particle {pid}", times, np.hypot(disp[:, 0], disp[:, 1]),
+                              np.hypot(vel[:, 0], vel[:, 1])))
+        self.monitor_ids = ids
+        self.monitor_plot.show_histories(histories)
+
+    def _section_typed(self) -> None:
+        values = [parse_number(e.text()) for e in self.section_edits]
+        if any(v is None for v in values):
+            self.message.emit("cross-section: give x0, y0, x1, y1 in metres")
+            return
+        self.set_section(*values)  # type: ignore[arg-type]
+
+    def set_section(self, x0: float, y0: float, x1: float, y1: float) -> int:
+        """Show the field along the line from (x0, y0) to (x1, y1) in the shown frame; the
+        number of particles on it (within one particle spacing of the line)."""
+        if (x0, y0) == (x1, y1):
+            self.message.emit("cross-section: the two end points must differ")
+            return 0
+        self.section = (float(x0), float(y0), float(x1), float(y1))
+        for edit, v in zip(self.section_edits, self.section, strict=True):
+            edit.setText(f"{v:g}")
+        self.side.setCurrentIndex(3)
+        return self.update_section()
+
+    def update_section(self) -> int:
+        if self.section is None or self.results is None:
+            return 0
+        x0, y0, x1, y1 = self.section
+        arrays = self.results.frame(self.frame_index)
+        field = self.controls.field_name
+        values = np.asarray(field_values(arrays, field), float)
+        start, end = np.array([x0, y0]), np.array([x1, y1])
+        length = float(np.linalg.norm(end - start))
+        along = (end - start) / length
+        rel = arrays["positions"] - start
+        s_m = rel @ along
+        off = np.abs(rel @ np.array([-along[1], along[0]]))
+        spacing = float(self.results.summary.get("particle_spacing_m") or 0.0) or 0.02 * length
+        on = arrays["active"] & (off <= spacing) & (s_m >= 0) & (s_m <= length)
+        order = np.argsort(s_m[on])
+        label = _field_label(field)
+        time_s = float(self.results.times[self.frame_index])
+        self.profile_plot.show_profile(s_m[on][order], values[on][order], label,
+                                       f"({x0:g}, {y0:g}) → ({x1:g}, {y1:g}), t = {time_s:.4g} s, "
+                                       f"{int(on.sum())} particles")
+        if not on.any():
+            self.message.emit("cross-section: no particle within one particle spacing of the line")
+        self.scene.show_section(self.section)
+        return int(on.sum())
 
     def _set_enabled(self, on: bool) -> None:
         self.controls.play.setEnabled(on)
         self.controls.slider.setEnabled(on)
 
     # -- live runs --------------------------------------------------------------------------------
+    # A run under way is shown from its results folder, read the same way as a finished one:
+    # follow() names the folder, refresh() reopens it whenever the run says a frame was written
+    # (and on a timer), and the view jumps to the newest frame unless the user moved the slider.
 
-    def begin_live(self, title: str, box: tuple[float, float, float, float] | None, spacing_m: float,
-                   material_names: list[str]) -> None:
-        """Prepare to show the frames of a run as they arrive."""
+    def follow(self, path: str | Path, title: str) -> None:
+        """Show the run writing to ``path`` as its frames arrive (call :meth:`refresh` to look)."""
         self.controls.stop()
         self.results = None
         self.live = True
+        self.live_path = Path(path)
+        self.live_title = title
         self.history = None
         self.history_plot.clear_history()
         self.scene.clear()
-        self.scene.set_domain(box, spacing_m, material_names)
         self.curves.clear()
         self.curves.set_time(None)
         self.controls.slider.blockSignals(True)
         self.controls.slider.setRange(0, 0)
         self.controls.slider.blockSignals(False)
         self._set_enabled(False)
-        self.header.setText(f"Running: {title}")
+        self.header.setText(f"Running: {title} — {path}")
         self.controls.time_label.setText("starting…")
 
-    def show_live(self, frame: Any) -> None:
-        """Draw a frame of the running solver (the newest; the view may skip some)."""
-        diag = frame.diagnostics
-        self.live_time = float(diag.time_s)
-        self._apply_style()
-        self.scene.show_arrays(frame.fields, diag.time_s, f"{diag.stage}   (live)")
-        self.controls.show_range(self.scene.shown_clim)
-        self.controls.time_label.setText(f"t = {diag.time_s:.4g} s   step {diag.step:,}")
-        if self.scene.message:
-            self.message.emit(self.scene.message)
+    def refresh(self) -> bool:
+        """Reread the followed folder; True when it shows a frame it did not show before."""
+        if not self.live or self.live_path is None:
+            return False
+        from projects.results import ResultsError
 
-    def add_live_points(self, diagnostics: list[Any]) -> None:
-        """Add the diagnostics of frames of the running solver to the curves (all of them, in order)."""
-        for d in diagnostics:
-            self.curves.append(d)
+        before = len(self.results) if self.results is not None else 0
+        try:
+            self._show_folder(self.live_path, live=True)
+        except (ResultsError, OSError) as err:  # not there yet, or no complete frame yet
+            logger.debug("live results not readable yet: %s", err)
+            return False
+        return len(self.results) > before
 
     def end_live(self) -> None:
+        """The followed run has ended: stop following (its folder stays open)."""
         self.live = False
 
     # -- results folders ----------------------------------------------------------------------------
@@ -559,38 +736,60 @@ class ResultsView(QWidget):
         projects.results.ResultsError
             When ``path`` is not a results folder or has no complete frame.
         """
+        self.live = False
+        self.live_path = None
+        self._show_folder(Path(path), live=False)
+
+    def _show_folder(self, path: Path, live: bool) -> None:
         from projects.results import ResultsError, open_results
 
         results = open_results(path)
         if len(results) == 0:
             raise ResultsError(f"{results.path} has no complete frames to show")
-        self.controls.stop()
+        previous = self.results
+        same = (previous is not None and previous.path == results.path and live
+                and self.scene.picked_id is not None)
+        at_end = previous is None or self.frame_index >= len(previous) - 1 or not live
+        if not live or previous is None or previous.path != results.path:
+            self._histories.clear()
+            self.controls.stop()
+            self.history = None
+            self.history_plot.clear_history()
+            spacing = results.summary.get("particle_spacing_m") or 0.0
+            self.scene.clear()
+            self.scene.set_domain(_domain_of(results.summary), float(spacing), results.material_names)
         self.results = results
-        self.live = False
-        self.history = None
-        self.history_plot.clear_history()
-        spacing = results.summary.get("particle_spacing_m") or 0.0
-        self.scene.clear()
-        self.scene.set_domain(_domain_of(results.summary), float(spacing), results.material_names)
-        self.curves.set_series(results.series)
+        if live:
+            self.curves.set_series(results.series, now=False)
+        else:
+            self.curves.set_series(results.series)
         status = results.status
         title = results.summary.get("title") or results.path.name
-        info = (f"{title} — {results.path}   [{status}"
-                f"{': ' + results.message if results.message and status != 'completed' else ''}]   "
+        if live:
+            state = "running"
+        else:
+            state = status + (": " + results.message if results.message and status != "completed" else "")
+        info = (f"{title} — {results.path}   [{state}]   "
                 f"{results.summary.get('particles', '?')} particles, {results.summary.get('scheme', '?')}, "
                 f"{results.summary.get('arch', '?')} {results.summary.get('precision', '')}")
         self.header.setText(info)
         self._set_enabled(True)
         slider = self.controls.slider
+        index = len(results) - 1 if at_end else min(self.frame_index, len(results) - 1)
         slider.blockSignals(True)
         slider.setRange(0, len(results) - 1)
-        slider.setValue(len(results) - 1)
+        slider.setValue(index)
         slider.blockSignals(False)
-        self.show_frame(len(results) - 1)
+        self.show_frame(index)
+        if same and self.history is not None:
+            self.pick_particle(self.scene.picked_id)
+        if self.monitors:
+            self.update_monitors()
+        self.resultsShown.emit()
 
     def show_frame(self, index: int) -> None:
-        """Show frame ``index`` of the open results folder."""
-        if self.results is None or self.live:
+        """Show frame ``index`` of the open results folder (also while its run goes on)."""
+        if self.results is None:
             return
         n = len(self.results)
         index = max(0, min(int(index), n - 1))
@@ -601,11 +800,14 @@ class ResultsView(QWidget):
             self.controls.slider.blockSignals(False)
         time_s = float(self.results.times[index])
         self._apply_style()
-        self.scene.show_arrays(self.results.frame(index), time_s, f"frame {index + 1}/{n}")
+        caption = f"frame {index + 1}/{n}" + ("   (live)" if self.live else "")
+        self.scene.show_arrays(self.results.frame(index), time_s, caption)
         self.controls.show_range(self.scene.shown_clim)
         stage = self._stage_at(index)
         self.controls.time_label.setText(f"t = {time_s:.4g} s   frame {index + 1}/{n}{stage}")
         self.curves.set_time(time_s)
+        if self.section is not None:
+            self.update_section()
         self.message.emit(self.scene.message)
 
     def _stage_at(self, index: int) -> str:
@@ -624,7 +826,7 @@ class ResultsView(QWidget):
 
     def _restyle(self) -> None:
         self.controls._sync_unit()
-        if self.results is not None and not self.live:
+        if self.results is not None:
             self.show_frame(self.frame_index)
             if self.history is not None and self.scene.picked_id is not None:
                 self.pick_particle(self.scene.picked_id)
@@ -643,7 +845,7 @@ class ResultsView(QWidget):
         field = self.controls.field_name
         info = field_info(field)
         try:
-            times, raw = self.results.particle_history(particle, info.source)
+            times, raw = self.particle_history(particle, info.source)
             values = field_values({info.source: raw}, field)
         except (KeyError, IndexError, ValueError) as err:
             self.message.emit(str(err))

@@ -50,13 +50,20 @@ class RunPanel(QWidget):
     -------
     runRequested()
     cancelRequested()
+        Cancel the run selected in the run list.
     problemActivated(str)
         The key path of a problem the user double-clicked.
+    runSelected(int)
+        The row of the run list the user chose (the window follows that run).
+    removeUnknownRequested()
+        Remove the keys the schema does not know (typos in a file) from the project.
     """
 
     runRequested = Signal()
     cancelRequested = Signal()
     problemActivated = Signal(str)
+    runSelected = Signal(int)
+    removeUnknownRequested = Signal()
 
     def __init__(self, doc: ProjectDocument, settings: Settings, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -65,18 +72,31 @@ class RunPanel(QWidget):
         layout = QVBoxLayout(self)
         layout.setContentsMargins(6, 6, 6, 6)
 
-        box = QGroupBox("Before running")
+        box = QGroupBox("What will run")
         form = QFormLayout(box)
         self.particles = QLabel("–")
         self.grid = QLabel("–")
+        self.cell = QLabel("–")
+        self.numerics = QLabel("–")
         self.steps = QLabel("–")
+        self.frames = QLabel("–")
         self.runtime = QLabel("–")
-        self.runtime.setWordWrap(True)
+        self.rate_info = QLabel("")
+        self.preset_note = QLabel("")
+        # short values, one line each: word-wrapped labels in a form get no room in a dock
+        self.preset_note.setWordWrap(True)
+        self.rate_info.setWordWrap(True)
+        self.preset_note.setStyleSheet("color: #e37400;")
         form.addRow("Particles", self.particles)
+        form.addRow("Cell size", self.cell)
         form.addRow("Grid", self.grid)
+        form.addRow("Numerics", self.numerics)
         form.addRow("Time steps", self.steps)
+        form.addRow("Frames", self.frames)
         form.addRow("Run time", self.runtime)
+        form.addRow("", self.rate_info)
         layout.addWidget(box)
+        layout.addWidget(self.preset_note)
 
         box = QGroupBox("Run")
         vbox = QVBoxLayout(box)
@@ -84,7 +104,8 @@ class RunPanel(QWidget):
         row.addWidget(QLabel("Results"))
         self.out_dir = QLineEdit()
         self.out_dir.setPlaceholderText("NAME.results next to the project file")
-        self.out_dir.setToolTip("Results folder; an existing results folder there is replaced")
+        self.out_dir.setToolTip("Results folder; if one is there already you are asked whether to replace "
+                                "it or to use a new folder beside it")
         browse = QPushButton("…")
         browse.setMaximumWidth(30)
         browse.clicked.connect(self._browse)
@@ -119,6 +140,16 @@ class RunPanel(QWidget):
         vbox.addWidget(self.status)
         layout.addWidget(box)
 
+        box = QGroupBox("Runs (each a process with its own folder)")
+        vbox = QVBoxLayout(box)
+        self.runs = QListWidget()
+        self.runs.setWordWrap(True)
+        self.runs.setToolTip("Runs of this session; choose one to follow it (progress, live view, Cancel)")
+        self.runs.setMaximumHeight(110)
+        self.runs.currentRowChanged.connect(lambda row: row >= 0 and self.runSelected.emit(row))
+        vbox.addWidget(self.runs)
+        layout.addWidget(box)
+
         self.problems_box = QGroupBox("Problems")
         vbox = QVBoxLayout(self.problems_box)
         self.problems = QListWidget()
@@ -127,6 +158,12 @@ class RunPanel(QWidget):
             lambda item: self.problemActivated.emit(item.data(Qt.ItemDataRole.UserRole) or ""))
         vbox.addWidget(self.problems)
         self.problems.setMaximumHeight(220)
+        self.remove_unknown = QPushButton("Remove unknown keys")
+        self.remove_unknown.setToolTip("Keys the project format does not know (a typo in the file) are "
+                                       "never used; remove them so that the project can run")
+        self.remove_unknown.clicked.connect(self.removeUnknownRequested)
+        self.remove_unknown.setVisible(False)
+        vbox.addWidget(self.remove_unknown)
         layout.addWidget(self.problems_box)
         layout.addStretch(1)
         self._t0: tuple[float, float] | None = None
@@ -149,31 +186,71 @@ class RunPanel(QWidget):
             self.problems.addItem(str(p))
             self.problems.item(self.problems.count() - 1).setData(Qt.ItemDataRole.UserRole, p.path)
         n = len(self.doc.problems)
-        self.problems_box.setTitle(f"Problems ({n})" if n else "Problems (none)")
-        self.problems.setMaximumHeight(260 if n else 48)
+        warnings: list[str] = []
+        if project is not None:
+            from projects.checks import project_warnings
+
+            try:
+                warnings = project_warnings(project)  # what runs but is probably not meant
+            except (ValueError, ArithmeticError) as err:
+                logger.debug("no warnings: %s", err)
+        from PySide6.QtGui import QColor
+
+        for text in warnings:
+            self.problems.addItem(f"warning: {text}")
+            self.problems.item(self.problems.count() - 1).setForeground(QColor("#b06000"))
+        self.warnings = warnings
+        title = f"Problems ({n})" if n else "Problems (none)"
+        self.problems_box.setTitle(title + (f", {len(warnings)} warning(s)" if warnings else ""))
+        self.remove_unknown.setVisible(bool(self.doc.unknown_keys()))
+        self.problems.setMaximumHeight(260 if n or warnings else 48)
         if project is None:
-            for w in (self.particles, self.grid, self.steps):
+            for w in (self.particles, self.grid, self.steps, self.cell, self.numerics, self.frames):
                 w.setText("–")
+            self.rate_info.setText("")
+            self.preset_note.setText("")
             self.runtime.setText("fix the problems below first")
             return None
-        from projects.build import estimate
+        from projects.build import resolve
+        from projects.schema import DEFAULT_CFL, ProjectError
 
         try:
-            e = estimate(project)
-        except (ValueError, ZeroDivisionError) as err:
+            resolved = resolve(project, seed=False)  # what the run will use, preset applied
+        except (ValueError, ZeroDivisionError, ProjectError) as err:
             self.runtime.setText(str(err))
             return None
+        e = dict(resolved.estimate)
+        effective = resolved.project
         nx, ny = e["grid_shape"]
+        dx = effective.domain.cell_size_m
+        num = effective.numerics
+        self.cell.setText(f"{dx:.4g} m, {effective.particles.per_cell}² per cell")
+        step = f"time step {num.time_step_s:g} s" if num.time_step_s is not None else f"CFL {num.cfl or DEFAULT_CFL:g}"
+        self.numerics.setText(f"{num.scheme}, {step}, {num.precision}")
+        self.numerics.setToolTip("scheme, time step, precision as the run will use them")
+        changed = []
+        if project.numerics.preset is not None:
+            if dx != project.domain.cell_size_m:
+                changed.append(f"cell size {project.domain.cell_size_m:g} → {dx:.4g} m")
+            if effective.particles.per_cell != project.particles.per_cell:
+                changed.append(f"particles per cell {project.particles.per_cell} → {effective.particles.per_cell}")
+            if num.scheme != project.numerics.scheme:
+                changed.append(f"scheme {project.numerics.scheme} → {num.scheme}")
+            if num.cfl != project.numerics.cfl:
+                changed.append(f"CFL {project.numerics.cfl or DEFAULT_CFL:g} → {num.cfl:g}")
+        self.preset_note.setText(
+            f"Preset '{project.numerics.preset}' overrides the panels: " + "; ".join(changed) if changed else "")
+        e["effective"] = effective
         self.particles.setText(f"about {e['particles']:,}")
         self.grid.setText(f"{nx} × {ny} = {e['grid_cells']:,} cells")
-        self.steps.setText(f"{e['steps']:,} of {e['time_step_s']:.3g} s ({e['time_step_source']}), "
-                           f"{e['frames']} frames")
+        self.steps.setText(f"{e['steps']:,} of {e['time_step_s']:.3g} s")
+        self.frames.setText(f"{e['frames']:,}, every {effective.output.interval_s:g} s")
         arch = self.arch()
         rate, measured = self.settings.throughput(arch)
         seconds = SETUP_S + e["particles"] * e["steps"] / rate
         source = "measured on this machine" if measured else "assumed; the first run measures it"
-        self.runtime.setText(f"about {format_duration(seconds)} on {arch} "
-                             f"({rate / 1e6:.3g} M particle-steps/s, {source})")
+        self.runtime.setText(f"about {format_duration(seconds)} on {arch}")
+        self.rate_info.setText(f"{rate / 1e6:.3g} M particle-steps/s, {source}")
         e["run_time_s"] = seconds
         return e
 
@@ -184,10 +261,27 @@ class RunPanel(QWidget):
         if path:
             self.out_dir.setText(path)
 
+    def add_run(self, text: str) -> None:
+        """List a new run and choose it."""
+        self.runs.addItem(text)
+        self.runs.blockSignals(True)
+        self.runs.setCurrentRow(self.runs.count() - 1)
+        self.runs.blockSignals(False)
+
+    def set_run_text(self, row: int, text: str, status: str) -> None:
+        item = self.runs.item(row)
+        if item is None:
+            return
+        item.setText(text)
+        color = {"completed": "#188038", "stopped": "#e37400", "running": "#1a73e8",
+                 "starting": "#1a73e8", "stopping": "#e37400"}.get(status, "#b3261e")
+        from PySide6.QtGui import QColor
+
+        item.setForeground(QColor(color))
+
     def set_running(self, running: bool) -> None:
-        self.run_button.setEnabled(not running)
+        """Show the chosen run as running (Cancel on, progress reset) or not."""
         self.cancel_button.setEnabled(running)
-        self.out_dir.setEnabled(not running)
         if running:
             self.progress.setValue(0)
             self.progress.setFormat("starting (compiling the solver)…")
@@ -197,7 +291,12 @@ class RunPanel(QWidget):
             self._t0 = None
 
     def show_progress(self, progress: Any, wall_s: float) -> None:
-        """Show a solver Progress; ``wall_s`` is the time since the run started."""
+        """Show a ``progress`` event of a run (a dict, or an object with the same attributes);
+        ``wall_s`` is the time since the run started."""
+        if isinstance(progress, dict):
+            from types import SimpleNamespace
+
+            progress = SimpleNamespace(**progress)
         total = progress.total_time_s
         fraction = progress.time_s / total if total > 0 else 0.0
         self.progress.setValue(int(round(1000 * min(1.0, fraction))))
@@ -223,7 +322,7 @@ class RunPanel(QWidget):
                                f"{format_duration(summary.get('wall_time_s') or 0.0)} of wall time")
             rate = summary.get("particle_steps_per_s") or 0.0
             self.rate.setText(f"Speed: {rate / 1e6:.3g} M particle-steps/s on {summary.get('arch', '?')}")
-        color = {"completed": "#188038", "stopped": "#e37400"}.get(status, "#b3261e")
+        color = {"completed": "#188038", "stopped": "#e37400", "running": "#1a73e8"}.get(status, "#b3261e")
         self.status.setStyleSheet(f"color: {color};")
         self.status.setText(f"{status}: {message}")
         if status == "completed":

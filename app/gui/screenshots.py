@@ -4,9 +4,11 @@ Run under a display (Xvfb on a server)::
 
     xvfb-run -a -s "-screen 0 1920x1200x24" python -m app.gui.screenshots docs/screenshots
 
-It opens the shipped examples, runs one on the CPU and saves ``prepare.png`` (the model of the
-slope example), ``running.png`` (a run under way, live) and ``results.png`` (the inspector). The
-window is grabbed by Qt, embedded VTK views included.
+It opens the shipped examples, runs one on the CPU (as a child process, like every run of the
+workbench) and saves ``prepare.png`` (the model of the slope example with a preset: the run
+panel says what will run), ``running.png`` (a run under way, live from its results folder) and
+``results.png`` (the inspector with monitoring points and a cross-section). The window is
+grabbed by Qt, embedded VTK views included.
 """
 
 from __future__ import annotations
@@ -50,8 +52,15 @@ def make_screenshots(out_dir: Path) -> list[Path]:
     _settle(app)
     written = []
 
-    # prepare: the layered slope of the Sun & Song example, its first body selected
+    # prepare: the layered slope of the Sun & Song example, its first body selected, with the
+    # "draft" preset chosen: the run panel says what will run instead of the panels' values
     window.open_project(EXAMPLES / "slope_sun_song_2015.toml", ask=False)
+
+    def draft(d: dict) -> None:
+        d["numerics"].pop("time_step_s", None)
+        d["numerics"]["preset"] = "draft"
+
+    window.doc.edit("preset draft", draft)
     window.panels.setCurrentWidget(window.bodies_panel)
     window.doc.selection.set(0, 3)
     window.run_panel.update_estimate()
@@ -71,7 +80,7 @@ def make_screenshots(out_dir: Path) -> list[Path]:
     window.start_run()
     fraction = 0.0
     end = time.perf_counter() + 300
-    while window.worker is not None and fraction < 0.4 and time.perf_counter() < end:
+    while window.running and fraction < 0.4 and time.perf_counter() < end:
         app.processEvents()
         time.sleep(0.02)
         fraction = window.run_panel.progress.value() / 1000.0
@@ -80,15 +89,18 @@ def make_screenshots(out_dir: Path) -> list[Path]:
     window.grab().save(str(written[-1]))
     window.wait_for_run(600)
 
-    # results: the inspector half way through the run, the upper right corner of the block picked
+    # results: the inspector half way through the run, monitoring points at the block's upper
+    # right corner and half way down its right side, and a horizontal cross-section
     view = window.results_view
     if view.results is not None:
         view.controls.slider.setValue(int(0.5 * (len(view.results) - 1)))
         view.set_field("displacement")
         frame = view.results.frame(0)
-        corner = int((frame["positions"] @ [1.0, 1.0]).argmax())  # the block's upper right corner
-        view.pick_particle(corner)
-        view.side.setCurrentWidget(view.curves)
+        x1, y1 = frame["positions"].max(axis=0)
+        view.add_monitor(float(x1), float(y1), "crest")
+        view.add_monitor(float(x1), 0.5 * float(y1), "mid-height")
+        view.set_section(0.0, 0.005, float(x1) * 2.5, 0.005)
+        view.side.setCurrentIndex(2)
     _settle(app, 0.8)
     written.append(out_dir / "results.png")
     window.grab().save(str(written[-1]))

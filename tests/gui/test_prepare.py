@@ -315,8 +315,17 @@ def test_slope_from_template(window):
     assert [b["material"] for b in bodies] == ["clay", "soil"]
     assert window.doc.project is not None, window.doc.problems
     assert window.doc.undo_stack.undoText() == "slope from template"
+    # the ground slopes: the k0 stage of the new project became gravity loading, and the
+    # project has no K0-on-a-slope warning left
+    first = window.doc.get("stages")[0]
+    assert first["type"] == "gravity" and first["duration_s"] >= 1.0
+    assert first["name"] == _empty_project()["stages"][0]["name"]
+    from projects.checks import project_warnings
+
+    assert not [w for w in project_warnings(window.doc.project) if "k0" in w.lower()]
     window.doc.undo_stack.undo()
     assert window.doc.get("bodies") == [] and window.doc.get("domain.size_m") == [20.0, 10.0]
+    assert window.doc.get("stages")[0]["type"] == "k0"  # the same undo step
 
 
 def test_material_library_saves_and_inserts(window, tiny_file, tmp_path):

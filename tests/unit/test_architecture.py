@@ -1,4 +1,4 @@
-"""The direction of dependencies (docs/DESIGN.md): app -> projects -> {geometry, solver, stability}.
+"""The direction of dependencies (docs/DESIGN.md): app -> {studies, sweeps} -> projects -> {geometry, solver, stability}.
 
 Each package is imported in a fresh interpreter and the modules it must not pull in are checked.
 """
@@ -19,6 +19,10 @@ FORBIDDEN = {
     "projects.results": ["PySide6", "app"],
     "projects.hazard": ["PySide6", "pyvista", "vtk", "taichi", "matplotlib", "app"],
     "solver.envelopes": ["PySide6", "pyvista", "vtk", "gmsh", "geometry", "projects", "app"],
+    "projects.results_folder": ["PySide6", "pyvista", "taichi", "app", "solver", "geometry"],
+    "projects.limits": ["PySide6", "pyvista", "taichi", "app"],
+    "projects.units": ["PySide6", "pyvista", "taichi", "app", "solver", "geometry", "pydantic"],
+    "projects.checks": ["PySide6", "pyvista", "taichi", "app"],
     "app.render": ["PySide6"],
     "app.report": ["PySide6", "taichi"],
     "app.cli": ["PySide6", "pyvista", "taichi", "gmsh"],
@@ -26,6 +30,11 @@ FORBIDDEN = {
     "benchmarks.bench": ["PySide6", "pyvista", "app"],
     "stability": ["PySide6", "pyvista", "vtk", "gmsh", "taichi", "solver", "geometry", "projects", "app",
                   "scipy", "shapely"],
+    # the sweep driver schedules `runout run` processes: no solver runtime, no GUI in it
+    "sweeps.sweep": ["PySide6", "pyvista", "vtk", "app", "taichi"],
+    "sweeps.calibrate": ["PySide6", "pyvista", "vtk", "app", "taichi"],
+    "sweeps.report": ["PySide6", "pyvista", "vtk", "app", "taichi"],
+    "sweeps.measures": ["PySide6", "pyvista", "vtk", "app", "taichi"],
 }
 
 
@@ -46,3 +55,49 @@ def test_importing_the_solver_does_not_initialise_taichi():
     code = "import solver.simulation, taichi.lang.impl as impl; print(impl.get_runtime().prog is None)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip().splitlines()[-1] == "True"
+
+
+WORKBENCH = """
+import json, os, pkgutil, sys, importlib, tempfile
+import app.gui
+for info in pkgutil.iter_modules(app.gui.__path__):
+    importlib.import_module("app.gui." + info.name)
+loaded = sorted(sys.modules)
+if os.environ.get("OPEN_WINDOW"):
+    from PySide6.QtWidgets import QApplication
+    from app.gui.main_window import MainWindow
+    from app.gui.settings import MaterialLibrary, Settings
+    qapp = QApplication([])
+    config = tempfile.mkdtemp()
+    win = MainWindow(settings=Settings(config), library=MaterialLibrary(config))
+    win.show()
+    win.open_project(sys.argv[1], ask=False)
+    win.run_panel.update_estimate()
+    win.scene.set_show_particles(True)
+    qapp.processEvents()
+    loaded = sorted(sys.modules)
+    win.shutdown()
+print(json.dumps(loaded))
+os._exit(0)
+"""
+
+
+@pytest.mark.parametrize("open_window", [False, True], ids=["import", "window"])
+def test_the_workbench_process_never_imports_taichi(open_window, tmp_path):
+    """Runs are child processes (app.gui.run_process): the workbench itself, every module of it
+    imported and a window open on an example with its estimate and particle preview, has no
+    Taichi (nor the solver's engine) loaded."""
+    import os
+    from pathlib import Path
+
+    example = Path(__file__).resolve().parents[2] / "projects" / "examples" / "tiny_column.toml"
+    env = dict(os.environ, QT_QPA_PLATFORM="offscreen", QT_API="pyside6", RUNOUT_CONFIG_DIR=str(tmp_path))
+    if open_window:
+        env["OPEN_WINDOW"] = "1"
+    out = subprocess.run([sys.executable, "-c", WORKBENCH, str(example)], capture_output=True, text=True,
+                         env=env, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    loaded = set(json.loads(out.stdout.strip().splitlines()[-1]))
+    assert "PySide6" in loaded and "app.gui.main_window" in loaded
+    assert "taichi" not in loaded
+    assert not {"solver.engine", "solver.simulation", "solver.runtime"} & loaded

@@ -1,0 +1,212 @@
+"""The workbench's traps of a first hour (issue 15): units, unknown keys, what a preset runs,
+profile imports, monitoring points, cross-sections, movie progress and Help."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PySide6.QtCore import QTimer
+
+pytestmark = pytest.mark.gui
+
+
+# -- values with units ------------------------------------------------------------------------
+
+@pytest.mark.parametrize("text, unit, expected", [
+    ("5 kPa", "Pa", 5e3), ("10 MPa", "Pa", 1e7), ("2.5e6", "Pa", 2.5e6), ("0,3 GPa", "Pa", 3e8),
+    ("50 kN/m²", "Pa", 5e4), ("20 kN/m3", "kg/m³", 20e3 / 9.81), ("2.1 t/m³", "kg/m³", 2100.0),
+    ("1 800", "kg/m³", 1800.0), ("25 cm", "m", 0.25), ("500 ms", "s", 0.5), ("30 deg", "°", 30.0),
+    ("5kpa", "Pa", 5e3), ("-2000", "kg/m³", -2000.0),
+])
+def test_typed_units_become_si(text, unit, expected):
+    from app.gui.units import parse_quantity
+
+    value, error = parse_quantity(text, unit)
+    assert error == ""
+    assert value == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("text, unit, message", [
+    ("5 furlongs", "m", "unknown unit 'furlongs'; use m, cm, mm or km"),
+    ("5 kPa", "kg/m³", "unknown unit 'kPa'; use kg/m3"),
+    ("5 m", "°", "unknown unit 'm'; use ° or deg"),
+    ("abc", "Pa", "must be a number"), ("5 kPa", "–", "must be a number"),
+])
+def test_wrong_units_are_named(text, unit, message):
+    from app.gui.units import parse_quantity
+
+    value, error = parse_quantity(text, unit)
+    assert value is None and error.startswith(message)
+
+
+def test_material_fields_accept_units_and_store_si(window, tiny_file):
+    window.open_project(tiny_file)
+    window.materials_panel.select("sand")
+    fields = window.materials_panel.fields
+    fields["cohesion_pa"].set_text("5 kPa")
+    fields["youngs_modulus_pa"].set_text("10 MPa")
+    fields["density_kg_m3"].set_text("19.62 kN/m3")
+    assert window.doc.get("materials.sand.cohesion_pa") == 5000.0
+    assert window.doc.get("materials.sand.youngs_modulus_pa") == 1e7
+    assert window.doc.get("materials.sand.density_kg_m3") == pytest.approx(2000.0)  # 19.62 kN/m³ over 9.81
+    assert fields["cohesion_pa"].edit.text() == "5000"  # shown in the field's own unit afterwards
+    fields["cohesion_pa"].set_text("5 kg")
+    assert "unknown unit 'kg'" in fields["cohesion_pa"].error
+    assert window.doc.get("materials.sand.cohesion_pa") == 5000.0
+
+
+# -- unknown keys --------------------------------------------------------------------------------
+
+def test_an_unknown_key_from_a_file_is_shown_and_can_be_removed(window, tiny_file):
+    text = tiny_file.read_text()
+    text = text.replace("cohesion_pa = 0.0", "cohesion_pa = 0.0\ncohesion_kpa = 5.0")
+    text = text.replace("[output]", "[outptu]\ninterval_s = 0.01\n\n[output]")
+    tiny_file.write_text(text)
+    window.show_project_problems = lambda path, error, can_open: True  # "open anyway"
+    assert window.open_project(tiny_file)
+    assert sorted(window.doc.unknown_keys()) == ["materials.sand.cohesion_kpa", "outptu"]
+    assert window.doc.project is None
+    window.run_panel.update_estimate()
+    assert window.run_panel.remove_unknown.isVisibleTo(window.run_panel)
+    assert any("cohesion_kpa" in window.run_panel.problems.item(i).text()
+               for i in range(window.run_panel.problems.count()))
+    window.run_panel.remove_unknown.click()
+    assert window.doc.unknown_keys() == [] and window.doc.project is not None
+    window.run_panel.update_estimate()
+    assert not window.run_panel.remove_unknown.isVisibleTo(window.run_panel)
+    window.doc.undo_stack.undo()  # one undo step brings them back
+    assert len(window.doc.unknown_keys()) == 2
+
+
+# -- what will run ----------------------------------------------------------------------------------
+
+def test_the_run_panel_shows_what_a_preset_runs(window, tiny_file):
+    window.open_project(tiny_file)
+    panel = window.run_panel
+    panel.update_estimate()
+    assert panel.cell.text() == "0.02 m, 2² per cell"
+    assert panel.numerics.text() == "apic-affine, time step 0.0002 s, f32"
+    assert panel.preset_note.text() == ""
+
+    def standard(d):
+        d["numerics"].pop("time_step_s", None)
+        d["numerics"]["preset"] = "standard"
+
+    window.doc.edit("preset", standard)
+    panel.update_estimate()
+    # the column is 0.24 m high; "standard" asks for 40 cells over the smallest body's height
+    assert panel.cell.text().startswith("0.006 m")
+    assert panel.numerics.text() == "apic-affine, CFL 0.4, f32"
+    assert "Preset 'standard' overrides the panels" in panel.preset_note.text()
+    assert "cell size 0.02 → 0.006 m" in panel.preset_note.text()
+    assert panel.particles.text() == "about 3,200"  # 0.12 x 0.24 m at 2 x 2 per 6 mm cell
+
+
+# -- importing a slope profile -----------------------------------------------------------------------
+
+def test_import_a_csv_profile_as_a_body(window, tmp_path):
+    window.new_project()
+    profile = tmp_path / "survey.csv"
+    profile.write_text("x_m,y_m\n0,5\n4,5\n10,1\n16,1\n")
+    assert window.import_body(profile, "soil", base_y_m=0.0)
+    body = window.doc.get("bodies")[-1]
+    assert body["name"] == "survey" and body["material"] == "soil"
+    assert sorted(map(tuple, body["polygon_m"])) == sorted([(0.0, 5.0), (4.0, 5.0), (10.0, 1.0), (16.0, 1.0),
+                                                            (16.0, 0.0), (0.0, 0.0)])
+    assert window.doc.problems == []  # inside the 20 m x 10 m domain
+    window.doc.undo_stack.undo()
+    assert window.doc.get("bodies") == []
+    # a file that cannot be read is refused with one line
+    bad = tmp_path / "bad.csv"
+    bad.write_text("x_m,y_m\n0,1\n2,oops\n")
+    errors = []
+    window.show_error = lambda title, text: errors.append((title, text))
+    assert not window.import_body(bad, "soil")
+    assert errors[0][0] == "Cannot import" and "line 3: non-numeric value" in errors[0][1]
+    assert window.doc.get("bodies") == []
+
+
+def test_import_a_dxf_polyline_and_grow_the_domain(window, tmp_path):
+    import ezdxf
+
+    window.new_project()
+    drawing = ezdxf.new()
+    drawing.modelspace().add_lwpolyline([(0, 12), (8, 12), (20, 2), (30, 2)])
+    drawing.modelspace().add_line((0, 0), (1, 1))  # clutter: the longest polyline is the profile
+    path = tmp_path / "slope.dxf"
+    drawing.saveas(path)
+    assert window.import_body(path, "soil", base_y_m=-1.0)
+    polygon = np.array(window.doc.get("bodies")[-1]["polygon_m"])
+    assert polygon[:, 1].min() == -1.0 and polygon[:, 0].max() == 30.0
+    origin, size = window.doc.get("domain.origin_m"), window.doc.get("domain.size_m")
+    assert origin[1] == -1.0 and origin[0] + size[0] > 30.0 and origin[1] + size[1] > 12.0
+    assert window.doc.problems == []
+
+
+# -- monitoring points and cross-sections ----------------------------------------------------------
+
+def test_monitoring_points_and_a_cross_section(window, make_results):
+    from projects.results import open_results
+
+    folder = make_results()
+    assert window.open_results(folder)
+    view = window.results_view
+    pid = view.add_monitor(0.2, 0.1)
+    results = open_results(folder)
+    start = results.frame(0)["positions"]
+    assert pid == int(np.argmin(((start - [0.2, 0.1]) ** 2).sum(axis=1)))
+    (label, times, disp, speed), = view.monitor_plot.histories
+    _t, expected = results.particle_history(pid, "displacement")
+    assert np.allclose(disp, np.hypot(expected[:, 0], expected[:, 1]))
+    assert disp[-1] > 0 and len(times) == len(results)
+    view.add_monitor(0.0, 0.0)
+    assert len(view.monitor_plot.histories) == 2
+    # the points stay for the next results opened, on their particles there
+    assert window.open_results(make_results("other.results"))
+    assert len(view.monitor_ids) == 2
+    # a cross-section shows the field along the line
+    view.set_field("displacement")
+    view.show_frame(0)
+    n0 = view.set_section(0.0, 0.0625, 0.2, 0.0625)
+    assert n0 > 0
+    assert np.allclose(view.profile_plot.values, 0.0)  # nothing has moved in the first frame
+    view.show_frame(3)  # the profile follows the shown frame
+    distance, values = view.profile_plot.distance, view.profile_plot.values
+    assert np.all(np.diff(distance) >= 0) and distance.max() <= 0.2
+    assert values[-1] > values[0] > 0  # the block shears to the right: more at the far end
+    assert "section" in view.scene.plotter.actors
+
+
+# -- movie export ------------------------------------------------------------------------------------
+
+def test_movie_export_shows_progress_can_be_cancelled_and_goes_beside_the_results(window, make_results,
+                                                                                     tmp_path):
+    assert window.open_results(make_results(n_frames=4))
+    out = window.export_animation(tmp_path / "movie.gif", 5.0, (160, 90))
+    assert out is not None and out.stat().st_size > 0
+    assert window.export_progress.value() in (4, -1)  # reached the end (a closed dialog resets to -1)
+    QTimer.singleShot(0, lambda: window.export_progress.cancel())
+    assert window.export_animation(tmp_path / "cancelled.gif", 5.0, (160, 90)) is None
+    assert not (tmp_path / "cancelled.gif").exists()
+    # exports default beside the results folder, never into it (a re-run may replace it)
+    folder = window.results_view.results.path
+    path = window._export_path(".png")
+    assert path.parent == folder.parent and path.name.startswith("synthetic_displacement_")
+
+
+# -- help ------------------------------------------------------------------------------------------------
+
+def test_help_shows_the_version_and_opens_the_documentation(window, monkeypatch):
+    from PySide6.QtGui import QDesktopServices
+
+    from app.gui.main_window import documentation_url
+    from projects.results import runout_version
+
+    assert f"Runout {runout_version()}" in window.about_text()
+    url = documentation_url()
+    assert url.toString() in window.about_text()
+    assert url.isLocalFile() and url.toLocalFile().endswith("docs/gui.md")
+    opened = []
+    monkeypatch.setattr(QDesktopServices, "openUrl", lambda u: opened.append(u) or True)
+    window.actions_["docs"].trigger()
+    assert opened == [url]
