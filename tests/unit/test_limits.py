@@ -42,16 +42,6 @@ def test_f64_needs_more_memory_per_particle(tiny):
     assert f64["bytes_per_node"] == 2 * f32["bytes_per_node"]
 
 
-@pytest.mark.parametrize(
-    "override, key, what",
-    [
-        ("domain.cell_size_m=1e-5", "domain.cell_size_m", "grid cells"),
-        ("domain.cell_size_m=5e-324", "domain.cell_size_m", "grid cells"),  # denormal: was NaN to int
-        ("numerics.time_step_s=1e-300", "numerics.time_step_s", "time steps"),
-        ("stages.1.duration_s=1e300", "numerics.time_step_s", "time steps"),
-        ("output.interval_s=1e-9", "output.interval_s", "frames"),
-    ],
-)
 def _denormal_flushed(tiny, override):
     """In a process where a library set flush-to-zero (seen in the full suite after Taichi runs),
     5e-324 reads as 0.0 and the schema refuses it (one line): that is an answer too."""
@@ -62,6 +52,16 @@ def _denormal_flushed(tiny, override):
         return None
 
 
+@pytest.mark.parametrize(
+    "override, key, what",
+    [
+        ("domain.cell_size_m=1e-5", "domain.cell_size_m", "grid cells"),
+        ("domain.cell_size_m=5e-324", "domain.cell_size_m", "grid cells"),  # denormal: was NaN to int
+        ("numerics.time_step_s=1e-300", "numerics.time_step_s", "time steps"),
+        ("stages.1.duration_s=1e300", "numerics.time_step_s", "time steps"),
+        ("output.interval_s=1e-9", "output.interval_s", "frames"),
+    ],
+)
 def test_runs_beyond_the_stated_limits_are_refused_naming_key_estimate_and_limit(tiny, override, key, what):
     project = _denormal_flushed(tiny, override)
     if project is None:
