@@ -1,10 +1,13 @@
 """The 2D model view: background grid, domain box with its boundary conditions, bodies coloured
-by material, a preview of the seeded particles, and drawing and editing of body polygons.
+by material, rigid structures (grey, hatched, labelled with their contact), targets (vertical
+lines or markers with their names), a preview of the seeded particles, and drawing and editing
+of body and structure polygons.
 
-Mouse, in the *select* mode: click a body to select it, drag one of its vertices (snapped to the
-grid when snapping is on), drag empty space to pan, wheel or right-drag to zoom. In the *draw*
-mode every click adds a vertex; clicking the first vertex again, double-clicking or Enter closes
-the polygon into a new body; Backspace removes the last vertex and Escape cancels. Delete
+Mouse, in the *select* mode: click a body or structure to select it, drag one of its vertices
+(snapped to the grid when snapping is on), click and drag a target to move it, drag empty space
+to pan, wheel or right-drag to zoom. In the *draw* mode every click adds a vertex; clicking the
+first vertex again, double-clicking or Enter closes the polygon into a new body (or structure,
+see :meth:`SceneView.set_mode`); Backspace removes the last vertex and Escape cancels. Delete
 removes the selected vertex. Problems of a shape (crossing edges, vertices outside the domain)
 are drawn in red where they are.
 
@@ -385,7 +388,8 @@ class SceneView(QWidget):
                 if kind == "structures":
                     top = poly[np.argmax(poly[:, 1])]
                     labels.append(f"{item.get('name', '?')} ({contact_text(item.get('contact'))})")
-                    label_points.append([float(np.mean(poly[:, 0])), float(top[1]), 0.05])
+                    lift = 0.02 * (box[3] - box[2]) if box is not None else 0.0
+                    label_points.append([float(np.mean(poly[:, 0])), float(top[1]) + lift, 0.05])
                 if box is not None:
                     outside = (poly[:, 0] < box[0] - 1e-9) | (poly[:, 0] > box[1] + 1e-9) | \
                               (poly[:, 1] < box[2] - 1e-9) | (poly[:, 1] > box[3] + 1e-9)
@@ -405,7 +409,8 @@ class SceneView(QWidget):
         if labels:
             pl.add_point_labels(np.array(label_points), labels, name="structure-labels", font_size=10,
                                 text_color="#3c4043", shape=None, show_points=False, always_visible=True,
-                                render=False, reset_camera=False)
+                                render=False, reset_camera=False, justification_horizontal="center",
+                                justification_vertical="bottom")
         if bad_segments:
             self._add(_lines(bad_segments), color=PROBLEM_COLOR, line_width=4, name="bad-edges", render=False,
                         lighting=False)
