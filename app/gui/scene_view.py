@@ -497,15 +497,15 @@ class SceneView(QWidget):
         extra = ""
         structures, targets = len(self._polygons("structures")), len(self._polygons("targets"))
         if structures:
-            extra += (f'&nbsp;&nbsp;<span style="color:{STRUCTURE_COLOR}; font-size:14px">▨</span>&nbsp;'
+            extra += (f' &nbsp;<span style="color:{STRUCTURE_COLOR}; font-size:14px">▨</span>&nbsp;'
                       f'{structures} structure{"" if structures == 1 else "s"}')
         if targets:
-            extra += (f'&nbsp;&nbsp;<span style="color:{TARGET_COLOR}">┃</span>&nbsp;'
+            extra += (f' &nbsp;<span style="color:{TARGET_COLOR}">┃</span>&nbsp;'
                       f'{targets} target{"" if targets == 1 else "s"}')
         grid = f"&nbsp;&nbsp;&nbsp;&nbsp;grid lines every {self.grid_step} cells" if self.grid_step > 1 else ""
         self.legend.setText(f"<b>Materials</b>&nbsp; {'&nbsp;&nbsp;'.join(parts) or 'none'}"
-                            f"&nbsp;&nbsp;&nbsp;&nbsp;<b>Boundaries</b>{sides}"
-                            f"&nbsp;&nbsp;&nbsp;&nbsp;{count} bod{'y' if count == 1 else 'ies'}{extra}"
+                            f" &nbsp;&nbsp;&nbsp;<b>Boundaries</b>{sides}"
+                            f" &nbsp;&nbsp;&nbsp;{count} bod{'y' if count == 1 else 'ies'}{extra}"
                             + (f", {self.preview_count:,} particles" if self.show_particles and self.preview_count
                                else "")
                             + grid)
