@@ -380,7 +380,7 @@ class SceneView(QWidget):
                         except (RuntimeError, ValueError):
                             logger.debug("could not triangulate %s %d", kind, i)
                         if kind == "structures":
-                            hatch.extend(_hatch(poly, self._hatch_step()))
+                            hatch.extend(_hatch(poly, self._hatch_step(poly)))
                     face.cell_data["rgb"] = np.tile(np.array(color) * 255, (face.n_cells, 1)).astype(np.uint8)
                     fills[kind].append(face)
                 ring = np.vstack([poly, poly[:1]])
@@ -435,10 +435,13 @@ class SceneView(QWidget):
         self._update_legend()
         self._draw_draft()
 
-    def _hatch_step(self) -> float:
-        """The spacing of the structures' hatching: about 1/60 of the domain's larger side, m."""
+    def _hatch_step(self, poly: np.ndarray) -> float:
+        """The spacing of a structure's hatching, m: about 1/60 of the domain's larger side, closer
+        in a structure too thin for three lines at that spacing (down to 1/400 of the domain)."""
         box = self._domain_box()
-        return max(box[1] - box[0], box[3] - box[2]) / 60.0 if box is not None else 0.1
+        size = max(box[1] - box[0], box[3] - box[2]) if box is not None else 1.0
+        extent = float(np.min(np.ptp(poly, axis=0)))
+        return max(min(size / 60.0, extent / 3.0), size / 400.0)
 
     def _draw_targets(self) -> None:
         """Line targets as vertical lines over the domain's height, point targets as markers, with names."""

@@ -49,6 +49,17 @@ def test_structure_through_its_panel_is_saved_and_undone(window, tiny_file, tmp_
     panel.angle.edit.setText("95")
     assert not panel.angle.commit()
     assert doc.get("structures.0.contact.friction_angle_deg") == 25.0
+    # a vertex outside the domain is a problem, marked in the view and in the table, and leads here
+    panel.table.item(1, 0).setText("0.7")
+    assert doc.project is None and "bad-points" in scene.plotter.actors
+    problem = next(p for p in doc.problems if p.path.startswith("structures.0"))
+    assert panel.table.item(1, 0).background().color().name() == "#fde2e1"
+    window.panels.setCurrentWidget(window.domain_panel)
+    doc.selection.set(None)
+    window.go_to_problem(problem.path)
+    assert window.panels.currentWidget() is panel and doc.selection.structure == 0
+    doc.undo_stack.undo()
+    assert doc.project is not None and "bad-points" not in scene.plotter.actors
     # a vertex typed in the table; a rename in the name field
     panel.table.item(2, 1).setText("0.15")
     assert doc.get("structures.0.polygon_m")[2] == [0.34, 0.15]
@@ -163,7 +174,11 @@ def test_targets_through_their_panel(window, tiny_file, tmp_path, qtbot):
                                                                      ("target-2", None, (0.5, 0.02))]
     # a target outside the domain is a problem of the project, named by its key
     panel.add_target(2.0)
-    assert doc.project is None and any(p.path.startswith("targets.2") for p in doc.problems)
+    problem = next(p for p in doc.problems if p.path.startswith("targets.2"))
+    assert doc.project is None
+    window.panels.setCurrentWidget(window.domain_panel)
+    window.go_to_problem(problem.path)
+    assert window.panels.currentWidget() is panel and doc.selection.target == 2
     doc.undo_stack.undo()
     assert doc.project is not None
     # removing both leaves no [[targets]]; undo brings them back
