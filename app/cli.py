@@ -331,7 +331,16 @@ def _factor_line(result: RunResult) -> str:
     le = result.summary.get("limit_equilibrium") or {}
     if le.get("factor_of_safety") is not None:
         line += f"; Bishop {le['factor_of_safety']:.3f}"
-    if fos.get("runout_max_displacement_m") is not None:
+    runout = None
+    try:  # the hazard measures of the run-out stage, when the run wrote them
+        import json
+
+        runout = json.loads((Path(result.out_dir) / "hazard.json").read_text(encoding="utf-8")).get("runout_distance_m")
+    except (OSError, ValueError):
+        runout = None
+    if runout is not None:
+        line += f"; if it fails it runs out {runout:.3g} m (hazard.json runout_distance_m)"
+    elif fos.get("runout_max_displacement_m") is not None:
         line += f"; if it fails it runs out {fos['runout_max_displacement_m']:.3g} m (largest displacement)"
     return line
 
@@ -508,12 +517,12 @@ def validate(
     force: Annotated[bool, typer.Option("--force", help="Skip the size limits.")] = False,
 ) -> None:
     """Check a project: every problem, or what it would run."""
-    from projects.runner import check_project
+    from projects.runner import check_project, default_results_dir
     from projects.schema import ProjectError
 
     model = load_or_exit(project, overrides)
     try:
-        resolved = check_project(model, force=force)
+        resolved = check_project(model, force=force, out_dir=default_results_dir(project))
     except ProjectError as exc:
         fail(f"{project}: {exc}")
     _print_warnings(model)
@@ -683,6 +692,19 @@ def study(
     raise typer.Exit(0 if result.passed else 4)
 
 
+def _interrupt(_signum: int, _frame: object) -> None:
+    """Ctrl-C outside a run: one line, then the command unwinds (typer exits with 130)."""
+    global INTERRUPT_SHOWN
+    if not INTERRUPT_SHOWN:
+        INTERRUPT_SHOWN = True
+        err.print("error: interrupted (Ctrl-C)", markup=False)
+    raise KeyboardInterrupt
+
+
+#: Whether the one line about a Ctrl-C has been printed (``python -m app`` prints none then).
+INTERRUPT_SHOWN = False
+
+
 # sweep and calibrate (sweeps on Ray): app/sweep_commands.py
 from app.sweep_commands import register as _register_sweep_commands  # noqa: E402
 
@@ -691,6 +713,10 @@ _register_sweep_commands(cli)
 
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point (``runout``)."""
+    if _in_main_thread():
+        # `run` turns Ctrl-C into a clean stop while it runs (stop_on_signals) and comes back
+        # to this handler afterwards
+        signal.signal(signal.SIGINT, _interrupt)
     # Taichi prints a banner on import; keep standard output for results
     os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "0")
     # `run` redirects stdout around the solver; without this Taichi, imported meanwhile, would

@@ -204,6 +204,28 @@ def _domain_box(results: Results) -> tuple[float, float, float, float] | None:
     return float(x0), float(x0) + float(w), float(y0), float(y0) + float(h)
 
 
+def _structures(results: Results) -> list[pyvista.PolyData]:
+    """The run's rigid structures (``summary.json`` ``structures``) as filled polygons at z = 0."""
+    import pyvista as pv
+
+    out = []
+    for structure in results.summary.get("structures") or []:
+        pts = np.asarray(structure.get("polygon_m") or [], dtype=float).reshape(-1, 2)
+        if len(pts) < 3:
+            continue
+        points = np.c_[pts, np.zeros(len(pts))]
+        out.append(pv.PolyData(points, faces=np.r_[len(pts), np.arange(len(pts))]))
+    return out
+
+
+def _structure_box(results: Results) -> tuple[float, float, float, float] | None:
+    pts = [p for st in results.summary.get("structures") or [] for p in st.get("polygon_m") or []]
+    if not pts:
+        return None
+    a = np.asarray(pts, dtype=float).reshape(-1, 2)
+    return (float(a[:, 0].min()), float(a[:, 0].max()), float(a[:, 1].min()), float(a[:, 1].max()))
+
+
 def _particle_box(positions: np.ndarray) -> tuple[float, float, float, float] | None:
     if len(positions) == 0:
         return None
@@ -300,6 +322,10 @@ class _Scene:
             dx0, dx1, dy0, dy1 = domain
             outline = [[dx0, dy0, 0], [dx1, dy0, 0], [dx1, dy1, 0], [dx0, dy1, 0], [dx0, dy0, 0]]
             pl.add_mesh(pv.MultipleLines(outline), color="#8c8c8c", line_width=1)
+        for structure in _structures(self.results):
+            pl.add_mesh(structure.triangulate(), color="#b4b4b4", show_edges=False)
+            ring = np.vstack([structure.points, structure.points[:1]])
+            pl.add_mesh(pv.MultipleLines(ring), color="#505050", line_width=2)
         pl.show_bounds(
             bounds=[x0, x1, y0, y1, 0.0, 0.0],
             xtitle="x (m)",
@@ -422,7 +448,7 @@ def _scene_for(
     info = field_info(field)
     first = results.frame(frames[0])
     field_values(first, field)  # fail early when the run lacks the needed output
-    boxes = [_domain_box(results)]
+    boxes = [_domain_box(results), _structure_box(results)]
     values = []
     for i in frames:
         arrays = results.frame(i, {"positions", "active", info.source})

@@ -226,6 +226,18 @@ def dumps_project(project: Project) -> str:
         bodies.append(table)
     doc["bodies"] = bodies
 
+    if data.get("structures"):
+        structures = tomlkit.aot()
+        for structure in data["structures"]:
+            table = tomlkit.table()
+            for key, value in structure.items():
+                if key == "polygon_m":
+                    table[key] = _points(value)
+                else:
+                    table[key] = _inline(value) if isinstance(value, Mapping) else _value(value)
+            structures.append(table)
+        doc["structures"] = structures
+
     doc["particles"] = _table(data["particles"])
     numerics = _table({k: v for k, v in data["numerics"].items() if k != "advanced"})
     if "advanced" in data["numerics"]:

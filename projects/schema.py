@@ -54,6 +54,8 @@ SCHEMA_VERSION = 1
 # The solver's vocabularies are the file's: written once, in solver/config.py.
 MATERIAL_MODELS = sc.MATERIAL_MODELS
 BOUNDARY_TYPES = sc.BOUNDARY_KINDS
+#: Contact types of a structure (a side's, less "open").
+CONTACT_TYPES: tuple[str, ...] = tuple(k for k in sc.BOUNDARY_KINDS if k != "open")
 SIDES = sc.SIDES
 SEEDINGS: tuple[str, ...] = ("lattice", "gauss")
 SCHEMES = sc.SCHEMES
@@ -80,7 +82,7 @@ DEFAULT_CFL = sc.DEFAULT_CFL
 #: Damping coefficient of a gravity stage that gives none.
 DEFAULT_GRAVITY_DAMPING = 0.7
 
-_SECTION_ORDER = ("runout", "domain", "materials", "bodies", "particles", "numerics", "stages", "output",
+_SECTION_ORDER = ("runout", "domain", "materials", "bodies", "structures", "particles", "numerics", "stages", "output",
                   "hazard", "targets")
 _BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
 _VALUE_WIDTH = 60
@@ -476,6 +478,34 @@ class Body(_Model):
     initial_velocity_m_s: Vec2 = (0.0, 0.0)
 
 
+def _contact_input(value: Any) -> Any:
+    if isinstance(value, str):
+        if value in ("fixed", "slip"):
+            return {"type": value}
+        raise _fail('must be "fixed", "slip" or a table {type = "friction", friction_angle_deg = ...}')
+    return value
+
+
+class Contact(_Model):
+    """A structure's contact: ``"fixed" | "slip"`` or ``{type = "friction", friction_angle_deg = ..}``."""
+
+    type: Annotated[Literal[CONTACT_TYPES], _choice(CONTACT_TYPES)]
+    friction_angle_deg: OptAngleDeg = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _from_string(cls, data: Any) -> Any:
+        return _contact_input(data)
+
+
+class Structure(_Model):
+    """``[[structures]]``: a rigid polygon inside the domain whose surface is a contact like a side's."""
+
+    name: Name
+    polygon_m: Polygon
+    contact: Contact = Contact(type="slip")
+
+
 class Particles(_Model):
     """``[particles]``: how bodies become material points."""
 
@@ -658,6 +688,7 @@ class Project(_Model):
     domain: Domain
     materials: Annotated[dict[MaterialName, Material], _nonempty_list("material ([materials.NAME])")]
     bodies: Annotated[list[Body], _nonempty_list("body ([[bodies]])")]
+    structures: list[Structure] = []
     particles: Particles = Particles()
     numerics: Numerics = Numerics()
     stages: Annotated[list[Stage], _nonempty_list("stage ([[stages]])")]
@@ -685,7 +716,8 @@ class Project(_Model):
         """The project as plain TOML-shaped data (lists, dicts, str, int, float).
 
         Keys with no value are left out, boundaries without a friction angle are written as
-        their type string, empty ``material_changes`` are left out. ``validate_project`` of the
+        their type string, empty ``material_changes``, a ``[hazard]`` table of defaults and an
+        empty ``targets`` list are left out. ``validate_project`` of the
         result gives back an equal project.
 
         Returns
@@ -696,9 +728,19 @@ class Project(_Model):
         for side, boundary in data["domain"]["boundaries"].items():
             if set(boundary) == {"type"}:
                 data["domain"]["boundaries"][side] = boundary["type"]
+        for structure in data["structures"]:
+            if set(structure["contact"]) == {"type"}:
+                structure["contact"] = structure["contact"]["type"]
+        if not data["structures"]:
+            data.pop("structures")
         for stage in data["stages"]:
             if not stage.get("material_changes"):
                 stage.pop("material_changes", None)
+        # the hazard keys are left out while they hold their defaults (files stay as they were)
+        if data.get("hazard") == _plain(Hazard().model_dump(mode="python", exclude_none=True)):
+            data.pop("hazard")
+        if not data.get("targets"):
+            data.pop("targets", None)
         return data
 
 
@@ -888,6 +930,7 @@ def _rule_problems(data: Mapping[str, Any]) -> list[Problem]:
     problems += _domain_rules(domain)
     problems += _material_rules(materials)
     problems += _body_rules(_array(data.get("bodies")), materials, domain)
+    problems += _structure_rules(_array(data.get("structures")), domain)
     problems += _numerics_rules(_table(data.get("numerics")))
     problems += _stage_rules(_array(data.get("stages")), materials)
     problems += _hazard_rules(_table(data.get("hazard")), _array(data.get("targets")), domain)
@@ -1012,6 +1055,42 @@ def _body_rules(bodies: list[Any], materials: Mapping[str, Any], domain: Mapping
                 seen[name] = index
         if box is not None:
             problems += _outside_points(path, _array(body.get("polygon_m")), box, origin, size)
+    return problems
+
+
+def _structure_rules(structures: list[Any], domain: Mapping[str, Any]) -> list[Problem]:
+    """Names unique and no side's name (both name a contact in contacts.csv), friction angle with
+    type friction only, every point inside the domain."""
+    problems = []
+    origin = _pair(domain.get("origin_m", (0.0, 0.0)))
+    size = _pair(domain.get("size_m"))
+    box = None
+    if origin and size and min(size) > 0.0:
+        tol = 1e-9 * max(size)
+        box = (origin[0] - tol, origin[0] + size[0] + tol, origin[1] - tol, origin[1] + size[1] + tol)
+    seen: dict[str, int] = {}
+    for index, structure in enumerate(structures):
+        if not isinstance(structure, Mapping):
+            continue
+        path = f"structures.{index}"
+        name = structure.get("name")
+        if isinstance(name, str):
+            if name in SIDES:
+                problems.append(Problem(f"{path}.name", name, f"is a side's name; not allowed: {', '.join(SIDES)}"))
+            elif name in seen:
+                problems.append(Problem(f"{path}.name", name, f"duplicate; structures.{seen[name]} has the same name"))
+            else:
+                seen[name] = index
+        contact = structure.get("contact")
+        if isinstance(contact, Mapping):
+            kind = contact.get("type")
+            if kind == "friction" and "friction_angle_deg" not in contact:
+                problems.append(Problem(f"{path}.contact.friction_angle_deg", None, 'required for type "friction"'))
+            elif kind in ("fixed", "slip") and "friction_angle_deg" in contact:
+                problems.append(Problem(f"{path}.contact.friction_angle_deg", contact["friction_angle_deg"],
+                                        'only allowed with type "friction"'))
+        if box is not None:
+            problems += _outside_points(path, _array(structure.get("polygon_m")), box, origin, size)
     return problems
 
 

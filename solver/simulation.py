@@ -47,6 +47,8 @@ from solver import runtime
 from solver.config import (
     OUTPUT_FIELDS,
     Checkpoint,
+    SIDES,
+    ContactForce,
     Diagnostics,
     Frame,
     InstabilityError,
@@ -156,6 +158,14 @@ def validate(config: SimulationConfig, particles: Particles) -> None:
             problems.append(f"stage {st.name!r}: duration must be > 0")
         if st.materials is not None and len(st.materials) != len(config.materials):
             problems.append(f"stage {st.name!r}: material table must have {len(config.materials)} rows")
+    names = [st.name for st in config.structures]
+    for st in config.structures:
+        if len(st.polygon_m) < 3:
+            problems.append(f"structure {st.name!r}: a polygon needs at least 3 points")
+        if st.contact.kind == "open":
+            problems.append(f"structure {st.name!r}: contact must be fixed, slip or friction, not open")
+        if names.count(st.name) > 1 or st.name in SIDES:
+            problems.append(f"structure name {st.name!r} is used twice or is a side's name")
     if problems:
         raise SolverError("; ".join(problems))
 
@@ -183,6 +193,7 @@ class Simulation:
             local_grid, config.materials, len(particles), config.numerics.scheme, np_float,
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
             damping=damping_support or any(st.damping > 0 for st in config.stages), scatter=config.numerics.scatter,
+            structures=config.structures,
         )
         self.engine.load_particles(np.asarray(particles.positions_m, dtype=np.float64) - self.origin_m,
                                    particles.volumes_m2, particles.material_ids,
@@ -208,6 +219,10 @@ class Simulation:
         #: ``time.perf_counter()`` at the end of this process's first step (None before it)
         self.first_step_at: float | None = None
         self.fingerprint = fingerprint(config, particles)
+        # contacts reported in frames: the closed sides, then the structures (engine order)
+        self._contacts = [i for i, side in enumerate(SIDES) if config.grid.boundary(side).kind != "open"]
+        self._contacts += [4 + k for k in range(len(config.structures))]
+        self._contacts_since_s = 0.0
 
     # ------------------------------------------------------------------ helpers
     def _speed_bound(self, g: np.ndarray) -> float:
@@ -261,10 +276,29 @@ class Simulation:
             if arr.dtype.kind == "f" and not np.all(np.isfinite(arr[fields["active"]])):
                 raise InstabilityError(
                     f"unstable: non-finite {name} at step {self.steps}, t = {self.time_s:.6g} s", self.steps, self.time_s)
-        frame = Frame(diag, fields)
+        frame = Frame(diag, fields, self._contact_forces())
         self.last_frame = frame
         self.cursor.frames += 1
         return frame
+
+    def _contact_forces(self) -> tuple[ContactForce, ...]:
+        """Mean and peak force on each contact since the last frame (see :class:`ContactForce`)."""
+        impulse, peak = self.engine.read_contacts()
+        interval = self.time_s - self._contacts_since_s
+        self._contacts_since_s = self.time_s
+        names = self.engine.contact_names
+        out = []
+        for c in self._contacts:
+            fx, fy = (float(v) / interval for v in impulse[c]) if interval > 0 else (0.0, 0.0)
+            normal = tangential = None
+            if c < 4:
+                axis = c // 2
+                outward = -1.0 if c % 2 == 0 else 1.0  # from the material into the wall
+                normal = (fx, fy)[axis] * outward
+                tangential = (fx, fy)[1 - axis]
+            out.append(ContactForce(names[c], fx, fy, normal, tangential, float(peak[c, 0]), float(peak[c, 1]),
+                                    float(peak[c, 2])))
+        return tuple(out)
 
     def _check(self, dt: float, d: dict) -> None:
         """The stability guard; raises InstabilityError naming the cause, step and time."""
@@ -305,7 +339,8 @@ class Simulation:
         if not self.can_checkpoint:
             raise SolverError(f"no checkpoint can be taken in phase {self.cursor.phase!r}")
         run = {"time_s": self.time_s, "steps": self.steps, "total_time_s": self.total_time_s,
-               "message": self.message, "cursor": dataclasses.asdict(self.cursor)}
+               "message": self.message, "cursor": dataclasses.asdict(self.cursor),
+               "contacts_since_s": self._contacts_since_s}
         arrays = self.engine.state()
         if self.envelopes is not None:  # a resumed run continues its envelopes
             arrays.update({f"envelopes/{k}": v for k, v in self.envelopes.state().items()})
@@ -325,6 +360,7 @@ class Simulation:
         self.total_time_s = float(run["total_time_s"])
         self.message = str(run["message"])
         self.cursor = _Cursor(**run["cursor"])
+        self._contacts_since_s = float(run.get("contacts_since_s", self.time_s))
         table = self.config.materials
         for stage in self.config.stages[: self.cursor.stage_index + 1]:
             table = stage.materials if stage.materials is not None else table
@@ -376,8 +412,9 @@ class Simulation:
                 f"largest unbalanced acceleration {check['max_unbalanced_acceleration_m_s2']:.3g} m/s2, "
                 f"largest speed at its end {max_speed_m_s:.3g} m/s")
         if not ratio <= EQUILIBRIUM_WARN_RATIO:
-            log.warning("%s: above %g, the initial state is not in equilibrium (a k0 stage on sloping "
-                        "ground? use a gravity stage)", text, EQUILIBRIUM_WARN_RATIO)
+            log.warning("%s: above %g, the initial state is not in equilibrium and the next stage starts "
+                        "with motion of its own (free faces, or K0 under sloping ground: use a gravity "
+                        "stage there)", text, EQUILIBRIUM_WARN_RATIO)
         else:
             log.info(text)
         return check

@@ -143,7 +143,6 @@ class RunProcess(QObject):
         self._tmp: Path | None = None
         self._kill_timer = QTimer(self)
         self._kill_timer.setSingleShot(True)
-        self._kill_timer.setInterval(KILL_AFTER_MS)
         self._kill_timer.timeout.connect(self.kill)
 
     # -- control --------------------------------------------------------------------------------
@@ -194,7 +193,7 @@ class RunProcess(QObject):
         if self.process.state() != QProcess.ProcessState.NotRunning:
             self.process.terminate()  # SIGTERM on POSIX
             if not self._kill_timer.isActive():
-                self._kill_timer.start()
+                self._kill_timer.start(KILL_AFTER_MS)
 
     def kill(self) -> None:
         """End the child at once (SIGKILL); its folder stays readable up to its last frame."""
