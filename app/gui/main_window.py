@@ -790,8 +790,9 @@ class MainWindow(QMainWindow):
     def ask_replace_results(self, path: Path) -> str:
         """"replace", "new" (a new folder beside it) or "cancel" for an existing results folder."""
         box = QMessageBox(QMessageBox.Icon.Question, APP_NAME,
-                          f"{path} holds the results of an earlier run. Replace them (the run deletes the "
-                          "folder's frames, series and summary) or write this run to a new folder beside it?",
+                          f"{path} holds the results of an earlier run. Replace them (only the files that "
+                          "run wrote are removed; pictures and notes you put there stay) or write this run "
+                          "to a new folder beside it?",
                           parent=self)
         new = box.addButton("New folder", QMessageBox.ButtonRole.AcceptRole)
         replace = box.addButton("Replace", QMessageBox.ButtonRole.DestructiveRole)
