@@ -1,6 +1,6 @@
 """The ``runout`` command line (typer + rich).
 
-Commands: ``run``, ``validate``, ``render``, ``animate`` and ``gui``. Results and summaries go to
+Commands: ``run``, ``validate``, ``render``, ``report``, ``animate`` and ``gui``. Results and summaries go to
 standard output, progress bars and errors to standard error. Bad input (an invalid project, a
 missing results folder, an unknown field) is reported as one line per problem, never as a
 traceback; ``--verbose`` shows the log, with tracebacks of solver failures.
@@ -318,6 +318,33 @@ def _summary_line(result: RunResult) -> str:
     )
 
 
+def _factor_line(result: RunResult) -> str:
+    """The factor of safety of a strength-reduction run, with Bishop's beside it ("" otherwise)."""
+    fos = result.summary.get("factor_of_safety")
+    if not fos:
+        return ""
+    if fos.get("value") is None:
+        line = f"factor of safety: not bracketed ({fos.get('message', '')})"
+    else:
+        line = (f"factor of safety {fos['value']:.3f} (strength reduction, bracket [{fos['lower']:.3f}, "
+                f"{fos['upper']:.3f}], {fos.get('criterion', '')}, {len(fos.get('trials', []))} trials)")
+    le = result.summary.get("limit_equilibrium") or {}
+    if le.get("factor_of_safety") is not None:
+        line += f"; Bishop {le['factor_of_safety']:.3f}"
+    runout = None
+    try:  # the hazard measures of the run-out stage, when the run wrote them
+        import json
+
+        runout = json.loads((Path(result.out_dir) / "hazard.json").read_text(encoding="utf-8")).get("runout_distance_m")
+    except (OSError, ValueError):
+        runout = None
+    if runout is not None:
+        line += f"; if it fails it runs out {runout:.3g} m (hazard.json runout_distance_m)"
+    elif fos.get("runout_max_displacement_m") is not None:
+        line += f"; if it fails it runs out {fos['runout_max_displacement_m']:.3g} m (largest displacement)"
+    return line
+
+
 @cli.command()
 def run(
     project: Annotated[
@@ -431,6 +458,9 @@ def run(
     if result.status == "completed":
         if not quiet and not jsonl:
             out.print(_summary_line(result), markup=False)
+            fos = _factor_line(result)
+            if fos:
+                out.print(fos, markup=False)
         return
     where = f"(results so far in {result.out_dir})"
     if result.status == "stopped":
@@ -487,12 +517,12 @@ def validate(
     force: Annotated[bool, typer.Option("--force", help="Skip the size limits.")] = False,
 ) -> None:
     """Check a project: every problem, or what it would run."""
-    from projects.runner import check_project
+    from projects.runner import check_project, default_results_dir
     from projects.schema import ProjectError
 
     model = load_or_exit(project, overrides)
     try:
-        resolved = check_project(model, force=force)
+        resolved = check_project(model, force=force, out_dir=default_results_dir(project))
     except ProjectError as exc:
         fail(f"{project}: {exc}")
     _print_warnings(model)
@@ -503,7 +533,7 @@ def validate(
     preset = f" (preset {resolved.project.numerics.preset})" if resolved.project.numerics.preset else ""
     out.print(
         f"ok: {resolved.particle_count:,} particles, {len(resolved.config.materials)} materials, "
-        f"{len(resolved.body_names)} bodies, {len(resolved.config.stages)} stages, "
+        f"{len(resolved.body_names)} bodies, {len(resolved.project.stages)} stages, "
         f"grid {nx} x {ny} cells of {grid.cell_size_m:g} m, {numerics.scheme} {step}{preset}, "
         f"about {resolved.estimate['steps']:,} steps",
         markup=False,
@@ -518,16 +548,46 @@ def render(
     output: Annotated[Path | None, typer.Option(
         "-o", "--output", help="PNG file (default: beside the results folder, NAME_FIELD_FRAME.png).")] = None,
     size: Annotated[str, typer.Option("--size", help="Image size WIDTHxHEIGHT in pixels.")] = "1600x900",
+    mechanism: Annotated[bool, typer.Option(
+        "--mechanism", help="A strength-reduction run's mechanism with Bishop's circle and the trials.")] = False,
 ) -> None:
     """Render one frame to a PNG (offscreen)."""
-    from app.render import render_frame
+    from app.render import render_frame, render_mechanism
     from projects.results import ResultsError
 
     index = _parse_frame(frame)
     width_height = _parse_size(size)
     res = _open_results(results)
     try:
-        path = render_frame(res, index, field, output, size=width_height)
+        if mechanism:
+            path = render_mechanism(res, output, size=width_height)
+        else:
+            path = render_frame(res, index, field, output, size=width_height)
+    except (ValueError, ResultsError) as exc:
+        fail(str(exc))
+    out.print(str(path), markup=False)
+
+
+@cli.command()
+def report(
+    results: Annotated[Path, typer.Argument(help="Results folder (or its project file).", show_default=False)],
+    output: Annotated[Path | None, typer.Option("-o", "--output", help="Folder for report.html and its "
+                                                "pictures (default: RESULTS/report).")] = None,
+) -> None:
+    """Write the report of a run (hazard: measures, envelopes, targets, pictures) or of a sweep or
+    calibration folder (exceedance, probability profile, sensitivity; misfit landscape)."""
+    from app.report import write_report
+    from projects.results import ResultsError
+    from sweeps.sweep import is_sweep_dir
+
+    if is_sweep_dir(results):  # sweep.csv or calibration.csv: app/sweep_commands.py
+        from app.sweep_commands import sweep_report
+
+        sweep_report(results, output)
+        return
+    res = _open_results(results)
+    try:
+        path = write_report(res.path, output)
     except (ValueError, ResultsError) as exc:
         fail(str(exc))
     out.print(str(path), markup=False)
@@ -604,7 +664,7 @@ def bench(
 
 @cli.command()
 def study(
-    name: Annotated[str, typer.Argument(help="sand-column | bui2008 | slope | tradeoff | extremes", show_default=False)],
+    name: Annotated[str, typer.Argument(help="sand-column | bui2008 | slope | tradeoff | extremes | fos", show_default=False)],
     out_dir: Annotated[Path | None, typer.Option("--out", help="Report folder (default: study-results/NAME).")] = None,
     quick: Annotated[bool, typer.Option("--quick", help="The reduced version: a few minutes on two CPU cores.")] = False,
     budget_min: Annotated[float | None, typer.Option(
@@ -632,8 +692,31 @@ def study(
     raise typer.Exit(0 if result.passed else 4)
 
 
+def _interrupt(_signum: int, _frame: object) -> None:
+    """Ctrl-C outside a run: one line, then the command unwinds (typer exits with 130)."""
+    global INTERRUPT_SHOWN
+    if not INTERRUPT_SHOWN:
+        INTERRUPT_SHOWN = True
+        err.print("error: interrupted (Ctrl-C)", markup=False)
+    raise KeyboardInterrupt
+
+
+#: Whether the one line about a Ctrl-C has been printed (``python -m app`` prints none then).
+INTERRUPT_SHOWN = False
+
+
+# sweep and calibrate (sweeps on Ray): app/sweep_commands.py
+from app.sweep_commands import register as _register_sweep_commands  # noqa: E402
+
+_register_sweep_commands(cli)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point (``runout``)."""
+    if _in_main_thread():
+        # `run` turns Ctrl-C into a clean stop while it runs (stop_on_signals) and comes back
+        # to this handler afterwards
+        signal.signal(signal.SIGINT, _interrupt)
     # Taichi prints a banner on import; keep standard output for results
     os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "0")
     # `run` redirects stdout around the solver; without this Taichi, imported meanwhile, would

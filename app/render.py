@@ -204,6 +204,28 @@ def _domain_box(results: Results) -> tuple[float, float, float, float] | None:
     return float(x0), float(x0) + float(w), float(y0), float(y0) + float(h)
 
 
+def _structures(results: Results) -> list[pyvista.PolyData]:
+    """The run's rigid structures (``summary.json`` ``structures``) as filled polygons at z = 0."""
+    import pyvista as pv
+
+    out = []
+    for structure in results.summary.get("structures") or []:
+        pts = np.asarray(structure.get("polygon_m") or [], dtype=float).reshape(-1, 2)
+        if len(pts) < 3:
+            continue
+        points = np.c_[pts, np.zeros(len(pts))]
+        out.append(pv.PolyData(points, faces=np.r_[len(pts), np.arange(len(pts))]))
+    return out
+
+
+def _structure_box(results: Results) -> tuple[float, float, float, float] | None:
+    pts = [p for st in results.summary.get("structures") or [] for p in st.get("polygon_m") or []]
+    if not pts:
+        return None
+    a = np.asarray(pts, dtype=float).reshape(-1, 2)
+    return (float(a[:, 0].min()), float(a[:, 0].max()), float(a[:, 1].min()), float(a[:, 1].max()))
+
+
 def _particle_box(positions: np.ndarray) -> tuple[float, float, float, float] | None:
     if len(positions) == 0:
         return None
@@ -300,6 +322,10 @@ class _Scene:
             dx0, dx1, dy0, dy1 = domain
             outline = [[dx0, dy0, 0], [dx1, dy0, 0], [dx1, dy1, 0], [dx0, dy1, 0], [dx0, dy0, 0]]
             pl.add_mesh(pv.MultipleLines(outline), color="#8c8c8c", line_width=1)
+        for structure in _structures(self.results):
+            pl.add_mesh(structure.triangulate(), color="#b4b4b4", show_edges=False)
+            ring = np.vstack([structure.points, structure.points[:1]])
+            pl.add_mesh(pv.MultipleLines(ring), color="#505050", line_width=2)
         pl.show_bounds(
             bounds=[x0, x1, y0, y1, 0.0, 0.0],
             xtitle="x (m)",
@@ -422,7 +448,7 @@ def _scene_for(
     info = field_info(field)
     first = results.frame(frames[0])
     field_values(first, field)  # fail early when the run lacks the needed output
-    boxes = [_domain_box(results)]
+    boxes = [_domain_box(results), _structure_box(results)]
     values = []
     for i in frames:
         arrays = results.frame(i, {"positions", "active", info.source})
@@ -550,4 +576,95 @@ def animate(
         writer.close()
         scene.close()
     logger.info("wrote %s (%d frames)", out, len(frames))
+    return out
+
+
+def render_mechanism(results: Results | str | os.PathLike[str], path: str | os.PathLike[str] | None = None,
+                     size: tuple[int, int] = (1600, 700)) -> Path:
+    """The failure mechanism of a strength-reduction run: plastic strain at ``F_fail`` with
+    Bishop's critical circle and the monitor point, beside the knee curve (monitor
+    displacement against the trial factor). Matplotlib, offscreen.
+
+    Parameters
+    ----------
+    results : Results or path-like
+    path : path-like, optional
+        Output PNG. Default: ``<results>/mechanism.png``.
+    size : (int, int)
+        Image width and height, pixels.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    ValueError
+        When the results hold no factor of safety (not a strength-reduction run).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    import json
+
+    res = _as_results(results)
+    summary = json.loads((res.path / "summary.json").read_text(encoding="utf-8"))
+    fos = summary.get("factor_of_safety")
+    if not fos:
+        raise ValueError(f"{res.path} holds no factor of safety (no strength-reduction stage ran)")
+    out = Path(path) if path is not None else res.path / "mechanism.png"
+    frame = fos.get("mechanism_frame")
+    fig, (ax, knee) = plt.subplots(1, 2, figsize=(size[0] / 100, size[1] / 100), dpi=100,
+                                   gridspec_kw={"width_ratios": [2.2, 1]})
+    try:
+        if frame is not None:
+            arrays = res.frame(int(frame))
+            keep = arrays["active"]
+            xy = arrays["positions"][keep]
+            eps = arrays.get("plastic_strain", np.zeros(len(keep)))[keep]
+            spacing = float(summary.get("particle_spacing_m") or 0.0)
+            dots = ax.scatter(xy[:, 0], xy[:, 1], c=eps, s=max(1.0, 4000.0 * spacing / max(np.ptp(xy[:, 0]), 1e-9)),
+                              cmap="inferno", marker="s", linewidths=0)
+            fig.colorbar(dots, ax=ax, label="equivalent plastic strain", shrink=0.8)
+            ax.set_title(f"mechanism at F = {fos['upper']:.3f}")
+        le = summary.get("limit_equilibrium") or {}
+        circle = le.get("circle")
+        if circle:
+            cx, cy = circle["centre_m"]
+            t = np.linspace(np.pi, 2.0 * np.pi, 361)  # the lower arc: the slip surface
+            ax.plot(cx + circle["radius_m"] * np.cos(t), cy + circle["radius_m"] * np.sin(t), "c--", lw=1.5,
+                    label=f"Bishop critical circle, F = {le['factor_of_safety']:.3f}")
+        if fos.get("monitor_point_m"):
+            ax.plot(*fos["monitor_point_m"], "o", mfc="none", mec="lime", ms=10, label="monitor point")
+        if frame is not None:
+            pad = 0.05 * max(np.ptp(xy[:, 0]), np.ptp(xy[:, 1]))
+            ax.set_xlim(xy[:, 0].min() - pad, xy[:, 0].max() + pad)
+            ax.set_ylim(xy[:, 1].min() - pad, xy[:, 1].max() + pad)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.legend(loc="lower left", fontsize=8)
+        trials = sorted(fos.get("trials", []), key=lambda tr: tr["factor"])
+        for verdict, style in (("stable", "bo"), ("failed", "rx")):
+            pts = [(tr["factor"], tr["monitor_displacement_m"]) for tr in trials if tr["verdict"] == verdict]
+            if pts:
+                knee.plot(*zip(*pts), style, label=verdict)
+        if trials:
+            knee.plot([tr["factor"] for tr in trials], [tr["monitor_displacement_m"] for tr in trials], "k-", lw=0.5)
+        if fos.get("value") is not None:
+            knee.axvline(fos["value"], color="k", ls=":", label=f"F = {fos['value']:.3f}")
+        if le.get("factor_of_safety") is not None:
+            knee.axvline(le["factor_of_safety"], color="c", ls="--", label="Bishop")
+        knee.set_xlabel("trial factor F")
+        knee.set_ylabel("monitor displacement (m)")
+        knee.legend(fontsize=8)
+        knee.set_title("strength reduction trials")
+        fig.tight_layout()
+        out.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(out)
+    finally:
+        plt.close(fig)
+    logger.info("wrote %s", out)
     return out

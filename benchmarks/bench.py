@@ -15,6 +15,9 @@ What is measured (all on the standard granular-collapse scene, see :func:`collap
   grid pass, walls, G2P) and the time outside the kernels (Python and launch overhead: wall time
   per step minus kernel time per step), plus the constitutive update timed alone.
 - **Empty domain**: the same scene with the grid box twice as long; ratio of step times.
+- **Hazard envelopes**: the cost of updating the envelopes (solver/envelopes.py) every
+  ``envelope_every_steps`` steps, as the fraction of the step time it adds: the update kernel and
+  the engine step are timed apart in interleaved rounds on the collapsing scene (two targets).
 - **Output stall**: the scene run through :meth:`Simulation.run` with frames every 0.01 s written
   by :class:`projects.results.ResultsWriter`, against the same run without frames; ratio of wall
   times.
@@ -125,6 +128,9 @@ class BenchConfig:
     stall_duration_s: float = 0.03
     stall_interval_s: float = 0.01
     stall_rounds: int = 1
+    envelope_particles: int = 20_000
+    envelope_every_steps: int = 10
+    envelope_steps: int = 200
     gpu_full_run: bool = False
     #: process start to first step (``runout run`` in a child process) with a cold and a warm
     #: kernel cache, ``startup_runs`` warm runs per scene (0: not measured)
@@ -145,6 +151,8 @@ class BenchConfig:
                 problems.append(f"unknown arch {a!r}")
         if self.rounds < 1 or self.min_steps < 1 or self.max_steps < self.min_steps or self.batch_s <= 0:
             problems.append("need rounds >= 1, 1 <= min_steps <= max_steps and batch_s > 0")
+        if self.envelope_every_steps < 1 or self.envelope_steps < 1:
+            problems.append("need envelope_every_steps >= 1 and envelope_steps >= 1")
         if self.stall_interval_s <= 0 or self.stall_duration_s < 0:
             problems.append("need stall_interval_s > 0 and stall_duration_s >= 0")
         if problems:
@@ -811,6 +819,63 @@ def output_stall(n: int, cfg: BenchConfig, arch: str = "cpu", precision: str = "
     }
 
 
+def envelope_cost(n: int, cfg: BenchConfig, arch: str = "cpu", precision: str = "f32",
+                  note: Callable[[str], None] | None = None) -> dict[str, Any] | None:
+    """The hazard envelopes' share of a run: update time / (``envelope_every_steps`` x step time).
+
+    The scene collapses for ``envelope_steps`` steps in batches of ``envelope_every_steps``; in each
+    batch the steps and then one envelope update (with two targets) are timed apart (synchronised),
+    so both see the same particle state. ``fraction`` is the median over batches of
+    ``update / steps``: the run time the envelopes add at that update interval.
+    """
+    from solver.envelopes import Envelopes
+    from solver.config import EnvelopeConfig, Target
+
+    note = note or (lambda _msg: None)
+    every = cfg.envelope_every_steps
+    with _taichi_runtime(arch, precision) as used:
+        if used != arch:
+            return None
+        config, particles = collapse_scene(n, precision, "apic-affine", arch)
+        variant = _Variant("apic-affine", config, particles, _np_float(precision))
+        env_config = EnvelopeConfig(config.grid.cell_size_m, every, 0.5 * config.grid.cell_size_m / 2,
+                                    (Target("line", 0.3), Target("point", 0.35, 0.01)))
+        env = Envelopes(variant.obj, env_config, config.grid)
+        note(f"hazard envelopes: {arch} {precision} {len(particles):,} particles, every {every} steps")
+        variant.reset()
+        variant.step()
+        env.start(0.0)  # compiles
+        env.update(0.0)
+        ti.sync()
+        batches = max(1, cfg.envelope_steps // every)
+        step_times, update_times, step_cpu, update_cpu = [], [], [], []
+        for b in range(batches):
+            c0, t0 = time.process_time(), time.perf_counter()
+            for _ in range(every):
+                variant.step()
+            ti.sync()
+            c1, t1 = time.process_time(), time.perf_counter()
+            env.update(float(b))
+            ti.sync()
+            c2, t2 = time.process_time(), time.perf_counter()
+            step_times.append(t1 - t0)
+            update_times.append(t2 - t1)
+            step_cpu.append(c1 - c0)
+            update_cpu.append(c2 - c1)
+        fractions = [u / st for u, st in zip(update_times, step_times)]
+        return {
+            "arch": used, "precision": precision, "particles": len(particles), "every_steps": every,
+            "raster": list(env.shape), "batches": batches,
+            "step_time_s": statistics.median(step_times) / every,
+            "update_time_s": statistics.median(update_times),
+            "fraction": statistics.median(fractions),
+            "fraction_best": min(update_times) / (min(step_times)),
+            # CPU seconds of the process (all threads): less disturbed by other work on the machine
+            "fraction_cpu": sum(update_cpu) / sum(step_cpu) if sum(step_cpu) > 0 else None,
+            "load_average": _load_average(),
+        }
+
+
 def gpu_full_run(note: Callable[[str], None] | None = None) -> dict[str, Any] | None:
     """The paper's aluminium-bar run on the GPU: 20,000 particles, 1 s at 20 us, no frames."""
     from solver.simulation import Simulation
@@ -958,6 +1023,12 @@ def evaluate_targets(result: dict[str, Any]) -> list[dict[str, Any]]:
                            None if value is None else value < 1.10,
                            f"{stall['arch'].upper()} f32 {stall['particles']:,} particles, {stall['simulated_s']:g} s"
                            if stall else "not measured"))
+    env = result.get("hazard_envelopes")
+    value = env["fraction"] if env else None
+    targets.append(_target(f"hazard envelopes every {env['every_steps'] if env else 10} steps: added run time",
+                           "< 5 %", value, None if value is None else value < 0.05,
+                           f"{env['arch'].upper()} f32 {env['particles']:,} particles" if env else "not measured",
+                           "issue 12"))
     gpu = _nearest(rows, 1_000_000, arch="gpu", precision="f32", variant="apic-affine")
     if gpu is not None and gpu["particles"] >= 500_000:
         value = gpu["particle_steps_per_s"]
@@ -1038,6 +1109,8 @@ def run_bench_config(cfg: BenchConfig, out: Path | None = None, *,
             result["empty_domain"] = empty_domain(cfg.empty_domain_particles, cfg, "cpu", "f32", note)
         if cfg.stall_particles > 0:
             result["output_stall"] = output_stall(cfg.stall_particles, cfg, "cpu", "f32", note)
+        if cfg.envelope_particles > 0:
+            result["hazard_envelopes"] = envelope_cost(cfg.envelope_particles, cfg, "cpu", "f32", note)
     if "gpu" in archs and cfg.gpu_full_run:
         result["gpu_full_run"] = gpu_full_run(note)
     if cfg.startup_runs > 0:
@@ -1205,6 +1278,16 @@ def report_tables(result: dict[str, Any]) -> list[tuple[str, list[str], list[lis
                 ["ratio if nothing overlapped (estimate)", _x(stall["estimated_ratio"]), "", ""]]
         tables.append((f"Output stall: {stall['arch']} {stall['precision']} {stall['particles']:,} particles, "
                        f"{stall['simulated_s']:g} s simulated", ["run", "wall s", "steps", "frames"], body))
+    env = result.get("hazard_envelopes")
+    if env:
+        body = [["engine step", _ms(env["step_time_s"]), ""],
+                ["envelope update", _ms(env["update_time_s"]), ""],
+                [f"added run time, update every {env['every_steps']} steps (median of batches)",
+                 f"{100 * env['fraction']:.2f} %", f"best: {100 * env['fraction_best']:.2f} %"],
+                ["the same in CPU seconds of the process", "-" if env.get("fraction_cpu") is None
+                 else f"{100 * env['fraction_cpu']:.2f} %", ""]]
+        tables.append((f"Hazard envelopes: {env['arch']} {env['precision']} {env['particles']:,} particles, "
+                       f"raster {env['raster'][0]}x{env['raster'][1]}", ["what", "ms / %", ""], body))
     full = result.get("gpu_full_run")
     if full:
         tables.append(("GPU aluminium-bar run", ["particles", "steps", "simulated s", "wall s"],

@@ -68,6 +68,14 @@ def solver_boundary(boundary: schema.Boundary) -> sc.Boundary:
     return sc.Boundary(kind=boundary.type, friction_angle_rad=angle)
 
 
+def solver_structure(structure: schema.Structure) -> sc.Structure:
+    """Convert one ``[[structures]]`` entry (its contact as a side's boundary)."""
+    contact = structure.contact
+    angle = math.radians(contact.friction_angle_deg or 0.0) if contact.type == "friction" else 0.0
+    return sc.Structure(structure.name, tuple(tuple(p) for p in structure.polygon_m),
+                        sc.Boundary(kind=contact.type, friction_angle_rad=angle))
+
+
 def material_tables(project: Project) -> list[dict[str, schema.Material]]:
     """The material table in force during each stage (changes persist into later stages).
 
@@ -110,9 +118,13 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
     grid = sc.Grid(origin_m=domain.origin_m, size_m=domain.size_m, cell_size_m=domain.cell_size_m, **sides)
 
     stages = []
+    reduced = False  # after a strength-reduction stage projects.strength sets the material table
     for stage, table in zip(project.stages, material_tables(project)):
+        if stage.type == "strength-reduction":
+            reduced = True
+            continue  # driven by projects.strength between the solver's stages
         stage_materials = None
-        if stage.material_changes:
+        if stage.material_changes and not reduced:
             stage_materials = tuple(solver_material(n, table[n]) for n in names)
         if stage.damping is not None:
             damping = stage.damping.coefficient
@@ -147,6 +159,8 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
         scatter=numerics.advanced.scatter,
     )
     output = sc.Output(interval_s=project.output.interval_s, fields=tuple(project.output.fields))
+    from projects.hazard import envelope_config
+
     return sc.SimulationConfig(
         grid=grid,
         materials=materials,
@@ -154,6 +168,8 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
         gravity_m_s2=domain.gravity_m_s2,
         numerics=solver_numerics,
         output=output,
+        envelopes=envelope_config(project),
+        structures=tuple(solver_structure(st) for st in project.structures),
     )
 
 
@@ -192,14 +208,25 @@ def _seed_particles(project: Project, config: sc.SimulationConfig) -> tuple[sc.P
         When a body receives no particles (it is thinner than the particle spacing or
         entirely covered by later bodies).
     """
-    seeds = seed_bodies(project)
+    try:
+        seeds = seed_bodies(project)
+    except ValueError as err:  # what the size limits did not stop (--force): one line, no traceback
+        raise ProjectError([Problem("domain.cell_size_m", project.domain.cell_size_m, f"cannot seed the bodies: {err}")]) from None
+    if project.structures:  # a structure takes precedence: no material is seeded inside one
+        from solver.structures import signed_distance
+
+        keep = np.ones(len(seeds.body_index), bool)
+        for structure in project.structures:
+            keep &= signed_distance(np.asarray(seeds.positions_m, float), structure.polygon_m) >= 0.0
+        seeds = type(seeds)(**{k: np.asarray(v)[keep] for k, v in vars(seeds).items()})
     counts = np.bincount(seeds.body_index, minlength=len(project.bodies))
     empty = [
         Problem(
             f"bodies.{i}.polygon_m",
             None,
             "receives no particles: smaller than the particle spacing "
-            f"({project.domain.cell_size_m / project.particles.per_cell:g} m) or covered by later bodies",
+            f"({project.domain.cell_size_m / project.particles.per_cell:g} m) or covered by later bodies "
+            "or structures",
         )
         for i, count in enumerate(counts)
         if count == 0
@@ -304,6 +331,8 @@ class ResolvedRun:
             "stages": [stage.name for stage in config.stages],
             "materials": list(self.material_names),
             "bodies": list(self.body_names),
+            "structures": [{"name": st.name, "polygon_m": [list(p) for p in st.polygon_m]}
+                           for st in config.structures],
             "domain": {"origin_m": [x0, y0], "size_m": [x1 - x0, y1 - y0], "cell_size_m": config.grid.cell_size_m},
             "particle_spacing_m": self.spacing_m,
             "output_interval_s": config.output.interval_s,

@@ -226,6 +226,18 @@ def dumps_project(project: Project) -> str:
         bodies.append(table)
     doc["bodies"] = bodies
 
+    if data.get("structures"):
+        structures = tomlkit.aot()
+        for structure in data["structures"]:
+            table = tomlkit.table()
+            for key, value in structure.items():
+                if key == "polygon_m":
+                    table[key] = _points(value)
+                else:
+                    table[key] = _inline(value) if isinstance(value, Mapping) else _value(value)
+            structures.append(table)
+        doc["structures"] = structures
+
     doc["particles"] = _table(data["particles"])
     numerics = _table({k: v for k, v in data["numerics"].items() if k != "advanced"})
     if "advanced" in data["numerics"]:
@@ -236,7 +248,7 @@ def dumps_project(project: Project) -> str:
     for stage in data["stages"]:
         table = tomlkit.table()
         for key, value in stage.items():
-            if key == "damping":
+            if key in ("damping", "failure"):
                 table[key] = _inline(value)
             elif key == "material_changes":
                 changes = tomlkit.table(is_super_table=True)
@@ -249,6 +261,13 @@ def dumps_project(project: Project) -> str:
     doc["stages"] = stages
 
     doc["output"] = _table(data["output"])
+    if data.get("hazard"):
+        doc["hazard"] = _table(data["hazard"])
+    if data.get("targets"):
+        targets = tomlkit.aot()
+        for target in data["targets"]:
+            targets.append(_table(target))
+        doc["targets"] = targets
     return tomlkit.dumps(doc)
 
 

@@ -5,6 +5,7 @@ A results folder (the public contract in ``docs/project-format.md``) holds::
     particles.pvd          ParaView collection indexing the complete frames, with their times
     frames/frame_00000.vtp one VTK XML PolyData file per output time
     series.csv             one row of diagnostics per output time
+    contacts.csv           the force on each closed side and structure per output interval
     summary.json           status and key numbers of the run
     project.toml           the resolved project that ran
 
@@ -40,7 +41,7 @@ import threading
 import time
 import zlib
 from collections import OrderedDict
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -64,7 +65,7 @@ from projects.results_folder import (
     remove_temp_files,
     write_marker,
 )
-from solver.config import Diagnostics, Frame
+from solver.config import ContactForce, Diagnostics, Frame
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import pyvista
@@ -74,6 +75,7 @@ logger = logging.getLogger(__name__)
 FRAMES_DIR = "frames"
 PVD_NAME = "particles.pvd"
 SERIES_NAME = "series.csv"
+CONTACTS_NAME = "contacts.csv"
 SUMMARY_NAME = "summary.json"
 PROJECT_NAME = "project.toml"
 CHECKPOINT_NAME = "checkpoint.npz"
@@ -95,6 +97,21 @@ SERIES_COLUMNS: tuple[str, ...] = (
     "lost_particles",
     "total_mass_kg_per_m",
     "yielding_particles",
+)
+#: Columns of ``contacts.csv``, in order: one row per contact and output time. The forces are what the
+#: material exerts on the contact (N per metre out of plane): the mean over the output interval that
+#: ends at ``time_s`` and the largest of one step in it (magnitude and components); normal and
+#: tangential for sides only (empty for structures). See :class:`solver.config.ContactForce`.
+CONTACT_COLUMNS: tuple[str, ...] = (
+    "time_s",
+    "contact",
+    "force_x_N_per_m",
+    "force_y_N_per_m",
+    "force_normal_N_per_m",
+    "force_tangential_N_per_m",
+    "peak_force_N_per_m",
+    "peak_force_x_N_per_m",
+    "peak_force_y_N_per_m",
 )
 _INT_COLUMNS = frozenset(
     {"frame", "stage_index", "step", "unstable_particles", "lost_particles", "yielding_particles"}
@@ -658,6 +675,16 @@ class ResultsWriter:
                 self._csv = csv.writer(self._series)
                 self._csv.writerow(SERIES_COLUMNS)
             self._series.flush()
+            if keep_frames is not None:
+                _atomic_write_text(self.out_dir / CONTACTS_NAME,
+                                   _csv_text([list(CONTACT_COLUMNS), *self._kept_contact_rows]))
+                self._contacts = open(self.out_dir / CONTACTS_NAME, "a", newline="", encoding="utf-8")
+                self._contacts_csv = csv.writer(self._contacts)
+            else:
+                self._contacts = open(self.out_dir / CONTACTS_NAME, "w", newline="", encoding="utf-8")
+                self._contacts_csv = csv.writer(self._contacts)
+                self._contacts_csv.writerow(CONTACT_COLUMNS)
+            self._contacts.flush()
             self._write_pvd()
             self._write_summary()
         except OSError as err:
@@ -692,6 +719,20 @@ class ResultsWriter:
                 reader = csv.reader(handle)
                 next(reader, None)
                 rows = [row for row in reader if row and row[0].isdigit() and int(row[0]) < keep]
+        # contacts.csv: the rows up to the last kept frame's time
+        last_time = self._pvd_entries[-1][0] if self._pvd_entries else -math.inf
+        self._kept_contact_rows: list[list[str]] = []
+        contacts = self.out_dir / CONTACTS_NAME
+        if contacts.is_file():
+            with open(contacts, newline="", encoding="utf-8") as handle:
+                reader = csv.reader(handle)
+                next(reader, None)
+                for row in reader:
+                    try:
+                        if row and float(row[0]) <= last_time * (1 + 1e-12) + 1e-300:
+                            self._kept_contact_rows.append(row)
+                    except ValueError:
+                        continue
         return dict(results.summary), rows
 
     # -- caller side -----------------------------------------------------------------------
@@ -720,7 +761,14 @@ class ResultsWriter:
             raise ResultsError(f"writing results failed: {self._error}") from self._error
         index = self._submitted
         self._submitted += 1
-        self._queue.put((index, frame.diagnostics, dict(frame.fields)))
+        self._queue.put((index, frame.diagnostics, dict(frame.fields), tuple(frame.contacts)))
+
+    def submit(self, job: Callable[[], None]) -> None:
+        """Queue ``job()`` to run in the writer thread after the frames queued before it (files that
+        accompany the frames, e.g. the hazard envelopes); its errors fail the writer like a frame's."""
+        if self._closed:
+            raise ResultsError("the results writer is closed")
+        self._queue.put(job)
 
     def flush(self) -> None:
         """Wait until every queued frame is on disk."""
@@ -766,7 +814,12 @@ class ResultsWriter:
         self._closed = True
         self._queue.put(_Stop)
         self._thread.join()
-        self._series.close()
+        try:
+            self._series.close()  # flushes the last row: may fail on a full disk
+        except OSError as err:
+            if self._error is None:
+                self._error = err
+        self._contacts.close()
         if self._error is not None and status != "failed":
             status, message = "failed", f"writing results failed: {self._error}"
         last = self._last
@@ -860,7 +913,10 @@ class ResultsWriter:
                 if item is _Stop:
                     return
                 if self._error is None:
-                    self._write_one(*item)
+                    if callable(item):
+                        item()
+                    else:
+                        self._write_one(*item)
             except Exception as err:  # noqa: BLE001 - reported to the caller via write_frame/close
                 logger.error("writing a results frame failed: %s", err,
                              exc_info=logger.isEnabledFor(logging.DEBUG))
@@ -868,7 +924,8 @@ class ResultsWriter:
             finally:
                 self._queue.task_done()
 
-    def _write_one(self, index: int, diag: Diagnostics, fields: dict[str, np.ndarray]) -> None:
+    def _write_one(self, index: int, diag: Diagnostics, fields: dict[str, np.ndarray],
+                   contacts: tuple[ContactForce, ...] = ()) -> None:
         name = f"frame_{index:05d}.vtp"
         data = encode_vtp(fields, diag.time_s, self._level, points_dtype=self._points_dtype)
         _atomic_write_bytes(self._frames_dir / name, data)
@@ -892,6 +949,7 @@ class ResultsWriter:
             ]
         )
         self._series.flush()
+        self._write_contacts(diag.time_s, contacts)
         self._pvd_entries.append((float(diag.time_s), f"{FRAMES_DIR}/{name}"))
         self._write_pvd()
         self._last = diag
@@ -902,6 +960,33 @@ class ResultsWriter:
             wall_time_s=_json_float(time.perf_counter() - self._started),
         )
         self._write_summary()
+
+    def _write_contacts(self, time_s: float, contacts: tuple[ContactForce, ...]) -> None:
+        """Rows of ``contacts.csv``, and the run's peaks per contact in the summary (``contacts``:
+        name -> the largest single-step force, its components and the end of its output interval,
+        and the largest mean force of an interval)."""
+        if not contacts:
+            return
+        peaks = self.summary.setdefault("contacts", {})
+        for c in contacts:
+            def num(v: float | None) -> str:
+                return "" if v is None else repr(float(v))
+
+            self._contacts_csv.writerow([repr(float(time_s)), c.contact, num(c.force_x_N_per_m), num(c.force_y_N_per_m),
+                                         num(c.force_normal_N_per_m), num(c.force_tangential_N_per_m),
+                                         num(c.peak_force_N_per_m), num(c.peak_force_x_N_per_m),
+                                         num(c.peak_force_y_N_per_m)])
+            entry = peaks.setdefault(c.contact, {"peak_force_N_per_m": 0.0, "peak_force_x_N_per_m": 0.0,
+                                                 "peak_force_y_N_per_m": 0.0, "peak_time_s": 0.0,
+                                                 "max_mean_force_N_per_m": 0.0})
+            if math.isfinite(c.peak_force_N_per_m) and c.peak_force_N_per_m > entry["peak_force_N_per_m"]:
+                entry.update(peak_force_N_per_m=float(c.peak_force_N_per_m),
+                             peak_force_x_N_per_m=float(c.peak_force_x_N_per_m),
+                             peak_force_y_N_per_m=float(c.peak_force_y_N_per_m), peak_time_s=float(time_s))
+            mean = math.hypot(c.force_x_N_per_m, c.force_y_N_per_m)
+            if math.isfinite(mean):
+                entry["max_mean_force_N_per_m"] = max(entry["max_mean_force_N_per_m"], mean)
+        self._contacts.flush()
 
     def _write_pvd(self) -> None:
         _atomic_write_text(self.out_dir / PVD_NAME, _pvd_text(self._pvd_entries))
@@ -952,6 +1037,33 @@ def _read_series(path: Path) -> dict[str, np.ndarray]:
         dtype = str if kind is str else np.int64 if kind is int else np.float64
         columns[name] = np.array(values, dtype=dtype)
     return columns
+
+
+def read_contacts(path: str | os.PathLike[str]) -> dict[str, dict[str, np.ndarray]]:
+    """``contacts.csv`` of a results folder (or the file itself) as contact name -> column -> array
+    (time order; an empty cell, the normal and tangential force of a structure, is NaN; rows cut off
+    by a kill are dropped). Empty when the folder has no such file."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / CONTACTS_NAME
+    out: dict[str, dict[str, list[float]]] = {}
+    if not path.is_file():
+        return {}
+    with open(path, newline="", encoding="utf-8") as fh:
+        rows = list(csv.reader(fh))
+    if not rows or tuple(rows[0][: len(CONTACT_COLUMNS)]) != CONTACT_COLUMNS:
+        return {}
+    for row in rows[1:]:
+        if len(row) != len(CONTACT_COLUMNS):
+            continue
+        try:
+            values = [float(v) if v else math.nan for i, v in enumerate(row) if i != 1]
+        except ValueError:
+            continue
+        columns = out.setdefault(row[1], {k: [] for k in CONTACT_COLUMNS if k != "contact"})
+        for key, value in zip((k for k in CONTACT_COLUMNS if k != "contact"), values):
+            columns[key].append(value)
+    return {name: {k: np.asarray(v) for k, v in cols.items()} for name, cols in out.items()}
 
 
 class Results:

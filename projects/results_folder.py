@@ -50,6 +50,7 @@ BASE_PATTERNS: tuple[str, ...] = (
     "project.toml",
     "frames/frame_*.vtp",
     "checkpoint.npz",
+    "contacts.csv",
     RESERVE_NAME,
 )
 

@@ -326,12 +326,18 @@ def run_resolved(
 
 def _simulation(resolved: ResolvedRun) -> Any:
     # importing the simulation loads Taichi: do it only when a run really starts
+    from projects.strength import settings_of
     from solver.simulation import Simulation
 
     try:
-        return Simulation(resolved.config, resolved.particles)
+        # strength-reduction trials step with local damping whatever the stages say
+        return Simulation(resolved.config, resolved.particles,
+                          damping_support=settings_of(resolved.project) is not None)
     except SolverError as err:
         raise _solver_rejects(err) from None
+    except (MemoryError, OverflowError, RuntimeError, ValueError) as err:  # e.g. --force past the limits
+        first_line = (str(err).strip().splitlines() or [""])[0]
+        raise _solver_rejects(f"{type(err).__name__}: {first_line}") from None
 
 
 def _start_from(sim: Any, checkpoint: Any, source: Any) -> None:
@@ -363,8 +369,21 @@ def _run(
     on_frame: Callable[[Frame], None] | None,
     on_progress: Callable[[Progress], None] | None,
 ) -> RunResult:
+    from projects.hazard import HazardOutput, settings
     from projects.results import write_checkpoint
+    from projects.strength import TRIALS_NAME, strength_reduction
 
+    driver = strength_reduction(resolved)  # None unless the project has a strength-reduction stage
+    hazard = None
+    if writer is not None:
+        from projects import hazard as hazard_files
+
+        for name in (hazard_files.HAZARD_JSON, hazard_files.PROFILE_CSV, hazard_files.TARGETS_CSV,
+                     hazard_files.HAZARD_VTI):
+            writer.own(name)
+        if driver is not None:
+            writer.own(TRIALS_NAME)
+        hazard = HazardOutput(writer.out_dir, sim, settings(resolved.project), writer.submit)
     setup_s = time.perf_counter() - started
     status, message = "failed", "the run ended unexpectedly"
     loop_start = time.perf_counter()
@@ -378,14 +397,19 @@ def _run(
         write_checkpoint(writer.out_dir, sim.checkpoint())
 
     try:
-        for frame in sim.run(cancel=cancel, on_progress=on_progress):
+        frames = (sim.run(cancel=cancel, on_progress=on_progress) if driver is None
+                  else driver.run(sim, cancel=cancel, on_progress=on_progress))
+        for frame in frames:
             if writer is not None:
                 writer.write_frame(frame)
+                hazard.write()  # the envelopes with every frame: a killed run keeps them
             if on_frame is not None:
                 on_frame(frame)
             t = frame.diagnostics.time_s
             stopping = cancel is not None and cancel()
-            if writer is not None and sim.can_checkpoint and (stopping or t >= last_checkpoint_s + interval * (1 - 1e-9)):
+            # a strength-reduction run is not resumable part-way (its search lives in memory)
+            if writer is not None and driver is None and sim.can_checkpoint and (
+                    stopping or t >= last_checkpoint_s + interval * (1 - 1e-9)):
                 save_checkpoint()
                 last_checkpoint_s = t
         if writer is not None and sim.can_checkpoint:  # the end state: later runs may start from it
@@ -410,6 +434,11 @@ def _run(
         status, message = "failed", f"ended by {type(err).__name__}"
         raise
     finally:
+        if hazard is not None and status in ("completed", "stopped"):
+            try:
+                hazard.write(status)
+            except Exception as err:  # noqa: BLE001 - the run's own outcome stands; say what is missing
+                logger.error("writing the hazard files failed: %s", err)
         loop_s = time.perf_counter() - loop_start
         particles = resolved.particle_count
         steps = sim.steps - steps0
@@ -423,6 +452,13 @@ def _run(
         if sim.first_step_at is not None and process_age_s() is not None:
             # process start to the end of its first step: what a run as a process costs to start
             extra["startup_s"] = process_age_s() - (time.perf_counter() - sim.first_step_at)
+        if driver is not None:
+            extra.update(driver.summary())
+            if writer is not None:
+                try:
+                    driver.write_files(writer.out_dir)
+                except OSError as err:
+                    logger.error("could not write the strength-reduction trials: %s", err)
         if writer is not None:
             summary = writer.close(status, message, **numbers, extra=extra)
         else:

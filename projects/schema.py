@@ -54,6 +54,8 @@ SCHEMA_VERSION = 1
 # The solver's vocabularies are the file's: written once, in solver/config.py.
 MATERIAL_MODELS = sc.MATERIAL_MODELS
 BOUNDARY_TYPES = sc.BOUNDARY_KINDS
+#: Contact types of a structure (a side's, less "open").
+CONTACT_TYPES: tuple[str, ...] = tuple(k for k in sc.BOUNDARY_KINDS if k != "open")
 SIDES = sc.SIDES
 SEEDINGS: tuple[str, ...] = ("lattice", "gauss")
 SCHEMES = sc.SCHEMES
@@ -63,7 +65,9 @@ GUARD_MODES = sc.GUARD_MODES
 SCATTERS = sc.SCATTERS
 #: Accuracy/cost presets measured by ``runout study tradeoff`` (projects/presets.json).
 PRESETS: tuple[str, ...] = ("draft", "standard", "fine")
-STAGE_TYPES: tuple[str, ...] = ("k0", "gravity", "dynamic")
+STAGE_TYPES: tuple[str, ...] = ("k0", "gravity", "dynamic", "strength-reduction")
+#: ``first_trial`` of a strength-reduction stage may be a number or this word.
+FIRST_TRIALS: tuple[str, ...] = ("limit-equilibrium",)
 DAMPING_TYPES: tuple[str, ...] = ("local",)
 OUTPUT_FIELDS = sc.OUTPUT_FIELDS
 #: Material keys that only a Drucker-Prager material may have.
@@ -78,7 +82,8 @@ DEFAULT_CFL = sc.DEFAULT_CFL
 #: Damping coefficient of a gravity stage that gives none.
 DEFAULT_GRAVITY_DAMPING = 0.7
 
-_SECTION_ORDER = ("runout", "domain", "materials", "bodies", "particles", "numerics", "stages", "output")
+_SECTION_ORDER = ("runout", "domain", "materials", "bodies", "structures", "particles", "numerics", "stages", "output",
+                  "hazard", "targets")
 _BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
 _VALUE_WIDTH = 60
 # Context flag: the caller runs the multi-key rules itself (on the raw input).
@@ -473,6 +478,34 @@ class Body(_Model):
     initial_velocity_m_s: Vec2 = (0.0, 0.0)
 
 
+def _contact_input(value: Any) -> Any:
+    if isinstance(value, str):
+        if value in ("fixed", "slip"):
+            return {"type": value}
+        raise _fail('must be "fixed", "slip" or a table {type = "friction", friction_angle_deg = ...}')
+    return value
+
+
+class Contact(_Model):
+    """A structure's contact: ``"fixed" | "slip"`` or ``{type = "friction", friction_angle_deg = ..}``."""
+
+    type: Annotated[Literal[CONTACT_TYPES], _choice(CONTACT_TYPES)]
+    friction_angle_deg: OptAngleDeg = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _from_string(cls, data: Any) -> Any:
+        return _contact_input(data)
+
+
+class Structure(_Model):
+    """``[[structures]]``: a rigid polygon inside the domain whose surface is a contact like a side's."""
+
+    name: Name
+    polygon_m: Polygon
+    contact: Contact = Contact(type="slip")
+
+
 class Particles(_Model):
     """``[particles]``: how bodies become material points."""
 
@@ -520,6 +553,34 @@ class Damping(_Model):
     coefficient: DampingCoefficient
 
 
+def _first_trial(value: Any) -> Any:
+    if value is None or (isinstance(value, str) and value in FIRST_TRIALS):
+        return value
+    if isinstance(value, str) or isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise _fail('must be a number > 0 or "limit-equilibrium"')
+    if not value > 0:
+        raise _fail('must be a number > 0 or "limit-equilibrium"')
+    return float(value)
+
+
+FAILURE_CRITERIA: tuple[str, ...] = ("displacement", "kinetic-energy")
+
+
+class Failure(_Model):
+    """``failure = {..}`` of a strength-reduction stage: when a trial has failed."""
+
+    criteria: Annotated[
+        tuple[Annotated[str, _choice(FAILURE_CRITERIA)], ...],
+        BeforeValidator(lambda v: v if isinstance(v, (list, tuple)) else _raise_array()),
+        AfterValidator(_unique_fields),
+        _nonempty_list("criterion"),
+    ] = FAILURE_CRITERIA
+    kinetic_energy_ratio: OptFraction = None
+    displacement_m: OptPositive = None
+    monitor_point_m: Vec2 | None = None
+    min_settle_fraction: OptFraction = None
+
+
 class Stage(_Model):
     """``[[stages]]``: one stage of the analysis (see docs/project-format.md)."""
 
@@ -531,6 +592,17 @@ class Stage(_Model):
     stop_when_kinetic_energy_below: OptFraction = None
     min_duration_s: OptNonNegative = None
     material_changes: dict[MaterialName, MaterialChange] = {}
+    # strength-reduction stages (and strength_factor on the dynamic stage after one)
+    materials: tuple[MaterialName, ...] | None = None
+    tolerance: OptPositive = None
+    first_trial: Annotated[float | str | None, BeforeValidator(_first_trial)] = None
+    bracket_step: OptPositive = None
+    trial_duration_s: OptPositive = None
+    max_trials: Annotated[int | None, BeforeValidator(lambda v: v if v is None else _to_int(v)),
+                          AfterValidator(lambda v: v if v is None else _in_int_range(v, 2, 200))] = None
+    limit_equilibrium: bool | None = None
+    failure: Failure | None = None
+    strength_factor: OptPositive = None
 
     @property
     def label(self) -> str:
@@ -560,6 +632,51 @@ def _raise_array() -> Any:
     raise _fail("must be an array")
 
 
+def _to_bool(value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise _fail("must be true or false")
+    return value
+
+
+class Hazard(_Model):
+    """``[hazard]``: envelopes, run-out measures and their thresholds (see projects/hazard.py).
+
+    Keys left out take scene-scaled defaults when the run is built (projects.hazard.settings).
+    """
+
+    enabled: Annotated[bool, BeforeValidator(_to_bool)] = True
+    cell_size_m: OptPositive = None
+    update_every_steps: Annotated[
+        int, BeforeValidator(_to_int), AfterValidator(lambda v: _in_int_range(v, 1, 100000))
+    ] = 10
+    flow_height_threshold_m: OptPositive = None
+    deposit_threshold_m: OptPositive = None
+    mobilised_displacement_m: OptPositive = None
+    kinetic_energy_fraction: _number_type(gt=0.0, lt=1.0) = 0.01
+
+
+class Target(_Model):
+    """``[[targets]]``: a named place whose hazard is recorded: a vertical line ``x_m`` or a point
+    ``point_m``."""
+
+    name: MaterialName
+    x_m: _number_type(optional=True) = None
+    point_m: Annotated[tuple[float, float] | None, BeforeValidator(lambda v: v if v is None else _to_pair(v))] = None
+
+    @model_validator(mode="after")
+    def _one_place(self) -> Target:
+        if (self.x_m is None) == (self.point_m is None):
+            raise _fail("give x_m (a vertical line) or point_m (a point [x, y]), exactly one of them")
+        return self
+
+    @property
+    def xy(self) -> tuple[float, float | None]:
+        """(x, y) of a point target, (x, None) of a line."""
+        if self.point_m is not None:
+            return (self.point_m[0], self.point_m[1])
+        return (float(self.x_m), None)
+
+
 class Project(_Model):
     """A whole project file (schema version 1).
 
@@ -571,10 +688,13 @@ class Project(_Model):
     domain: Domain
     materials: Annotated[dict[MaterialName, Material], _nonempty_list("material ([materials.NAME])")]
     bodies: Annotated[list[Body], _nonempty_list("body ([[bodies]])")]
+    structures: list[Structure] = []
     particles: Particles = Particles()
     numerics: Numerics = Numerics()
     stages: Annotated[list[Stage], _nonempty_list("stage ([[stages]])")]
     output: Output = Output()
+    hazard: Hazard = Hazard()
+    targets: list[Target] = []
 
     @model_validator(mode="after")
     def _rules(self, info: ValidationInfo) -> Project:
@@ -596,7 +716,8 @@ class Project(_Model):
         """The project as plain TOML-shaped data (lists, dicts, str, int, float).
 
         Keys with no value are left out, boundaries without a friction angle are written as
-        their type string, empty ``material_changes`` are left out. ``validate_project`` of the
+        their type string, empty ``material_changes``, a ``[hazard]`` table of defaults and an
+        empty ``targets`` list are left out. ``validate_project`` of the
         result gives back an equal project.
 
         Returns
@@ -607,9 +728,19 @@ class Project(_Model):
         for side, boundary in data["domain"]["boundaries"].items():
             if set(boundary) == {"type"}:
                 data["domain"]["boundaries"][side] = boundary["type"]
+        for structure in data["structures"]:
+            if set(structure["contact"]) == {"type"}:
+                structure["contact"] = structure["contact"]["type"]
+        if not data["structures"]:
+            data.pop("structures")
         for stage in data["stages"]:
             if not stage.get("material_changes"):
                 stage.pop("material_changes", None)
+        # the hazard keys are left out while they hold their defaults (files stay as they were)
+        if data.get("hazard") == _plain(Hazard().model_dump(mode="python", exclude_none=True)):
+            data.pop("hazard")
+        if not data.get("targets"):
+            data.pop("targets", None)
         return data
 
 
@@ -799,8 +930,41 @@ def _rule_problems(data: Mapping[str, Any]) -> list[Problem]:
     problems += _domain_rules(domain)
     problems += _material_rules(materials)
     problems += _body_rules(_array(data.get("bodies")), materials, domain)
+    problems += _structure_rules(_array(data.get("structures")), domain)
     problems += _numerics_rules(_table(data.get("numerics")))
     problems += _stage_rules(_array(data.get("stages")), materials)
+    problems += _hazard_rules(_table(data.get("hazard")), _array(data.get("targets")), domain)
+    return problems
+
+
+def _hazard_rules(hazard: Mapping[str, Any], targets: list[Any], domain: Mapping[str, Any]) -> list[Problem]:
+    """Hazard raster no larger than the domain; targets inside the domain, names unique."""
+    problems = []
+    origin = _pair(domain.get("origin_m", (0.0, 0.0)))
+    size = _pair(domain.get("size_m"))
+    cell = _num(hazard.get("cell_size_m"))
+    if size and cell and min(size) > 0.0 and cell > min(size):
+        problems.append(Problem("hazard.cell_size_m", cell, f"larger than the domain ({size[0]:g} x {size[1]:g} m)"))
+    seen: set[str] = set()
+    for i, target in enumerate(targets):
+        if not isinstance(target, Mapping):
+            continue
+        name = target.get("name")
+        if isinstance(name, str):
+            if name in seen:
+                problems.append(Problem(f"targets.{i}.name", name, "another target has this name; names must be unique"))
+            seen.add(name)
+        if not (origin and size):
+            continue
+        x = _num(target.get("x_m"))
+        if x is not None and not origin[0] <= x <= origin[0] + size[0]:
+            problems.append(Problem(f"targets.{i}.x_m", x, f"must lie in the domain, x from {origin[0]:g} "
+                                    f"to {origin[0] + size[0]:g} m"))
+        point = _pair(target.get("point_m"))
+        if point is not None and not (origin[0] <= point[0] <= origin[0] + size[0]
+                                      and origin[1] <= point[1] <= origin[1] + size[1]):
+            problems.append(Problem(f"targets.{i}.point_m", list(point), "must lie in the domain "
+                                    f"[{origin[0]:g}, {origin[0] + size[0]:g}] x [{origin[1]:g}, {origin[1] + size[1]:g}] m"))
     return problems
 
 
@@ -894,6 +1058,42 @@ def _body_rules(bodies: list[Any], materials: Mapping[str, Any], domain: Mapping
     return problems
 
 
+def _structure_rules(structures: list[Any], domain: Mapping[str, Any]) -> list[Problem]:
+    """Names unique and no side's name (both name a contact in contacts.csv), friction angle with
+    type friction only, every point inside the domain."""
+    problems = []
+    origin = _pair(domain.get("origin_m", (0.0, 0.0)))
+    size = _pair(domain.get("size_m"))
+    box = None
+    if origin and size and min(size) > 0.0:
+        tol = 1e-9 * max(size)
+        box = (origin[0] - tol, origin[0] + size[0] + tol, origin[1] - tol, origin[1] + size[1] + tol)
+    seen: dict[str, int] = {}
+    for index, structure in enumerate(structures):
+        if not isinstance(structure, Mapping):
+            continue
+        path = f"structures.{index}"
+        name = structure.get("name")
+        if isinstance(name, str):
+            if name in SIDES:
+                problems.append(Problem(f"{path}.name", name, f"is a side's name; not allowed: {', '.join(SIDES)}"))
+            elif name in seen:
+                problems.append(Problem(f"{path}.name", name, f"duplicate; structures.{seen[name]} has the same name"))
+            else:
+                seen[name] = index
+        contact = structure.get("contact")
+        if isinstance(contact, Mapping):
+            kind = contact.get("type")
+            if kind == "friction" and "friction_angle_deg" not in contact:
+                problems.append(Problem(f"{path}.contact.friction_angle_deg", None, 'required for type "friction"'))
+            elif kind in ("fixed", "slip") and "friction_angle_deg" in contact:
+                problems.append(Problem(f"{path}.contact.friction_angle_deg", contact["friction_angle_deg"],
+                                        'only allowed with type "friction"'))
+        if box is not None:
+            problems += _outside_points(path, _array(structure.get("polygon_m")), box, origin, size)
+    return problems
+
+
 def _outside_points(path: str, points: list[Any], box: tuple[float, ...], origin: Any, size: Any) -> list[Problem]:
     outside = []
     for k, point in enumerate(points):
@@ -933,6 +1133,9 @@ def _numerics_rules(numerics: Mapping[str, Any]) -> list[Problem]:
 
 
 _INITIAL_STRESS = ("k0", "gravity")
+#: Keys only a strength-reduction stage may have.
+STRENGTH_KEYS: tuple[str, ...] = ("materials", "tolerance", "first_trial", "bracket_step", "trial_duration_s",
+                                  "max_trials", "limit_equilibrium", "failure")
 
 
 def _stage_rules(stages: list[Any], materials: Mapping[str, Any]) -> list[Problem]:
@@ -962,11 +1165,67 @@ def _stage_rules(stages: list[Any], materials: Mapping[str, Any]) -> list[Proble
         if kind in STAGE_TYPES:
             problems += _stage_keys(path, kind, stage)
         problems += _change_rules(path, _table(stage.get("material_changes")), current)
+    problems += _strength_rules(stages, materials)
+    return problems
+
+
+def _strength_rules(stages: list[Any], materials: Mapping[str, Any]) -> list[Problem]:
+    """A strength-reduction stage follows the initial stress; at most one dynamic stage follows it."""
+    problems = []
+    kinds = [stage.get("type") if isinstance(stage, Mapping) else None for stage in stages]
+    sr = [i for i, kind in enumerate(kinds) if kind == "strength-reduction"]
+    for index, stage in enumerate(stages):
+        if not isinstance(stage, Mapping):
+            continue
+        path = f"stages.{index}"
+        if kinds[index] != "strength-reduction":
+            for key in STRENGTH_KEYS:
+                if key in stage:
+                    problems.append(Problem(f"{path}.{key}", stage[key], "only allowed on a strength-reduction stage"))
+            if "strength_factor" in stage and not (sr and kinds[index] == "dynamic" and index > sr[0]):
+                problems.append(Problem(f"{path}.strength_factor", stage["strength_factor"],
+                                        "only allowed on the dynamic stage after a strength-reduction stage"))
+    if not sr:
+        return problems
+    first = sr[0]
+    path = f"stages.{first}"
+    if len(sr) > 1:
+        problems.append(Problem(f"stages.{sr[1]}.type", "strength-reduction",
+                                f"only one strength-reduction stage is allowed (stages.{first} is one)"))
+    if not any(kind in _INITIAL_STRESS for kind in kinds[:first]) or any(kind == "dynamic" for kind in kinds[:first]):
+        problems.append(Problem(f"{path}.type", "strength-reduction",
+                                "must follow the initial-stress stage (k0 or gravity) and come before any dynamic stage"))
+    after = [i for i in range(first + 1, len(stages)) if kinds[i] != "strength-reduction"]
+    if len(after) > 1:
+        problems.append(Problem(f"stages.{after[1]}.type", kinds[after[1]],
+                                "at most one stage (the dynamic run-out) may follow a strength-reduction stage"))
+    stage = stages[first] if isinstance(stages[first], Mapping) else {}
+    for key in ("duration_s", "k0", "stop_when_kinetic_energy_below", "min_duration_s", "material_changes"):
+        if key in stage:
+            problems.append(Problem(f"{path}.{key}", stage[key], "not allowed on a strength-reduction stage"))
+    names = stage.get("materials")
+    if isinstance(names, (list, tuple)):
+        plastic = [n for n, m in materials.items() if isinstance(m, Mapping) and m.get("model") == "drucker-prager"]
+        for k, name in enumerate(names):
+            if isinstance(name, str) and name not in plastic:
+                problems.append(Problem(f"{path}.materials.{k}", name,
+                                        f"not a drucker-prager material; defined: {_defined(plastic)}"))
+        if not names:
+            problems.append(Problem(f"{path}.materials", [], "needs at least one material"))
+    elif names is None and not any(isinstance(m, Mapping) and m.get("model") == "drucker-prager"
+                                   for m in materials.values()):
+        problems.append(Problem(f"{path}.type", "strength-reduction", "needs a drucker-prager material to reduce"))
+    has_gravity = any(kind == "gravity" for kind in kinds[:first])
+    if "trial_duration_s" not in stage and not has_gravity:
+        problems.append(Problem(f"{path}.trial_duration_s", None,
+                                "required when there is no gravity stage (its duration is the default)"))
     return problems
 
 
 def _stage_keys(path: str, kind: str, stage: Mapping[str, Any]) -> list[Problem]:
     problems = []
+    if kind == "strength-reduction":
+        return problems  # its keys are checked by _strength_rules
     if kind == "k0":
         for key in ("duration_s", "damping"):
             if key in stage:

@@ -125,6 +125,19 @@ class Grid:
 
 
 @dataclass(frozen=True)
+class Structure:
+    """A rigid body inside the domain: a simple polygon (metres, either orientation) whose surface is a
+    contact like a closed side: ``contact`` is a :class:`Boundary` of kind ``fixed``, ``slip`` or
+    ``friction`` (never ``open``). Grid nodes on or inside the polygon are constrained with the
+    polygon's outward normal (see docs/solver.md, contact), and no particle ends a step inside it.
+    """
+
+    name: str
+    polygon_m: tuple[tuple[float, float], ...]
+    contact: Boundary = Boundary("slip")
+
+
+@dataclass(frozen=True)
 class Stage:
     """One stage of the analysis.
 
@@ -180,6 +193,35 @@ class Output:
 
 
 @dataclass(frozen=True)
+class Target:
+    """A place whose hazard history is recorded: a vertical line at ``x_m`` (``y_m`` None) or the
+    point ``(x_m, y_m)``."""
+
+    name: str
+    x_m: float
+    y_m: float | None = None
+
+
+@dataclass(frozen=True)
+class EnvelopeConfig:
+    """Hazard envelopes accumulated on the device during the dynamic stages (solver.envelopes).
+
+    ``cell_size_m`` is the raster cell (square, from the grid's origin over the grid box);
+    ``every_steps`` the steps between updates (every output frame is an update too);
+    ``flow_height_threshold_m`` the flow height above which a column counts as reached (first
+    arrival, run-out of the peak-height envelope); ``targets`` the places whose time series are
+    recorded; ``ground_m`` optional (nx,) heights of rigid ground under the raster columns (m),
+    raised to wherever the initial material surface is higher.
+    """
+
+    cell_size_m: float
+    every_steps: int = 10
+    flow_height_threshold_m: float = 0.0
+    targets: tuple[Target, ...] = ()
+    ground_m: tuple[float, ...] | None = None
+
+
+@dataclass(frozen=True)
 class SimulationConfig:
     grid: Grid
     materials: tuple[Material, ...]
@@ -187,6 +229,9 @@ class SimulationConfig:
     gravity_m_s2: tuple[float, float] = (0.0, -9.81)
     numerics: Numerics = Numerics()
     output: Output = Output()
+    #: hazard envelopes (None: none are accumulated)
+    envelopes: EnvelopeConfig | None = None
+    structures: tuple[Structure, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,6 +284,29 @@ class Diagnostics:
     yielding_particles: int
 
 
+@dataclass(frozen=True)
+class ContactForce:
+    """The force the material exerts on one contact (a closed side or a structure), N per metre out of
+    plane, over the output interval that ends at the frame's time.
+
+    ``force_*`` is the mean force: the impulse transmitted in the interval divided by its length, so
+    no impact falls between outputs. ``peak_*`` is the largest force of any single step in the
+    interval (its magnitude and components). For sides, ``force_normal`` is the component pressing
+    on the wall (along the wall's outward normal, positive when the material pushes on it) and
+    ``force_tangential`` the component along +x (bottom, top) or +y (left, right); both are None
+    for structures. Zero at t = 0 and for an interval in which nothing touched the contact.
+    """
+
+    contact: str
+    force_x_N_per_m: float
+    force_y_N_per_m: float
+    force_normal_N_per_m: float | None
+    force_tangential_N_per_m: float | None
+    peak_force_N_per_m: float
+    peak_force_x_N_per_m: float
+    peak_force_y_N_per_m: float
+
+
 @dataclass(frozen=True, eq=False)
 class Frame:
     """A snapshot at one output time.
@@ -247,10 +315,12 @@ class Frame:
     output asked for: ``displacement`` (N, 2) m, ``velocity`` (N, 2) m/s, ``stress`` (N, 4) Pa
     as xx, yy, xy, zz, ``plastic_strain`` (N,), ``material_id`` (N,) int.
     Particles keep their index for the whole run; removed ones have ``active`` False.
+    ``contacts``: the force on every closed side and structure (see :class:`ContactForce`).
     """
 
     diagnostics: Diagnostics
     fields: dict[str, np.ndarray] = field(default_factory=dict)
+    contacts: tuple[ContactForce, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)

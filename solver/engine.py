@@ -15,6 +15,11 @@ Schemes (chosen once, at construction, and compiled in with ``ti.static``):
 - ``apic-affine``: improved MPM-APIC: strain rate and spin from the particle's own C
   (eqs 29-30), stress update and force scatter fused into P2G; four stages.
 
+Contact (docs/solver.md): one grid contact law (``_contact``) for the closed sides and the rigid
+structures, applied in the grid stages; the mirror-image wall terms (``_mirror_forces``,
+``_mirror_ghosts``) pass their reaction through it; ``contact tally`` adds up the force on each
+contact; G2P puts particles that ended inside a structure back on its surface.
+
 Grid passes run only over the bounding box of the particles' stencils (built in the scatter), so
 empty parts of the domain cost nothing.
 """
@@ -23,8 +28,9 @@ empty parts of the domain cost nothing.
 import numpy as np
 import taichi as ti
 
-from solver.config import SCATTERS, SIDES, Grid, Material
+from solver.config import SCATTERS, SIDES, Boundary, Grid, Material, Structure
 from solver.materials import MaterialTable
+from solver.structures import node_contacts, segments
 
 PAD = 2
 #: How particle contributions are added to shared grid nodes. ``atomic``: every particle in
@@ -45,6 +51,12 @@ SERIAL_SCATTER_MAX_THREADS = 4
 SPLIT_MIN_PARTICLES = 10_000
 CPU_GRAIN = 512  # loop iterations a Taichi 1.7 CPU thread takes at a time (measured; see _split_scatter)
 BOUNDARY_CODES = {"fixed": 0, "slip": 1, "friction": 2, "open": 3}
+FIXED, SLIP, FRICTION, OPEN = (BOUNDARY_CODES[k] for k in ("fixed", "slip", "friction", "open"))
+#: A particle found inside a structure after its move is put on the nearest point of the surface and
+#: this many cell sizes outside it (so that rounding never leaves it inside).
+PUSH_OUT_CELLS = 1e-3
+#: Unit normal of each side (SIDES order), out of the wall into the domain.
+_INWARD = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
 _BIG = 1 << 30
 
 
@@ -91,11 +103,18 @@ class Engine:
     ``damping=False`` promises that no step will use local damping, which lets ``apic-affine``
     fuse the forces into the momentum and skip the grid force field (less memory).
     ``scatter`` chooses how particles add to grid nodes (see :data:`SCATTERS`).
+    ``structures``: rigid polygons inside the domain, contacts like the closed sides.
+
+    Contacts (see docs/solver.md): the closed sides (index 0-3 in :data:`SIDES` order) and the
+    structures (index 4 on). Each step adds, per contact, the impulse the material exerts on it
+    (N s/m, x and y) and keeps the largest force of any step; :meth:`read_contacts` returns both
+    and starts them afresh.
     """
 
     def __init__(self, grid: Grid, materials: tuple[Material, ...], n_particles: int, scheme: str,
                  np_float=np.float32, speed_bound_m_s: float = 1e30, remove_unstable: bool = False,
-                 damping: bool = True, scatter: str = "auto", bands: int | None = None):
+                 damping: bool = True, scatter: str = "auto", bands: int | None = None,
+                 structures: tuple[Structure, ...] = ()):
         if scheme not in ("mpm", "apic", "apic-affine"):
             raise ValueError(f"unknown scheme {scheme!r}; allowed: mpm, apic, apic-affine")
         if scatter not in SCATTERS:
@@ -143,11 +162,32 @@ class Engine:
         self.g_mom = ti.Vector.field(2, float, self.nodes)
         self.g_f = ti.Vector.field(2, float, self.nodes if self.separate_forces else (1, 1))
         self.g_v_old = ti.Vector.field(2, float, self.nodes if self.six_stage else (1, 1))
-        # tangential momentum Coulomb friction removes at the node one cell inside each wall
-        self.wall_friction = ti.field(float, (4, max(self.nodes)))
-        # apic-affine fuses the forces into the momentum; the force part at the ghost nodes beyond
-        # the closed walls is also summed apart (per side, along the wall), so that the wall's
-        # reaction, and the friction on it, is worked out as in the six-stage schemes
+
+        # contacts: the four sides, then the structures. Per structure its contact kind and friction
+        # coefficient, its edges (for pushing particles out) and bounding box; per grid node the
+        # structure covering it (-1: none) and that structure's outward normal there
+        self.structures = tuple(structures)
+        self.n_structures = len(self.structures)
+        self.n_contacts = 4 + self.n_structures
+        ns = max(1, self.n_structures)
+        self.st_kind = ti.field(ti.i32, ns)
+        self.st_mu = ti.field(float, ns)
+        edges = [segments(st.polygon_m) for st in self.structures]
+        n_edges = max(1, sum(len(a) for a, _ in edges))
+        self.edge_a = ti.Vector.field(2, float, n_edges)
+        self.edge_b = ti.Vector.field(2, float, n_edges)
+        self.st_edges = ti.field(ti.i32, (ns, 2))  # first edge, edge count
+        self.st_box = ti.Vector.field(4, float, ns)  # x min, y min, x max, y max
+        has = self.n_structures > 0
+        self.node_struct = ti.field(ti.i32, self.nodes if has else (1, 1))
+        self.node_normal = ti.Vector.field(2, float, self.nodes if has else (1, 1))
+        # impulse on the material in this step (N s/m), impulse on the contact since the last read,
+        # and the largest force of one step since then (|F|, Fx, Fy; N/m): in f64 whatever the precision
+        self.contact_step = ti.Vector.field(2, ti.f64, self.n_contacts)
+        self.contact_impulse = ti.Vector.field(2, ti.f64, self.n_contacts)
+        self.contact_peak = ti.Vector.field(3, ti.f64, self.n_contacts)
+        # apic-affine fuses the forces into the momentum; the force at the ghost nodes beyond the
+        # closed walls is also summed apart (per side, along the wall) for the mirror forces
         self.ghost_f = ti.Vector.field(2, float, (4, max(self.nodes)) if not self.six_stage else (1, 1))
 
         # node box [lo, hi) the last scatter wrote (every node outside it holds zeros): built in the
@@ -172,14 +212,56 @@ class Engine:
         self.diag = ti.field(float, 8)
 
         self.set_boundaries(grid)
+        if has:
+            self._set_up_structures(edges)
         self.speed_bound[None] = speed_bound_m_s
 
     # ------------------------------------------------------------------ set-up and state I/O
     def set_boundaries(self, grid: Grid) -> None:
-        kinds = np.array([BOUNDARY_CODES[grid.boundary(side).kind] for side in SIDES], np.int32)
-        mus = np.array([np.tan(grid.boundary(side).friction_angle_rad) for side in SIDES])
+        """The kinds and friction of the four sides (data: no recompilation)."""
+        kinds, mus = _contact_codes([grid.boundary(side) for side in SIDES])
         self.bc_kind.from_numpy(kinds)
         self.bc_mu.from_numpy(mus.astype(self.np_float))
+
+    def set_structure_contacts(self, contacts: tuple[Boundary, ...]) -> None:
+        """The contact of each structure, in order (data: the geometry stays as constructed)."""
+        if len(contacts) != self.n_structures:
+            raise ValueError(f"{self.n_structures} structure contacts expected, got {len(contacts)}")
+        if any(c.kind == "open" for c in contacts):
+            raise ValueError("a structure's contact is fixed, slip or friction, not open")
+        if self.n_structures:
+            kinds, mus = _contact_codes(contacts)
+            self.st_kind.from_numpy(kinds)
+            self.st_mu.from_numpy(mus.astype(self.np_float))
+
+    def _set_up_structures(self, edges) -> None:
+        self.set_structure_contacts(tuple(st.contact for st in self.structures))
+        f = self.np_float
+        self.edge_a.from_numpy(np.concatenate([a for a, _ in edges]).astype(f))
+        self.edge_b.from_numpy(np.concatenate([b for _, b in edges]).astype(f))
+        counts = np.array([len(a) for a, _ in edges], np.int32)
+        self.st_edges.from_numpy(np.c_[np.cumsum(counts) - counts, counts].astype(np.int32))
+        self.st_box.from_numpy(np.array([[*a.min(axis=0), *a.max(axis=0)] for a, _ in edges]).astype(f))
+        xs = self.origin[0] + (np.arange(self.nodes[0]) - PAD) * self.dx
+        ys = self.origin[1] + (np.arange(self.nodes[1]) - PAD) * self.dx
+        index, normal = node_contacts([st.polygon_m for st in self.structures], xs, ys, self.dx)
+        self.node_struct.from_numpy(index)
+        self.node_normal.from_numpy(normal.astype(f))
+
+    @property
+    def contact_names(self) -> tuple[str, ...]:
+        """Names of the contacts in engine order: the four sides, then the structures."""
+        return SIDES + tuple(st.name for st in self.structures)
+
+    def read_contacts(self) -> tuple[np.ndarray, np.ndarray]:
+        """Impulse on each contact since the last read (N s/m, (n_contacts, 2)) and the largest
+        force of one step in that time (|F|, Fx, Fy in N/m, (n_contacts, 3)); both start afresh.
+        Impulse and force are what the material exerts on the contact."""
+        impulse = self.contact_impulse.to_numpy()
+        peak = self.contact_peak.to_numpy()
+        self.contact_impulse.fill(0.0)
+        self.contact_peak.fill(0.0)
+        return impulse, peak
 
     def load_particles(self, positions_m, volumes_m2, material_ids, velocities_m_s=None,
                        densities_kg_m3=None) -> None:
@@ -202,6 +284,9 @@ class Engine:
         self.yielded.from_numpy(np.zeros(self.n, np.int8))
         self.lost[None] = 0
         self.unstable[None] = 0
+        self.contact_step.fill(0.0)
+        self.contact_impulse.fill(0.0)
+        self.contact_peak.fill(0.0)
         ranges = np.zeros((self.n_bands, 16), np.int32)
         ranges[:, :2], ranges[:, 2:4] = _BIG, -_BIG
         self.band_range.from_numpy(ranges)
@@ -227,7 +312,8 @@ class Engine:
     #: Every particle field of the solver state (a checkpoint holds these, the counters and the
     #: split scatter's plan; the grid is rebuilt from the particles at every step).
     PARTICLE_STATE = ("x", "x0", "v", "C", "s", "m", "rho", "eps_p", "mat", "active", "yielded", "band")
-    COUNTER_STATE = ("lost", "unstable", "cut", "cut_axis", "band_range", "band_count")
+    COUNTER_STATE = ("lost", "unstable", "cut", "cut_axis", "band_range", "band_count", "contact_impulse",
+                     "contact_peak")
 
     def state(self, names: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
         """Copies of the named state fields (default: everything a checkpoint needs)."""
@@ -263,14 +349,14 @@ class Engine:
     @property
     def recipe(self) -> tuple[str, ...]:
         """The named stages of one step, in order (paper: six stages for mpm/apic, four for apic-affine;
-        the wall folds are the mirror-image boundary treatment)."""
+        the contact law acts inside the grid stages, "contact tally" adds up the contact forces)."""
         if self.six_stage:
             stress = ("stress", "force") if self.serial else ("stress and force",)
-            return ("reset grid", "P2G momentum", "fold walls (momentum)", "grid velocity", "mirror walls (old)",
-                    *stress, "fold walls (force)", "grid update", "mirror walls", "G2P")
+            return ("reset grid", "P2G momentum", "grid velocity", "mirror walls (old)", *stress, "mirror forces",
+                    "grid update", "mirror walls", "G2P", "contact tally")
         fused = ("stress", "P2G with force") if self.serial else ("P2G with stress and force",)
         walls = () if self.split else ("wall forces",)  # the split scatter sums the wall forces itself
-        return ("reset grid", *fused, *walls, "fold walls", "grid update", "mirror walls", "G2P")
+        return ("reset grid", *fused, *walls, "mirror forces", "grid update", "mirror walls", "G2P", "contact tally")
 
     @ti.kernel
     def _step(self, dt: float, gx: float, gy: float, damping: float, damped: ti.template()):
@@ -293,12 +379,8 @@ class Engine:
             self._split_scatter("momentum", dt, g, False)
         elif ti.static(stage == "P2G momentum"):
             self._p2g_momentum()
-        elif ti.static(stage == "fold walls (momentum)"):
-            self._fold_ghosts(True, False, dt)
         elif ti.static(stage == "grid velocity"):
             self._grid_velocity()
-        elif ti.static(stage == "mirror walls (old)"):
-            self._mirror_ghosts(True)
         elif ti.static(stage == "stress and force" and self.split):
             self._split_scatter("force", dt, g, False)
         elif ti.static(stage == "stress and force"):
@@ -311,8 +393,6 @@ class Engine:
             self._stress_from_affine(dt)
         elif ti.static(stage == "P2G with force"):
             self._p2g_with_force(dt, g, not damped)
-        elif ti.static(stage == "fold walls (force)"):
-            self._fold_ghosts(False, True, dt)
         elif ti.static(stage == "grid update" and self.six_stage):
             self._grid_update(dt, damping)
         elif ti.static(stage == "P2G with stress and force" and self.split):
@@ -322,12 +402,16 @@ class Engine:
         elif ti.static(stage == "wall forces"):
             if ti.static(not damped):
                 self._ghost_forces(g)
-        elif ti.static(stage == "fold walls"):
-            self._fold_ghosts(True, damped, dt, not damped)
+        elif ti.static(stage == "mirror forces"):
+            self._mirror_forces(dt, not self.six_stage and not damped)
         elif ti.static(stage == "grid update"):
             self._grid_update_fused(dt, damping, damped)
+        elif ti.static(stage == "mirror walls (old)"):
+            self._mirror_ghosts(True, self.scheme == "apic")
         elif ti.static(stage == "mirror walls"):
-            self._mirror_ghosts(False)
+            self._mirror_ghosts(False, True)
+        elif ti.static(stage == "contact tally"):
+            self._contact_tally(dt)
         elif ti.static(stage == "G2P"):
             self._g2p(dt)
 
@@ -345,27 +429,77 @@ class Engine:
         dw = [fx - 1.5, -2.0 * (fx - 1.0), fx - 0.5]
         return base, fx, w, dw
 
+    # ------------------------------------------------------------------ contact (docs/solver.md)
     @ti.func
-    def _boundary(self, I, v):
-        """Apply the four side constraints (data in bc_kind/bc_mu) to node I's velocity."""
+    def _contact(self, I, v, mass, record: ti.template()):
+        """The contact law at node I for every contact that holds it: its trial velocity ``v`` in,
+        the constrained velocity out; with ``record`` the impulse each contact gives the node's
+        ``mass`` is added to ``contact_step``.
+
+        Contact nodes of a closed side: the nodes on its line and beyond (ghost layers); normal the
+        side's inward axis. Of a structure: the nodes it covers; normal its outward normal there.
+        A node on a side and in a structure meets both, side first.
+        """
         for side in ti.static(range(4)):
             axis = ti.static(side // 2)
             low = ti.static(side % 2 == 0)
-            wall = ti.static(PAD if low else PAD + (self.cells[0] if axis == 0 else self.cells[1]))
+            wall = ti.static(PAD if low else PAD + self.cells[axis])
             on_wall = (I[axis] <= wall) if ti.static(low) else (I[axis] >= wall)
             kind = self.bc_kind[side]
-            if on_wall and kind != 3:
-                sign = 1.0 if ti.static(low) else -1.0
-                vn = v[axis] * sign  # along the inward normal
-                if kind == 0:
-                    v = ti.Vector.zero(float, 2)
-                elif vn < 0.0:
-                    v[axis] = 0.0
-                    if kind == 2:
-                        vt = v[1 - axis]
-                        reduced = ti.max(ti.abs(vt) - self.bc_mu[side] * (-vn), 0.0)
-                        v[1 - axis] = reduced if vt >= 0.0 else -reduced
+            if on_wall and kind != OPEN:
+                n = ti.Vector(ti.static(_INWARD[side]), float)
+                new = self._contact_law(v, n, kind, self.bc_mu[side])
+                if ti.static(record):
+                    self._record(side, mass * (new - v))
+                v = new
+        if ti.static(self.n_structures > 0):
+            s = self.node_struct[I]
+            if s >= 0:
+                new = self._contact_law(v, self.node_normal[I], self.st_kind[s], self.st_mu[s])
+                if ti.static(record):
+                    self._record(4 + s, mass * (new - v))
+                v = new
         return v
+
+    @ti.func
+    def _contact_law(self, v, n, kind, mu):
+        """Velocity after a contact with unit normal ``n`` (out of the contact, into the material).
+
+        fixed: zero. slip and friction: when approaching (``vn = v.n < 0``) the normal part is
+        removed (an impulse ``-vn`` per unit mass) and the tangential speed is reduced by at most
+        ``mu |vn|``, never reversed (stick when ``|vt| <= mu |vn|``); separating: unchanged.
+        ``mu`` is zero for slip.
+        """
+        out = v
+        if kind == FIXED:
+            out = ti.Vector.zero(float, 2)
+        else:
+            vn = v.dot(n)
+            if vn < 0.0:
+                vt = v - vn * n
+                speed = vt.norm()
+                out = ti.Vector.zero(float, 2)
+                if speed > 0.0:
+                    out = vt * (ti.max(speed - mu * (-vn), 0.0) / speed)
+        return out
+
+    @ti.func
+    def _record(self, c, impulse):
+        self.contact_step[c] += ti.cast(impulse, ti.f64)
+
+    @ti.func
+    def _contact_tally(self, dt):
+        """Turn this step's impulses on the material into the contacts' impulse and peak force."""
+        ti.loop_config(serialize=True)  # a handful of contacts
+        for c in range(self.n_contacts):
+            on_contact = -self.contact_step[c]  # what the material exerts on the contact
+            self.contact_step[c] = ti.Vector.zero(ti.f64, 2)
+            self.contact_impulse[c] += on_contact
+            if dt > 0.0:
+                force = on_contact / ti.cast(dt, ti.f64)
+                size = force.norm()
+                if size > self.contact_peak[c][0]:
+                    self.contact_peak[c] = ti.Vector([size, force[0], force[1]])
 
     @ti.func
     def _damped(self, f, v, damping):
@@ -375,20 +509,6 @@ class Engine:
             for d in ti.static(range(2)):
                 out[d] -= damping * ti.abs(f[d]) * ti.math.sign(v[d])
         return out
-
-    @ti.func
-    def _friction(self, I, v, mass):
-        """Coulomb friction of the mirrored wall reaction: slow the tangential speed, never reverse it."""
-        for side in ti.static(range(4)):
-            axis = ti.static(side // 2)
-            low = ti.static(side % 2 == 0)
-            wall = ti.static(PAD if low else PAD + (self.cells[0] if axis == 0 else self.cells[1]))
-            if I[axis] == ti.static(wall + 1 if low else wall - 1):
-                loss = self.wall_friction[side, I[1 - axis]] / mass
-                if loss > 0.0:
-                    reduced = ti.max(ti.abs(v[1 - axis]) - loss, 0.0)
-                    v[1 - axis] = reduced if v[1 - axis] >= 0.0 else -reduced
-        return v
 
     @ti.func
     def _stress_point(self, p, L, dt):
@@ -441,10 +561,14 @@ class Engine:
             field[I] += value
 
     # ------------------------------------------------------------------ walls as mirror planes
-    # A closed wall sits on a node line; the ghost node one cell beyond it would only be reached by
-    # material on the far side of the wall. Folding its contributions, mirrored, onto the node one
-    # cell inside completes the truncated B-spline support there (the mirror-image method): without
-    # it a uniform stress pushes on the first interior node and the stress oscillates near walls.
+    # A closed wall sits on a node line. The ghost node one cell beyond it is reached only by
+    # particles within a cell of the wall; the node one cell inside (the mirror node) misses the
+    # share that material beyond the wall would give it, so a uniform stress pushes on it and the
+    # stress oscillates in the boundary cells. The mirror-image method supplies that share: the
+    # ghost node's force, mirrored, is added at the mirror node (what mirror-image particles beyond
+    # the wall would give it), and its opposite at the wall node, so that the grid's momentum is
+    # unchanged and the whole reaction passes through the contact law at the wall's nodes (its
+    # normal impulse, and so its friction, and the recorded contact force).
     @ti.func
     def _wall_pairs(self, axis: ti.template(), k):
         """Side, ghost node and mirror node of the k-th node along the two walls normal to ``axis``.
@@ -472,63 +596,58 @@ class Engine:
         return lo[0] <= I[0] < hi[0] and lo[1] <= I[1] < hi[1]
 
     @ti.func
-    def _fold_ghosts(self, momentum: ti.template(), forces: ti.template(), dt, ghost_forces: ti.template() = False):
+    def _mirror_ghosts(self, old: ti.template(), record: ti.template()):
+        """The ghost node's velocity across the wall becomes the mirror image of the mirror node's
+        while the material there approaches the wall (both components for a fixed wall), so that
+        the velocity gradient of the particles in the wall cell is that of the mirror-image field;
+        the momentum this changes is the wall's impulse too."""
+        for axis in ti.static(range(2)):
+            ti.loop_config(serialize=self.plain)
+            for k in range(2 * self.nodes[1 - axis]):
+                side, inward, ghost, mirror = self._wall_pairs(axis, k)
+                kind = self.bc_kind[side]
+                mass = self.g_mass[ghost]
+                if kind != OPEN and mass > 0.0 and self._in_box(ghost) and self._in_box(mirror):
+                    vm = self.g_v_old[mirror] if ti.static(old) else self.g_mom[mirror]
+                    vg = self.g_v_old[ghost] if ti.static(old) else self.g_mom[ghost]
+                    new = vg
+                    if kind == FIXED:
+                        new = -vm
+                    elif vm[axis] * inward < 0.0:
+                        new[axis] = -vm[axis]
+                    if ti.static(record):
+                        self._record(side, mass * (new - vg))
+                    if ti.static(old):
+                        self.g_v_old[ghost] = new
+                    else:
+                        self.g_mom[ghost] = new
+
+    @ti.func
+    def _mirror_forces(self, dt, fused: ti.template()):
         for axis in ti.static(range(2)):
             # a few hundred nodes: on a CPU with few threads one thread beats waking the pool
             ti.loop_config(serialize=self.plain)
             for k in range(2 * self.nodes[1 - axis]):
                 side, inward, ghost, mirror = self._wall_pairs(axis, k)
                 along = k % self.nodes[1 - axis]
-                # normal momentum the wall reverses: the ghost's inward momentum vanishes and the same
-                # appears outward at the mirror node, an impulse of twice that momentum
-                impulse = 0.0 * dt
-                if self.bc_kind[side] != 3 and self._in_box(ghost) and self._in_box(mirror):
-                    flip = ti.Vector([1.0, 1.0])
-                    flip[axis] = -1.0
-                    if ti.static(momentum):
-                        self.g_mass[mirror] += self.g_mass[ghost]
-                        self.g_mom[mirror] += flip * self.g_mom[ghost]
-                        p_ghost = self.g_mom[ghost]
-                        if ti.static(ghost_forces):  # apic-affine: the fused momentum less its force part
-                            fg = self.ghost_f[side, along] * dt
-                            p_ghost -= fg
-                            impulse += 2.0 * ti.max(-inward * fg[axis], 0.0)
-                        impulse += 2.0 * ti.max(-inward * p_ghost[axis], 0.0)
-                    if ti.static(forces):
-                        self.g_f[mirror] += flip * self.g_f[ghost]
-                        impulse += 2.0 * ti.max(-inward * self.g_f[ghost][axis], 0.0) * dt
-                if ti.static(ghost_forces):
-                    self.ghost_f[side, along] = ti.Vector.zero(float, 2)  # ready for the next step
-                # that reaction is wall contact too: Coulomb friction acts on it (mu = 0 unless friction)
-                if ti.static(momentum):
-                    self.wall_friction[side, along] = self.bc_mu[side] * impulse
-                else:
-                    self.wall_friction[side, along] += self.bc_mu[side] * impulse
-
-    @ti.func
-    def _mirror_ghosts(self, old: ti.template()):
-        for axis in ti.static(range(2)):
-            ti.loop_config(serialize=self.plain)
-            for k in range(2 * self.nodes[1 - axis]):
-                side, inward, ghost, mirror = self._wall_pairs(axis, k)
-                kind = self.bc_kind[side]
-                if kind != 3 and self._in_box(ghost) and self._in_box(mirror):
-                    flip = ti.Vector([1.0, 1.0])
-                    flip[axis] = -1.0
-                    if kind == 0:
-                        flip = ti.Vector([-1.0, -1.0])  # no-slip: antisymmetric extension
-                    if ti.static(old):
-                        self.g_v_old[ghost] = flip * self.g_v_old[mirror]
+                if self.bc_kind[side] != OPEN and self._in_box(ghost) and self._in_box(mirror):
+                    wall = (ghost + mirror) // 2
+                    # the ghost's force, mirrored: across the wall always reversed; along it kept
+                    # for a slip wall (symmetric image) and reversed where the wall holds the
+                    # material along it (fixed, friction: antisymmetric image)
+                    flip = ti.Vector([-1.0, -1.0])
+                    if self.bc_kind[side] == SLIP:
+                        flip[1 - axis] = 1.0
+                    if ti.static(fused):  # apic-affine: the ghost's force was summed apart
+                        f = flip * self.ghost_f[side, along] * dt
+                        self.g_mom[mirror] += f
+                        self.g_mom[wall] -= f
                     else:
-                        self.g_mom[ghost] = flip * self.g_mom[mirror]
-
-    # ------------------------------------------------------------------ four-stage (apic-affine)
-    @ti.func
-    def _p2g_fused(self, dt, g, fuse_force: ti.template()):
-        for p in range(self.n):
-            if self.active[p]:
-                vol = self._stress_point(p, self.C[p], dt)  # eqs 29-30: D = sym(C), W = skew(C)
-                self._scatter_particle(p, vol, dt, g, fuse_force)
+                        f = flip * self.g_f[ghost]
+                        self.g_f[mirror] += f
+                        self.g_f[wall] -= f
+                if ti.static(fused):
+                    self.ghost_f[side, along] = ti.Vector.zero(float, 2)  # ready for the next step
 
     @ti.func
     def _ghost_forces(self, g):
@@ -588,6 +707,14 @@ class Engine:
                     else:
                         self.ghost_f[y_side, I[0]] += force
 
+    # ------------------------------------------------------------------ four-stage (apic-affine)
+    @ti.func
+    def _p2g_fused(self, dt, g, fuse_force: ti.template()):
+        for p in range(self.n):
+            if self.active[p]:
+                vol = self._stress_point(p, self.C[p], dt)  # eqs 29-30: D = sym(C), W = skew(C)
+                self._scatter_particle(p, vol, dt, g, fuse_force)
+
     @ti.func
     def _stress_from_affine(self, dt):
         for p in range(self.n):
@@ -637,7 +764,7 @@ class Engine:
                 v = self.g_mom[I] / mass
                 if ti.static(damped):  # forces were kept apart for Cundall's local damping
                     v += dt * self._damped(self.g_f[I], v, damping) / mass
-                self.g_mom[I] = self._boundary(I, self._friction(I, v, mass))
+                self.g_mom[I] = self._contact(I, v, mass, True)
             else:
                 self.g_mom[I] = ti.Vector.zero(float, 2)
 
@@ -678,7 +805,9 @@ class Engine:
             mass = self.g_mass[I]
             v = ti.Vector.zero(float, 2)
             if mass > 0.0:
-                v = self._boundary(I, self.g_mom[I] / mass)
+                # the contact law on the interpolated velocity too (Bardenhagen et al. 2000); with
+                # APIC the particles take the new grid velocity, so this impulse reaches them
+                v = self._contact(I, self.g_mom[I] / mass, mass, self.scheme == "apic")
             self.g_v_old[I] = v
 
     @ti.func
@@ -732,7 +861,7 @@ class Engine:
             if mass > 0.0:
                 v = self.g_v_old[I]
                 f = self._damped(self.g_f[I], v, damping)
-                self.g_mom[I] = self._boundary(I, self._friction(I, v + dt * f / mass, mass))
+                self.g_mom[I] = self._contact(I, v + dt * f / mass, mass, True)
             else:
                 self.g_mom[I] = ti.Vector.zero(float, 2)
 
@@ -885,18 +1014,18 @@ class Engine:
                     if ti.static(self.remove_unstable):
                         keep = 0
                 for d in ti.static(range(2)):  # a particle the guard removed is not also counted lost
-                    lo_kind = self.bc_kind[2 * d]
-                    hi_kind = self.bc_kind[2 * d + 1]
                     if x[d] < self.origin[d]:
-                        if lo_kind == 3:
+                        if self.bc_kind[2 * d] == OPEN:
                             keep = -1 if keep == 1 else keep
                         else:
                             x[d] = self.origin[d]
                     if x[d] > self.upper[d]:
-                        if hi_kind == 3:
+                        if self.bc_kind[2 * d + 1] == OPEN:
                             keep = -1 if keep == 1 else keep
                         else:
                             x[d] = self.upper[d]
+                if ti.static(self.n_structures > 0):
+                    x, v = self._push_out(x, v, self.m[p])
                 self.x[p] = x
                 self.v[p] = v
                 if keep == -1:
@@ -906,6 +1035,42 @@ class Engine:
                     self.active[p] = ti.cast(0, ti.i8)
                 elif ti.static(self.split):
                     self.band[p] = self._band_of(x)
+
+    @ti.func
+    def _push_out(self, x, v, mass):
+        """A particle that ended inside a structure goes to the nearest point of its surface (and
+        PUSH_OUT_CELLS cells outside); its velocity into the structure is removed (an impulse of
+        that structure's contact)."""
+        for s in range(self.n_structures):
+            box = self.st_box[s]
+            if box[0] <= x[0] <= box[2] and box[1] <= x[1] <= box[3]:
+                inside = 0
+                best = ti.cast(1e30, float)
+                nearest = x
+                first = self.st_edges[s, 0]
+                for k in range(first, first + self.st_edges[s, 1]):
+                    a = self.edge_a[k]
+                    ab = self.edge_b[k] - a
+                    t = ti.min(ti.max((x - a).dot(ab) / ti.max(ab.dot(ab), 1e-30), 0.0), 1.0)
+                    q = a + t * ab
+                    d2 = (x - q).norm_sqr()
+                    if d2 < best:
+                        best = d2
+                        nearest = q
+                    if (a[1] > x[1]) != (a[1] + ab[1] > x[1]):  # crossing number
+                        if x[0] < a[0] + (x[1] - a[1]) * ab[0] / ab[1]:
+                            inside = 1 - inside
+                if inside == 1:
+                    out = nearest - x
+                    size = out.norm()
+                    if size > 0.0:
+                        n = out / size
+                        x = nearest + (PUSH_OUT_CELLS * self.dx) * n
+                        vn = v.dot(n)
+                        if vn < 0.0:
+                            v -= vn * n
+                            self._record(4 + s, -mass * vn * n)
+        return x, v
 
     # ------------------------------------------------------------------ diagnostics
     @ti.kernel
@@ -934,29 +1099,9 @@ class Engine:
             "yielding": int(round(d[6])), "lost": int(self.lost[None]), "unstable": int(self.unstable[None]),
         }
 
-    # ------------------------------------------------------------------ test hooks
-    def grid_totals(self) -> tuple[float, np.ndarray]:
-        """Total grid mass and momentum (mass x new velocity) after the last step (conservation tests)."""
-        mass = self.g_mass.to_numpy().astype(np.float64)
-        mom = self.g_mom.to_numpy().astype(np.float64) * mass[..., None]
-        return float(mass.sum()), mom.reshape(-1, 2).sum(axis=0)
 
-    def transfer_only(self) -> None:
-        """P2G and G2P with zero time step and no gravity: a pure transfer round trip."""
-        self.step(0.0, (0.0, 0.0))
-
-    @ti.kernel
-    def _apply_boundaries_everywhere(self):
-        for I in ti.grouped(self.g_mom):
-            self.g_mom[I] = self._boundary(I, self.g_mom[I])
-
-    def apply_boundaries(self, node_velocity: np.ndarray) -> np.ndarray:
-        """Apply the side constraints to a whole grid of node velocities, shape (nx, ny, 2)."""
-        self.g_mom.from_numpy(np.asarray(node_velocity, dtype=self.np_float))
-        self._apply_boundaries_everywhere()
-        out = self.g_mom.to_numpy()
-        self.g_mom.fill(0.0)  # the steps rely on zeros outside the box of written nodes
-        return out
-
-    def node_position(self, i: int, j: int) -> tuple[float, float]:
-        return (self.origin[0] + (i - PAD) * self.dx, self.origin[1] + (j - PAD) * self.dx)
+def _contact_codes(contacts) -> tuple[np.ndarray, np.ndarray]:
+    """Kind codes and friction coefficients (zero unless ``friction``) of a list of Boundary."""
+    kinds = np.array([BOUNDARY_CODES[c.kind] for c in contacts], np.int32)
+    mus = np.array([np.tan(c.friction_angle_rad) if c.kind == "friction" else 0.0 for c in contacts])
+    return kinds, mus

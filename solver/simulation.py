@@ -47,9 +47,12 @@ from solver import runtime
 from solver.config import (
     OUTPUT_FIELDS,
     Checkpoint,
+    SIDES,
+    ContactForce,
     Diagnostics,
     Frame,
     InstabilityError,
+    Material,
     Particles,
     SimulationConfig,
     SolverError,
@@ -155,6 +158,14 @@ def validate(config: SimulationConfig, particles: Particles) -> None:
             problems.append(f"stage {st.name!r}: duration must be > 0")
         if st.materials is not None and len(st.materials) != len(config.materials):
             problems.append(f"stage {st.name!r}: material table must have {len(config.materials)} rows")
+    names = [st.name for st in config.structures]
+    for st in config.structures:
+        if len(st.polygon_m) < 3:
+            problems.append(f"structure {st.name!r}: a polygon needs at least 3 points")
+        if st.contact.kind == "open":
+            problems.append(f"structure {st.name!r}: contact must be fixed, slip or friction, not open")
+        if names.count(st.name) > 1 or st.name in SIDES:
+            problems.append(f"structure name {st.name!r} is used twice or is a side's name")
     if problems:
         raise SolverError("; ".join(problems))
 
@@ -162,7 +173,9 @@ def validate(config: SimulationConfig, particles: Particles) -> None:
 class Simulation:
     """One analysis: builds the engine in the calling thread and advances it stage by stage."""
 
-    def __init__(self, config: SimulationConfig, particles: Particles):
+    def __init__(self, config: SimulationConfig, particles: Particles, *, damping_support: bool = False):
+        """``damping_support`` builds the engine for local damping even when no stage of the
+        configuration uses it (the steps of :meth:`advance` may)."""
         validate(config, particles)
         self.config = config
         self.particles = particles
@@ -179,7 +192,8 @@ class Simulation:
         self.engine = Engine(
             local_grid, config.materials, len(particles), config.numerics.scheme, np_float,
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
-            damping=any(st.damping > 0 for st in config.stages), scatter=config.numerics.scatter,
+            damping=damping_support or any(st.damping > 0 for st in config.stages), scatter=config.numerics.scatter,
+            structures=config.structures,
         )
         self.engine.load_particles(np.asarray(particles.positions_m, dtype=np.float64) - self.origin_m,
                                    particles.volumes_m2, particles.material_ids,
@@ -193,11 +207,22 @@ class Simulation:
         #: the initial equilibrium check of the k0 or gravity stage (empty without one)
         self.equilibrium: dict[str, Any] = {}
         self._materials = config.materials
+        # hazard envelopes (solver.envelopes): started at the first dynamic stage, updated every few
+        # steps and at every frame
+        self.envelopes = None
+        if config.envelopes is not None:
+            from solver.envelopes import Envelopes
+
+            self.envelopes = Envelopes(self.engine, config.envelopes, config.grid)
         self._closed = False
         self.cursor = _Cursor()
         #: ``time.perf_counter()`` at the end of this process's first step (None before it)
         self.first_step_at: float | None = None
         self.fingerprint = fingerprint(config, particles)
+        # contacts reported in frames: the closed sides, then the structures (engine order)
+        self._contacts = [i for i, side in enumerate(SIDES) if config.grid.boundary(side).kind != "open"]
+        self._contacts += [4 + k for k in range(len(config.structures))]
+        self._contacts_since_s = 0.0
 
     # ------------------------------------------------------------------ helpers
     def _speed_bound(self, g: np.ndarray) -> float:
@@ -230,6 +255,8 @@ class Simulation:
             momentum_y=d["momentum_y"], max_speed_m_s=d["max_speed"], unstable_particles=d["unstable"],
             lost_particles=d["lost"], total_mass_kg_per_m=d["mass"], yielding_particles=d["yielding"],
         )
+        if self.envelopes is not None:
+            self.envelopes.sync(self.time_s)  # envelopes are never below a frame's values
         want = self.config.output.fields
         e = self.engine
         relative = e.x.to_numpy()
@@ -249,10 +276,29 @@ class Simulation:
             if arr.dtype.kind == "f" and not np.all(np.isfinite(arr[fields["active"]])):
                 raise InstabilityError(
                     f"unstable: non-finite {name} at step {self.steps}, t = {self.time_s:.6g} s", self.steps, self.time_s)
-        frame = Frame(diag, fields)
+        frame = Frame(diag, fields, self._contact_forces())
         self.last_frame = frame
         self.cursor.frames += 1
         return frame
+
+    def _contact_forces(self) -> tuple[ContactForce, ...]:
+        """Mean and peak force on each contact since the last frame (see :class:`ContactForce`)."""
+        impulse, peak = self.engine.read_contacts()
+        interval = self.time_s - self._contacts_since_s
+        self._contacts_since_s = self.time_s
+        names = self.engine.contact_names
+        out = []
+        for c in self._contacts:
+            fx, fy = (float(v) / interval for v in impulse[c]) if interval > 0 else (0.0, 0.0)
+            normal = tangential = None
+            if c < 4:
+                axis = c // 2
+                outward = -1.0 if c % 2 == 0 else 1.0  # from the material into the wall
+                normal = (fx, fy)[axis] * outward
+                tangential = (fx, fy)[1 - axis]
+            out.append(ContactForce(names[c], fx, fy, normal, tangential, float(peak[c, 0]), float(peak[c, 1]),
+                                    float(peak[c, 2])))
+        return tuple(out)
 
     def _check(self, dt: float, d: dict) -> None:
         """The stability guard; raises InstabilityError naming the cause, step and time."""
@@ -293,20 +339,28 @@ class Simulation:
         if not self.can_checkpoint:
             raise SolverError(f"no checkpoint can be taken in phase {self.cursor.phase!r}")
         run = {"time_s": self.time_s, "steps": self.steps, "total_time_s": self.total_time_s,
-               "message": self.message, "cursor": dataclasses.asdict(self.cursor)}
-        return Checkpoint(run=run, arrays=self.engine.state(), fingerprint=self.fingerprint)
+               "message": self.message, "cursor": dataclasses.asdict(self.cursor),
+               "contacts_since_s": self._contacts_since_s}
+        arrays = self.engine.state()
+        if self.envelopes is not None:  # a resumed run continues its envelopes
+            arrays.update({f"envelopes/{k}": v for k, v in self.envelopes.state().items()})
+        return Checkpoint(run=run, arrays=arrays, fingerprint=self.fingerprint)
 
     def restore(self, checkpoint: Checkpoint) -> None:
         """Continue from ``checkpoint`` (taken from a run of the same configuration and particles)."""
         if checkpoint.fingerprint != self.fingerprint:
             raise SolverError("the checkpoint belongs to another configuration or particle set")
-        self.engine.load_state(checkpoint.arrays)
+        self.engine.load_state({k: v for k, v in checkpoint.arrays.items() if "/" not in k})
+        if self.envelopes is not None:
+            self.envelopes.load_state({k.split("/", 1)[1]: v for k, v in checkpoint.arrays.items()
+                                       if k.startswith("envelopes/")})
         run = checkpoint.run
         self.time_s = float(run["time_s"])
         self.steps = int(run["steps"])
         self.total_time_s = float(run["total_time_s"])
         self.message = str(run["message"])
         self.cursor = _Cursor(**run["cursor"])
+        self._contacts_since_s = float(run.get("contacts_since_s", self.time_s))
         table = self.config.materials
         for stage in self.config.stages[: self.cursor.stage_index + 1]:
             table = stage.materials if stage.materials is not None else table
@@ -358,20 +412,24 @@ class Simulation:
                 f"largest unbalanced acceleration {check['max_unbalanced_acceleration_m_s2']:.3g} m/s2, "
                 f"largest speed at its end {max_speed_m_s:.3g} m/s")
         if not ratio <= EQUILIBRIUM_WARN_RATIO:
-            log.warning("%s: above %g, the initial state is not in equilibrium (a k0 stage on sloping "
-                        "ground? use a gravity stage)", text, EQUILIBRIUM_WARN_RATIO)
+            log.warning("%s: above %g, the initial state is not in equilibrium and the next stage starts "
+                        "with motion of its own (free faces, or K0 under sloping ground: use a gravity "
+                        "stage there)", text, EQUILIBRIUM_WARN_RATIO)
         else:
             log.info(text)
         return check
 
     # ------------------------------------------------------------------ the run
     def run(self, cancel: Callable[[], bool] | None = None,
-            on_progress: Callable[[Progress], None] | None = None) -> Iterator[Frame]:
+            on_progress: Callable[[Progress], None] | None = None, *,
+            stop_before: int | None = None) -> Iterator[Frame]:
         """Yield frames at t = 0, every output interval and the end of each stage.
 
         Raises InstabilityError when the guard fires; the frames yielded before are good.
         ``cancel()`` returning True ends the run after one last frame (status "stopped").
         After :meth:`restore` the run continues after the checkpoint's frame.
+        ``stop_before`` ends the run at the start of that stage (a driver then works on the
+        state, e.g. strength-reduction trials, and calls ``run`` again to go on from there).
         """
         runtime.check_owner()
         cfg = self.config
@@ -385,7 +443,8 @@ class Simulation:
         cancelled = False
         if c.dt_s == 0.0:  # a fresh run (a restored one keeps its step)
             c.dt_s = self._time_step(e.diagnostics()["max_speed"])
-        for index in range(c.stage_index, len(cfg.stages)):
+        last = len(cfg.stages) if stop_before is None else min(stop_before, len(cfg.stages))
+        for index in range(c.stage_index, last):
             stage = cfg.stages[index]
             c.stage_index = index
             if c.phase == "start":
@@ -399,6 +458,8 @@ class Simulation:
                                            e.x.to_numpy()))
                     self.equilibrium = self.equilibrium_check(stage, c.dt_s, float(e.diagnostics()["max_speed"]))
                     continue
+                if stage.kind == "dynamic" and self.envelopes is not None and not self.envelopes.started:
+                    self.envelopes.start(self.time_s)  # the release: ground surface and initial state
                 c.phase, c.stage_start_s, c.stage_steps, c.peak_ke, c.reason = "loop", self.time_s, 0, 0.0, ""
                 if c.next_output_s <= self.time_s + 1e-12 and c.last_output_step != self.steps:
                     frame = self._frame(stage, index, 0.0, c.dt_s, e.diagnostics())
@@ -423,6 +484,8 @@ class Simulation:
                     self.steps += 1
                     c.stage_steps += 1
                     self.time_s += h
+                    if self.envelopes is not None:
+                        self.envelopes.after_step(self.time_s)
                     at_output = self.time_s >= c.next_output_s - 1e-9 * interval
                     if c.stage_steps % CHECK_EVERY == 0 or at_output:
                         d = e.diagnostics()
@@ -474,17 +537,73 @@ class Simulation:
             c.stage_index = index + 1
         if not cancelled and (c.last_output_step != self.steps or c.frames == 0):
             # e.g. a project with only a k0 stage
-            st = cfg.stages[-1]
+            st = cfg.stages[last - 1]
             d = e.diagnostics()
             c.last_output_step = self.steps
-            yield self._frame(st, len(cfg.stages) - 1, 0.0, c.dt_s, d)
-        if not cancelled:
+            yield self._frame(st, last - 1, 0.0, c.dt_s, d)
+        if not cancelled and last == len(cfg.stages):
             c.phase = "done"
         self.status = "stopped" if cancelled else "completed"
         if cancelled:
             self.message = f"cancelled at t = {self.time_s:.4g} s"
         elif not self.message:
             self.message = f"completed {self.steps} steps, t = {self.time_s:.4g} s"
+
+    # ------------------------------------------------------------------ driving from outside
+    def advance(self, duration_s: float, *, damping: float = 0.0,
+                check: Callable[[float, dict], str | None] | None = None,
+                cancel: Callable[[], bool] | None = None) -> str:
+        """Step the current state for up to ``duration_s`` with full gravity, yielding no frames.
+
+        Every :data:`CHECK_EVERY` steps the stability guard runs and ``check(elapsed_s,
+        diagnostics)`` is called; a non-empty string it returns ends the advance early and is
+        returned (also from the check after the last step). ``cancel()`` returning True ends it
+        with ``"cancelled"``. Returns ``""`` when the whole duration ran. The clock (``time_s``,
+        ``steps``) advances; callers that restore a checkpoint restore it too. Raises
+        InstabilityError like :meth:`run`.
+        """
+        runtime.check_owner()
+        e = self.engine
+        g = tuple(float(v) for v in self.config.gravity_m_s2)
+        d = e.diagnostics()
+        dt = self._time_step(d["max_speed"])
+        elapsed = 0.0
+        count = 0
+        while elapsed < duration_s - 1e-12 * max(1.0, duration_s):
+            h = min(dt, duration_s - elapsed)
+            e.step(h, g, damping)
+            self.steps += 1
+            count += 1
+            elapsed += h
+            self.time_s += h
+            if count % CHECK_EVERY == 0:
+                d = e.diagnostics()
+                self._check(dt, d)
+                if self.config.numerics.time_step_s is None:
+                    dt = self._time_step(d["max_speed"])
+                if check is not None:
+                    reason = check(elapsed, d)
+                    if reason:
+                        return reason
+                if cancel is not None and cancel():
+                    return "cancelled"
+        d = e.diagnostics()
+        self._check(dt, d)
+        if check is not None:
+            return check(elapsed, d) or ""
+        return ""
+
+    def set_materials(self, materials: tuple[Material, ...]) -> None:
+        """Replace the material table now (one row per material of the configuration)."""
+        if len(materials) != len(self.config.materials):
+            raise SolverError(f"the material table must have {len(self.config.materials)} rows")
+        self.engine.materials.load(materials)
+        self._materials = tuple(materials)
+
+    def snapshot(self, stage: Stage, index: int, stage_time_s: float = 0.0) -> Frame:
+        """A frame of the current state, labelled with ``stage`` (number ``index``)."""
+        d = self.engine.diagnostics()
+        return self._frame(stage, index, stage_time_s, self._time_step(d["max_speed"]), d)
 
     # ------------------------------------------------------------------ lifetime
     def close(self) -> None:

@@ -17,6 +17,8 @@ tradeoff       error against cost over schemes, cell sizes, particles per cell a
                Pareto front and the presets (:mod:`studies.tradeoff`)
 extremes       runs at the edges of the parameter space: stable or stopped with a message,
                never NaN, hang or traceback (:mod:`studies.extremes`)
+fos            factor of safety by strength reduction against the cell size and Bishop's
+               method; its cost in equilibrium runs; the infinite slope (:mod:`studies.fos`)
 =============  ===============================================================================
 """
 
@@ -35,6 +37,7 @@ STUDIES: dict[str, str] = {
     "slope": "slope",
     "tradeoff": "tradeoff",
     "extremes": "extremes",
+    "fos": "fos",
 }
 
 #: Default output folder of ``runout study NAME``: ``study-results/NAME`` (``-quick`` appended).

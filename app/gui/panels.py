@@ -820,10 +820,10 @@ class NumericsPanel(Panel):
     def _current_dt(self) -> float | None:
         if self.doc.project is None:
             return None
-        from projects.build import estimate
+        from projects.build import resolve
 
         try:
-            return float(f"{estimate(self.doc.project)['time_step_s']:.3g}")
+            return float(f"{resolve(self.doc.project, seed=False).estimate['time_step_s']:.3g}")
         except (ValueError, ZeroDivisionError):
             return None
 

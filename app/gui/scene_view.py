@@ -432,58 +432,48 @@ class SceneView(QWidget):
         self._update_legend()
         pl.render()
 
-    def _cell_and_per(self) -> tuple[Any, Any]:
-        """Cell size and particles per cell the run will use (:func:`projects.build.resolve`:
-        a preset's when one is set), else the panels'."""
+    def _resolved(self, seed: bool) -> Any:
+        """The run the project stands for (:func:`projects.build.resolve`: preset and all), or
+        None while the project has problems."""
         project = self.doc.project
-        if project is not None and project.numerics.preset is not None:
-            from projects.build import resolve
-            from projects.schema import ProjectError
+        if project is None:
+            return None
+        from projects.build import resolve
+        from projects.schema import ProjectError
 
-            try:
-                effective = resolve(project, seed=False).project
-                return effective.domain.cell_size_m, effective.particles.per_cell
-            except (ProjectError, ValueError):
-                pass
-        return self.doc.get("domain.cell_size_m"), self.doc.get("particles.per_cell", 2)
+        try:
+            return resolve(project, seed=seed)
+        except (ProjectError, ValueError, ArithmeticError):
+            return None
 
     def _spacing_pixels(self) -> float:
-        cell, per = self._cell_and_per()
-        if not isinstance(cell, (int, float)) or not isinstance(per, int) or per < 1:
+        resolved = self._resolved(seed=False)
+        if resolved is None:
             return 2.0
-        return float(cell) / per / max(self.pixel_size_m(), 1e-12)
+        return resolved.spacing_m / max(self.pixel_size_m(), 1e-12)
 
     def _seed(self) -> tuple[np.ndarray | None, np.ndarray]:
-        from geometry.polygons import is_simple, polygon_area
-        from geometry.seeding import seed_lattice
-
+        """The particles the run will start from (seeded by :func:`projects.build.resolve`)."""
         empty = np.zeros(0, dtype=int)
-        doc = self.doc
-        cell, per = self._cell_and_per()
-        origin = _as_points([doc.get("domain.origin_m", [0.0, 0.0])])
-        if not isinstance(cell, (int, float)) or cell <= 0 or not isinstance(per, int) or per < 1 or origin is None:
+        resolved = self._resolved(seed=False)
+        if resolved is None:
+            self.message.emit("particle preview: fix the project's problems first")
             return None, empty
-        polys, mats = [], []
-        for body in doc.get("bodies", []):
-            poly = _as_points(body.get("polygon_m"))
-            if poly is not None and len(poly) >= 3 and is_simple(poly):
-                polys.append(poly)
-                mats.append(self._material_index(body.get("material")))
-        if not polys:
+        if resolved.particle_count > MAX_PREVIEW_PARTICLES:
+            self.message.emit(f"particle preview skipped: about {resolved.particle_count:,} particles")
             return None, empty
-        area = sum(polygon_area(p) for p in polys)
-        if area * (per / cell) ** 2 > MAX_PREVIEW_PARTICLES:
-            self.message.emit(f"particle preview skipped: about {area * (per / cell) ** 2:,.0f} particles")
+        try:
+            particles = resolved.seeded().particles
+        except (ValueError, ArithmeticError) as err:
+            self.message.emit(f"particle preview: {err}")
             return None, empty
-        if doc.project is not None and doc.get("particles.seeding") == "gauss":
-            from projects.build import seed_bodies
-
-            seeds = seed_bodies(doc.project)
-        else:
-            seeds = seed_lattice(polys, tuple(origin[0]), float(cell), per)
-        body_material = np.array(mats, dtype=int)
-        material = np.maximum(body_material[np.asarray(seeds.body_index, dtype=int)], 0)
-        return np.asarray(seeds.positions_m), material
+        except Exception as err:  # noqa: BLE001 - a preview must never take the workbench down
+            self.message.emit(f"particle preview: {err}")
+            return None, empty
+        names = resolved.material_names
+        order = np.array([self._material_index(name) for name in names], dtype=int)
+        material = np.maximum(order[np.asarray(particles.material_ids, dtype=int)], 0)
+        return np.asarray(particles.positions_m), material
 
     def set_show_particles(self, on: bool) -> None:
         self.show_particles = bool(on)

@@ -56,10 +56,10 @@ def test_every_field_renders(make_results, tmp_path):
     assert len(_colours(images["material"])) < len(_colours(images["displacement"]))
 
 
-def test_default_output_name_is_in_the_results_folder(make_results):
+def test_default_output_name_is_beside_the_results_folder(make_results):
     folder = make_results()
     path = render_frame(folder, 0, "material", size=SMALL)
-    assert path == folder / "material_00000.png"
+    assert path == folder.parent / "synthetic_material_00000.png"  # never inside: a re-run may replace it
     assert path.stat().st_size > 1000
 
 
@@ -141,3 +141,19 @@ def test_rendering_does_not_import_qt(make_results, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "q.png").is_file()
     assert "bad X server" not in proc.stderr
+
+
+def test_structures_are_drawn_in_pictures(tmp_path):
+    # a structure well apart from the particles: its grey fill appears only when it is drawn
+    meta = {**SYNTHETIC_META, "structures": [{"name": "dam", "polygon_m": [[0.6, 0.0], [0.7, 0.0], [0.65, 0.12]]}]}
+    pictures = {}
+    for name, m in (("with", meta), ("without", SYNTHETIC_META)):
+        writer = ResultsWriter(tmp_path / f"{name}.results", "", dict(m))
+        for frame in synthetic_frames(2):
+            writer.write_frame(frame)
+        writer.close("completed")
+        pictures[name] = imageio.imread(render_frame(tmp_path / f"{name}.results", -1, "displacement",
+                                                     tmp_path / f"{name}.png", size=SMALL))
+    grey = lambda img: np.all(np.abs(img[..., :3].astype(int) - 180) <= 3, axis=-1)  # noqa: E731 - fill #b4b4b4
+    assert grey(pictures["with"]).sum() > 100
+    assert grey(pictures["without"]).sum() < 0.1 * grey(pictures["with"]).sum()

@@ -1,4 +1,4 @@
-"""The direction of dependencies (docs/DESIGN.md): app -> projects -> {geometry, solver}.
+"""The direction of dependencies (docs/DESIGN.md): app -> {studies, sweeps} -> projects -> {geometry, solver, stability}.
 
 Each package is imported in a fresh interpreter and the modules it must not pull in are checked.
 """
@@ -17,10 +17,24 @@ FORBIDDEN = {
     "projects.build": ["PySide6", "pyvista", "app"],
     "projects.runner": ["PySide6", "pyvista", "app"],
     "projects.results": ["PySide6", "app"],
+    "projects.hazard": ["PySide6", "pyvista", "vtk", "taichi", "matplotlib", "app"],
+    "solver.envelopes": ["PySide6", "pyvista", "vtk", "gmsh", "geometry", "projects", "app"],
+    "projects.results_folder": ["PySide6", "pyvista", "taichi", "app", "solver", "geometry"],
+    "projects.limits": ["PySide6", "pyvista", "taichi", "app"],
+    "projects.units": ["PySide6", "pyvista", "taichi", "app", "solver", "geometry", "pydantic"],
+    "projects.checks": ["PySide6", "pyvista", "taichi", "app"],
     "app.render": ["PySide6"],
+    "app.report": ["PySide6", "taichi"],
     "app.cli": ["PySide6", "pyvista", "taichi", "gmsh"],
     "studies": ["PySide6", "pyvista", "app"],
     "benchmarks.bench": ["PySide6", "pyvista", "app"],
+    "stability": ["PySide6", "pyvista", "vtk", "gmsh", "taichi", "solver", "geometry", "projects", "app",
+                  "scipy", "shapely"],
+    # the sweep driver schedules `runout run` processes: no solver runtime, no GUI in it
+    "sweeps.sweep": ["PySide6", "pyvista", "vtk", "app", "taichi"],
+    "sweeps.calibrate": ["PySide6", "pyvista", "vtk", "app", "taichi"],
+    "sweeps.report": ["PySide6", "pyvista", "vtk", "app", "taichi"],
+    "sweeps.measures": ["PySide6", "pyvista", "vtk", "app", "taichi"],
 }
 
 

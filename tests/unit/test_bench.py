@@ -23,6 +23,7 @@ TINY = BenchConfig(
     gpu_particle_counts=(200,), batch_s=0.01, rounds=1, warmup_steps=2, min_steps=2, max_steps=4,
     profile_particles=(200,), profile_steps=3, empty_domain_particles=200, empty_domain_schemes=("apic-affine",),
     stall_particles=200, stall_duration_s=0.002, stall_interval_s=0.001, stall_rounds=1,
+    envelope_particles=200, envelope_every_steps=2, envelope_steps=4,
 )
 
 
@@ -142,7 +143,7 @@ def test_empty_domain_and_output_stall_give_ratios(bench):
 def test_targets_and_reports(bench):
     result, out = bench
     names = [t["name"] for t in result["targets"]]
-    assert len(names) == 7
+    assert len(names) == 8  # issue 6 and the hazard envelopes of issue 12
     for t in result["targets"]:
         assert t["met"] in (True, False, None)
         assert (t["value"] is None) == (t["met"] is None)
@@ -166,3 +167,12 @@ def test_profiler_task_names_map_to_stages():
     assert _stage_of("_substep_c12_0_kernel_2_range_for", YARDSTICK) == ("_substep (loop 2)", "grid pass")
     assert _stage_of("_step_c5_0_kernel_1_range_for", "apic") == ("_step (loop 1)", "other: _step")
     assert _stage_of("weird", "apic") == ("weird", "other")
+
+
+def test_hazard_envelope_cost_is_a_fraction_of_the_step(bench):
+    result, _ = bench
+    env = result["hazard_envelopes"]
+    assert env["every_steps"] == 2 and env["batches"] == 2
+    assert _positive(env["step_time_s"]) and _positive(env["update_time_s"]) and _positive(env["fraction"])
+    assert any(t["name"].startswith("hazard envelopes") for t in result["targets"])
+    assert "Hazard envelopes" in markdown_report(result)

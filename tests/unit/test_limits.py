@@ -112,3 +112,13 @@ def test_estimate_counts_are_finite_numbers(tiny):
     for key in ("particles", "grid_cells", "steps", "frames", "memory_bytes", "disk_bytes"):
         assert isinstance(e[key], int) and 0 <= e[key] <= MAX_COUNT, key
     assert math.isfinite(e["time_step_s"])
+
+
+def test_a_denormal_cell_size_past_the_limits_is_still_one_line(tmp_path):
+    from app.cli import cli
+
+    result = CliRunner().invoke(cli, ["validate", str(TINY_PROJECT), "--set", "domain.cell_size_m=5e-324", "--force"])
+    assert result.exit_code == 1
+    assert result.exception is None or isinstance(result.exception, SystemExit), repr(result.exception)
+    assert "domain.cell_size_m = 5e-324: cannot seed the bodies" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1

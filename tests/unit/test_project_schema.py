@@ -198,7 +198,7 @@ GOLDEN = [
     (
         "stages.1.type",
         "quasi-static",
-        'stages.1.type = "quasi-static": must be one of "k0", "gravity", "dynamic"',
+        'stages.1.type = "quasi-static": must be one of "k0", "gravity", "dynamic", "strength-reduction"',
     ),
     (
         "stages.1.material_changes",
@@ -275,7 +275,7 @@ GOLDEN = [
     (
         "simulation",
         {},
-        "simulation: unknown key; allowed: runout, domain, materials, bodies, particles, numerics, stages, output",
+        "simulation: unknown key; allowed: runout, domain, materials, bodies, particles, numerics, stages, output, hazard, targets",
     ),
     (
         "bodies",

@@ -1,0 +1,178 @@
+"""``runout sweep`` and ``runout calibrate`` (registered on :data:`app.cli.cli`), and the sweep report.
+
+The work is done by :mod:`sweeps`; this module parses options, shows a progress bar with ETA on
+standard error and prints the result folder on standard output. Ctrl-C (or SIGTERM) stops
+starting runs and cancels the running ones; finished runs are kept and reused when the same
+command runs again.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+
+def _cli():  # noqa: ANN202 - app.cli, imported when a command runs (app.cli imports this module)
+    import app.cli
+
+    return app.cli
+
+_ADDRESS = typer.Option("--address", help="Ray cluster address (e.g. ray://HEAD:10001 or auto); default: "
+                        "a local Ray on this machine.")
+_WORKERS = typer.Option("--workers", "-w", help="Runs at once (default: one per CPU core locally).")
+_THREADS = typer.Option("--threads", help="Taichi CPU threads per run (default: cores / workers).")
+_GPUS = typer.Option("--gpus-per-run", help="GPUs per run (1: one run per GPU, 0.5: two share one; "
+                     "default 1 where Ray sees GPUs, else 0).")
+
+
+class _Bar:
+    """A rich progress bar over runs, with the failed count and the ETA."""
+
+    def __init__(self, what: str) -> None:
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        self.bar = Progress(TextColumn(what), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[info]}"),
+                            TimeElapsedColumn(), TextColumn("ETA {task.fields[eta]}"), console=_cli().err)
+        self.task = self.bar.add_task(what, total=None, info="", eta="-")
+
+    def __enter__(self) -> _Bar:
+        self.bar.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.bar.__exit__(None, None, None)
+
+    def update(self, done: int, total: int, failed: int, eta_s: float) -> None:
+        eta = "-" if not math.isfinite(eta_s) else f"{int(eta_s // 60)}:{int(eta_s % 60):02d}"
+        self.bar.update(self.task, completed=done, total=total, info=f"{failed} not completed", eta=eta)
+
+
+def _load_spec(path: Path, kind: str):  # noqa: ANN202 - SweepSpec | CalibrationSpec
+    from projects.schema import ProjectError
+    from sweeps.spec import load_spec
+
+    try:
+        spec = load_spec(path)
+    except ProjectError as exc:
+        _cli().fail(str(exc))
+    if kind == "sweep" and not hasattr(spec, "sweep"):
+        _cli().fail(f"{path}: this is a calibration file; run it with `runout calibrate`")
+    if kind == "calibration" and not hasattr(spec, "calibration"):
+        _cli().fail(f"{path}: this is a sweep file; run it with `runout sweep`")
+    return spec
+
+
+def _check_engine(workers: int | None, threads: int | None, gpus: float | None, address: str | None = None) -> None:
+    if workers is not None and workers < 1:
+        _cli().fail(f"--workers must be >= 1, not {workers}")
+    if threads is not None and threads < 1:
+        _cli().fail(f"--threads must be >= 1, not {threads}")
+    if gpus is not None and not gpus >= 0:
+        _cli().fail(f"--gpus-per-run must be >= 0, not {gpus:g}")
+    if address is not None:
+        from sweeps.engine import check_address
+
+        try:
+            check_address(address)
+        except ConnectionError as exc:
+            _cli().fail(f"cannot reach the Ray cluster at {address}: {exc}")
+
+
+def register(cli: typer.Typer) -> None:
+    """Add ``sweep`` and ``calibrate`` to the command line ``cli`` (``report`` dispatches to
+    :func:`sweep_report` for a sweep folder)."""
+
+    @cli.command()
+    def sweep(
+        spec_path: Annotated[Path, typer.Argument(metavar="SPEC", help="Sweep file (.toml).", show_default=False)],
+        out_dir: Annotated[Path | None, typer.Option("--out", "-o", help="Sweep folder (default: SPEC name + .sweep "
+                                                     "next to the file).")] = None,
+        address: Annotated[str | None, _ADDRESS] = None,
+        workers: Annotated[int | None, _WORKERS] = None,
+        threads: Annotated[int | None, _THREADS] = None,
+        gpus: Annotated[float | None, _GPUS] = None,
+    ) -> None:
+        """Run a parameter sweep or Monte Carlo analysis on Ray: sweep.csv, statistics, report.html."""
+        from projects.runner import StopRequest
+        from projects.schema import ProjectError
+        from sweeps.sweep import plan_sweep, run_sweep
+
+        _check_engine(workers, threads, gpus, address)
+        spec = _load_spec(spec_path, "sweep")
+        try:
+            plan_sweep(spec)  # every problem before Ray starts
+        except ProjectError as exc:
+            _cli().fail(f"{spec_path}: {exc}")
+        folder = out_dir or spec_path.with_name(spec_path.stem + ".sweep")
+        stop = StopRequest()
+        with _cli().stop_on_signals(stop), _Bar("runs") as bar:
+            try:
+                result = run_sweep(spec, folder, workers=workers, address=address, threads_per_run=threads,
+                                   gpus_per_run=gpus, cancel=stop,
+                                   on_progress=lambda p: bar.update(p.done, p.total, p.failed, p.eta_s))
+            except ProjectError as exc:
+                _cli().fail(f"{spec_path}: {exc}")
+            except ConnectionError as exc:
+                _cli().fail(f"cannot reach the Ray cluster at {address}: {exc}")
+        if result.stopped:
+            _cli().err.print(f"stopped: {sum(r.status != 'pending' for r in result.records)} of {len(result.records)} runs "
+                      f"done (run the same command again to go on) -> {result.out_dir}", markup=False)
+            raise typer.Exit(_cli().EXIT_SIGTERM if stop.reason == "SIGTERM" else _cli().EXIT_SIGINT)
+        n = len(result.records)
+        _cli().out.print(f"{result.count('completed')} of {n} runs completed, {n - result.count('completed')} not "
+                  f"({sum(r.reused for r in result.records)} reused) in {result.wall_time_s:.1f} s "
+                  f"-> {result.out_dir}/sweep.csv, report.html", markup=False)
+
+
+    @cli.command()
+    def calibrate(
+        spec_path: Annotated[Path, typer.Argument(metavar="SPEC", help="Calibration file (.toml).", show_default=False)],
+        out_dir: Annotated[Path | None, typer.Option("--out", "-o", help="Calibration folder (default: SPEC name + "
+                                                     ".calibration next to the file).")] = None,
+        address: Annotated[str | None, _ADDRESS] = None,
+        workers: Annotated[int | None, _WORKERS] = None,
+        threads: Annotated[int | None, _THREADS] = None,
+        gpus: Annotated[float | None, _GPUS] = None,
+    ) -> None:
+        """Find the parameters that best reproduce an observation (optuna), runs on Ray; report.html."""
+        from projects.runner import StopRequest
+        from projects.schema import ProjectError
+        from sweeps.calibrate import check_calibration, run_calibration
+
+        _check_engine(workers, threads, gpus, address)
+        spec = _load_spec(spec_path, "calibration")
+        try:
+            check_calibration(spec)  # every problem before Ray starts
+        except ProjectError as exc:
+            _cli().fail(f"{spec_path}: {exc}")
+        folder = out_dir or spec_path.with_name(spec_path.stem + ".calibration")
+        stop = StopRequest()
+        with _cli().stop_on_signals(stop), _Bar("trials") as bar:
+            try:
+                result = run_calibration(spec, folder, workers=workers, address=address, threads_per_run=threads,
+                                         gpus_per_run=gpus, cancel=stop,
+                                         on_progress=lambda p: bar.update(p.done, p.total, p.failed, p.eta_s))
+            except ProjectError as exc:
+                _cli().fail(f"{spec_path}: {exc}")
+            except ConnectionError as exc:
+                _cli().fail(f"cannot reach the Ray cluster at {address}: {exc}")
+        for line in result.summary_lines():
+            _cli().out.print(line, markup=False)
+        _cli().out.print(f"-> {result.out_dir}/calibration.csv, report.html", markup=False)
+        if result.stopped:
+            raise typer.Exit(_cli().EXIT_SIGTERM if stop.reason == "SIGTERM" else _cli().EXIT_SIGINT)
+
+
+def sweep_report(folder: Path, output: Path | None = None) -> None:
+    """``runout report SWEEP_DIR``: report.html of a sweep or calibration folder (in ``output`` if given)."""
+    from sweeps.report import write_report
+    from sweeps.sweep import SweepFolderError
+
+    try:
+        path = write_report(folder, output)
+    except (SweepFolderError, OSError) as exc:
+        _cli().fail(str(exc))
+    _cli().out.print(str(path), markup=False)

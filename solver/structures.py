@@ -1,0 +1,84 @@
+"""Rigid structures on the grid: signed distance and outward normals of polygons, in numpy.
+
+Worked out once at set-up and uploaded to the engine (see docs/solver.md, contact): for every grid
+node the structure that covers it (signed distance <= 0, on or inside the polygon) and the
+outward normal there, the gradient of the polygon's signed distance. Inside a polygon the
+gradient points from the node to the nearest point of the surface, outward; on the surface it is
+the edge's outward normal (the mean of the two at a vertex), so inclined and curved surfaces get
+their own normals, not grid axes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+#: Offset of the central differences of the signed distance, in cell sizes.
+GRADIENT_STEP_CELLS = 1e-3
+
+
+def segments(polygon_m: Sequence[Sequence[float]]) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end points (m) of the polygon's edges, shape (K, 2) each (the ring is closed here)."""
+    p = np.asarray(polygon_m, dtype=np.float64).reshape(-1, 2)
+    if len(p) > 1 and np.allclose(p[0], p[-1]):
+        p = p[:-1]
+    return p, np.roll(p, -1, axis=0)
+
+
+def signed_distance(points_m: np.ndarray, polygon_m: Sequence[Sequence[float]]) -> np.ndarray:
+    """Signed distance (m) of ``points_m`` (..., 2) to the polygon: negative inside, positive outside."""
+    pts = np.asarray(points_m, dtype=np.float64)
+    flat = pts.reshape(-1, 2)
+    a, b = segments(polygon_m)
+    ab = b - a
+    ap = flat[:, None, :] - a[None, :, :]
+    t = np.clip((ap * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-300), 0.0, 1.0)
+    nearest = a[None] + t[..., None] * ab[None]
+    dist = np.sqrt(((flat[:, None, :] - nearest) ** 2).sum(-1)).min(axis=1)
+    # crossing number: edges that straddle the horizontal line through the point, left of it
+    y = flat[:, 1:2]
+    straddle = (a[None, :, 1] > y) != (b[None, :, 1] > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x_cross = a[None, :, 0] + (y - a[None, :, 1]) * ab[None, :, 0] / ab[None, :, 1]
+    inside = (straddle & (flat[:, 0:1] < x_cross)).sum(axis=1) % 2 == 1
+    return np.where(inside, -dist, dist).reshape(pts.shape[:-1])
+
+
+def node_contacts(polygons: Sequence[Sequence[Sequence[float]]], node_x_m: np.ndarray, node_y_m: np.ndarray,
+                  cell_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Which structure covers each grid node, and the outward normal there.
+
+    Parameters
+    ----------
+    polygons : the structures' polygons (m), in contact order
+    node_x_m, node_y_m : node coordinates along x and y (m), shapes (nx,) and (ny,)
+    cell_m : cell size (m), for the finite-difference step of the gradient
+
+    Returns
+    -------
+    index : (nx, ny) int32, the structure covering the node (signed distance <= 0), -1 for none; where
+        two overlap, the later one
+    normal : (nx, ny, 2) float64, unit outward normal of that structure at the node (zeros elsewhere)
+    """
+    X, Y = np.meshgrid(np.asarray(node_x_m, float), np.asarray(node_y_m, float), indexing="ij")
+    pts = np.stack([X, Y], axis=-1)
+    index = np.full(X.shape, -1, np.int32)
+    normal = np.zeros(X.shape + (2,))
+    h = GRADIENT_STEP_CELLS * cell_m
+    for k, poly in enumerate(polygons):
+        a, _ = segments(poly)
+        lo, hi = a.min(axis=0) - 2 * cell_m, a.max(axis=0) + 2 * cell_m
+        near = np.all((pts >= lo) & (pts <= hi), axis=-1)
+        if not near.any():
+            continue
+        q = pts[near]
+        covered = signed_distance(q, poly) <= 0.0
+        q = q[covered]
+        grad = np.stack([signed_distance(q + [h, 0.0], poly) - signed_distance(q - [h, 0.0], poly),
+                         signed_distance(q + [0.0, h], poly) - signed_distance(q - [0.0, h], poly)], axis=-1)
+        grad /= np.maximum(np.linalg.norm(grad, axis=-1, keepdims=True), 1e-300)
+        where = np.flatnonzero(near.ravel())[covered]
+        index.reshape(-1)[where] = k
+        normal.reshape(-1, 2)[where] = grad
+    return index, normal

@@ -1,0 +1,28 @@
+"""Limit-equilibrium slope stability (numpy only): Bishop's simplified method of slices.
+
+:mod:`stability.bishop` finds the critical circular slip surface of a 2D section made of
+polygons of Mohr-Coulomb soils. It knows nothing of the solver, the projects or the app; the
+strength-reduction driver (:mod:`projects.strength`) reports its factor beside the MPM one.
+"""
+
+from stability.bishop import (
+    Circle,
+    Section,
+    SlipResult,
+    Soil,
+    bishop_factor,
+    critical_circle,
+    fellenius_factor,
+    slices_factor,
+)
+
+__all__ = [
+    "Circle",
+    "Section",
+    "SlipResult",
+    "Soil",
+    "bishop_factor",
+    "critical_circle",
+    "fellenius_factor",
+    "slices_factor",
+]

@@ -1,0 +1,258 @@
+"""``runout study fos``: factor of safety by strength reduction against the mesh and against Bishop.
+
+Scenes:
+
+- the shipped example ``projects/examples/slope_fos.toml`` (6 m high 45 deg slope, c = 10 kPa,
+  phi = 30 deg, psi = 0) without its run-out stage, at several cell sizes (4 particles per
+  cell): the strength-reduction factor, its bracket, the trials, Bishop's factor of the same
+  section and the cost of the search in equilibrium runs (steps of the search over the steps of
+  the initial stress and settling; the same model, so steps measure cost without the machine's
+  load or Taichi's start-up);
+- an infinite slope: a uniform layer 1 m thick on a rough (fixed) base, gravity rotated so that
+  the base is inclined at beta, 12 m long with free ends, associated flow (psi = phi, where
+  the Drucker-Prager plane-strain match equals Mohr-Coulomb at collapse), monitor at the middle
+  of the surface, displacement criterion only (the free ends never settle); against
+  ``F = c / (gamma z cos^2 b tan b) + tan(phi) / tan(b)`` (z the vertical depth), for a
+  cohesive-frictional and a purely frictional case.
+
+- ACADS benchmark 1(a) (Giam and Donald 1989; referee factor 1.00) at 0.5 m cells.
+
+Targets: the example's factor within 10 % of Bishop's at the finest cell and ACADS 1(a) within
+10 % of its referee factor; the cost of a factor to 0.01 at most 8 equilibrium runs; the
+infinite slope within 3 % (reported, with the gap, when not).
+
+Quick: cells of 1.0 and 0.5 m for the example; the infinite slope with 0.25 m cells.
+Full: cells of 1.0, 0.5 and 0.25 m; the infinite slope with 0.25 and 0.125 m cells.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+from studies.common import (
+    Note,
+    Report,
+    StudyResult,
+    fmt,
+    load_scene,
+    machine_line,
+    new_figure,
+    quiet,
+    write_csv,
+    write_json,
+)
+
+SCENE = "slope_fos"
+#: Targets (see the module docstring).
+BISHOP_TOLERANCE = 0.10
+COST_LIMIT = 8.0
+INFINITE_TOLERANCE = 0.03
+
+
+def infinite_slope(beta_deg: float, cohesion_pa: float, phi_deg: float, *, cell_m: float = 0.25,
+                   thickness_m: float = 1.0, length_m: float = 12.0, duration_s: float = 3.0,
+                   tolerance: float = 0.02) -> tuple[Any, float]:
+    """A project of a layer on a rough inclined base (gravity rotated) and its closed-form factor.
+
+    Returns
+    -------
+    (projects.schema.Project, float)
+    """
+    from projects.schema import validate_project
+
+    g, rho = 9.81, 2000.0
+    b = math.radians(beta_deg)
+    data = {
+        "runout": {"schema_version": 1, "title": f"infinite slope beta {beta_deg:g} c {cohesion_pa:g} phi {phi_deg:g}"},
+        "domain": {"origin_m": [0.0, 0.0], "size_m": [length_m + 4 * cell_m, thickness_m + 4 * cell_m],
+                   "cell_size_m": cell_m, "gravity_m_s2": [g * math.sin(b), -g * math.cos(b)],
+                   "boundaries": {"left": "slip", "right": "open", "bottom": "fixed", "top": "open"}},
+        "materials": {"soil": {"model": "drucker-prager", "density_kg_m3": rho, "youngs_modulus_pa": 5e6,
+                               "poisson_ratio": 0.3, "cohesion_pa": cohesion_pa, "friction_angle_deg": phi_deg,
+                               "dilatancy_angle_deg": phi_deg}},
+        "bodies": [{"name": "layer", "material": "soil",
+                    "polygon_m": [[0.0, 0.0], [length_m, 0.0], [length_m, thickness_m], [0.0, thickness_m]]}],
+        "particles": {"per_cell": 2},
+        "numerics": {"cfl": 0.5, "arch": "cpu"},
+        "stages": [
+            {"name": "gravity", "type": "gravity", "duration_s": 1.0},
+            {"name": "strength reduction", "type": "strength-reduction", "tolerance": tolerance,
+             "trial_duration_s": duration_s, "limit_equilibrium": False,
+             "failure": {"criteria": ["displacement"], "monitor_point_m": [0.5 * length_m, thickness_m],
+                         "displacement_m": 0.1 * thickness_m}},
+        ],
+        "output": {"interval_s": 1.0, "fields": ["displacement", "plastic_strain"]},
+    }
+    z = thickness_m / math.cos(b)
+    exact = cohesion_pa / (rho * g * z * math.cos(b) ** 2 * math.tan(b)) + \
+        math.tan(math.radians(phi_deg)) / math.tan(b)
+    return validate_project(data), exact
+
+
+def acads_1a(cell_m: float = 0.5) -> Any:
+    """ACADS benchmark 1(a) (Giam and Donald 1989): a 10 m high 2:1 slope on a 5 m foundation,
+    c' = 3 kPa, phi' = 19.6 deg, gamma = 20 kN/m3, dry; referee factor 1.00."""
+    from projects.schema import validate_project
+
+    return validate_project({
+        "runout": {"schema_version": 1, "title": "ACADS 1(a)"},
+        "domain": {"origin_m": [20.0, 20.0], "size_m": [50.0, 17.0], "cell_size_m": cell_m,
+                   "boundaries": {"left": "slip", "right": "slip", "bottom": "fixed", "top": "open"}},
+        "materials": {"soil": {"model": "drucker-prager", "density_kg_m3": 20e3 / 9.81, "youngs_modulus_pa": 10e6,
+                               "poisson_ratio": 0.3, "cohesion_pa": 3000.0, "friction_angle_deg": 19.6,
+                               "dilatancy_angle_deg": 0.0}},
+        "bodies": [{"name": "slope", "material": "soil",
+                    "polygon_m": [[20.0, 20.0], [70.0, 20.0], [70.0, 35.0], [50.0, 35.0], [30.0, 25.0],
+                                  [20.0, 25.0]]}],
+        "numerics": {"cfl": 0.5, "arch": "cpu"},
+        "stages": [{"type": "gravity", "duration_s": 3.0},
+                   {"type": "strength-reduction", "trial_duration_s": 3.0}],
+        "output": {"interval_s": 1.0, "fields": ["displacement", "plastic_strain"]},
+    })
+
+
+ACADS_REFEREE = 1.00
+
+
+def _run(project: Any, out: Path) -> dict[str, Any]:
+    from projects.runner import run_project
+
+    t0 = time.perf_counter()
+    result = run_project(project, out)
+    fos = result.summary.get("factor_of_safety") or {}
+    le = result.summary.get("limit_equilibrium") or {}
+    eq_steps = fos.get("equilibrium_steps") or 0
+    return {
+        "status": result.status,
+        "message": result.message,
+        "particles": result.summary.get("particles"),
+        "fos": fos.get("value"),
+        "lower": fos.get("lower"),
+        "upper": fos.get("upper"),
+        "criterion": fos.get("criterion"),
+        "trials": len(fos.get("trials", [])),
+        "bishop": le.get("factor_of_safety"),
+        "equilibrium_steps": eq_steps,
+        "search_steps": fos.get("search_steps"),
+        "cost_equilibrium_runs": (fos.get("search_steps") or 0) / eq_steps if eq_steps else None,
+        "cost_initial_stress_runs": ((fos.get("search_steps") or 0) / fos["initial_stress_steps"]
+                                     if fos.get("initial_stress_steps") else None),
+        "equilibrium_wall_s": fos.get("equilibrium_wall_time_s"),
+        "search_wall_s": fos.get("search_wall_time_s"),
+        "wall_s": time.perf_counter() - t0,
+        "trial_rows": fos.get("trials", []),
+    }
+
+
+def run(out_dir: Path, quick: bool = False, note: Note = quiet) -> StudyResult:
+    """Run the study and write ``report.md``, ``fos.json``, ``mesh.csv``, ``infinite.csv``."""
+    t0 = time.perf_counter()
+    cells = [1.0, 0.5] if quick else [1.0, 0.5, 0.25]
+    mesh_rows = []
+    for cell in cells:
+        note(f"fos: example slope, {cell:g} m cells")
+        project = load_scene(SCENE, [f"domain.cell_size_m={cell}"])
+        project = project.model_copy(update={"stages": project.stages[:2]})  # no run-out here
+        row = {"cell_size_m": cell, **_run(project, out_dir / f"slope-{cell:g}")}
+        rows = row.pop("trial_rows")
+        write_csv(out_dir / f"trials-{cell:g}.csv", rows)
+        row["bishop_difference"] = (row["fos"] / row["bishop"] - 1.0) if row["fos"] and row["bishop"] else None
+        mesh_rows.append(row)
+        note(f"fos: {cell:g} m: F = {fmt(row['fos'])} (Bishop {fmt(row['bishop'])}), "
+             f"{row['trials']} trials, cost {fmt(row['cost_equilibrium_runs'])} equilibrium runs")
+    note("fos: ACADS 1(a), 0.5 m cells")
+    acads = _run(acads_1a(0.5), out_dir / "acads-1a")
+    write_csv(out_dir / "trials-acads-1a.csv", acads.pop("trial_rows"))
+    acads["referee"] = ACADS_REFEREE
+    acads["error"] = acads["fos"] / ACADS_REFEREE - 1.0 if acads["fos"] else None
+    note(f"fos: ACADS 1(a): F = {fmt(acads['fos'])} (referee 1.00, Bishop {fmt(acads['bishop'])})")
+    inf_cases = [(30.0, 6000.0, 20.0), (25.0, 0.0, 35.0)]
+    inf_cells = [0.25] if quick else [0.25, 0.125]
+    inf_rows = []
+    for beta, c, phi in inf_cases:
+        for cell in inf_cells:
+            note(f"fos: infinite slope beta {beta:g} c {c:g} phi {phi:g}, {cell:g} m cells")
+            project, exact = infinite_slope(beta, c, phi, cell_m=cell)
+            row = {"beta_deg": beta, "cohesion_pa": c, "phi_deg": phi, "cell_size_m": cell, "exact": exact,
+                   **_run(project, out_dir / f"infinite-{beta:g}-{c:g}-{phi:g}-{cell:g}")}
+            write_csv(out_dir / f"trials-infinite-{beta:g}-{c:g}-{phi:g}-{cell:g}.csv", row.pop("trial_rows"))
+            row["error"] = row["fos"] / exact - 1.0 if row["fos"] else None
+            inf_rows.append(row)
+            note(f"fos: infinite slope: F = {fmt(row['fos'])} against {fmt(exact)}")
+    write_csv(out_dir / "mesh.csv", mesh_rows)
+    write_csv(out_dir / "infinite.csv", inf_rows)
+    finest = mesh_rows[-1]
+    bishop_ok = finest["bishop_difference"] is not None and abs(finest["bishop_difference"]) <= BISHOP_TOLERANCE
+    cost_ok = all(r["cost_equilibrium_runs"] is not None and r["cost_equilibrium_runs"] <= COST_LIMIT
+                  for r in mesh_rows)
+    inf_ok = all(r["error"] is not None and abs(r["error"]) <= INFINITE_TOLERANCE for r in inf_rows)
+    acads_ok = acads["error"] is not None and abs(acads["error"]) <= BISHOP_TOLERANCE
+    passed = bishop_ok and cost_ok and inf_ok and acads_ok
+    data = {"quick": quick, "mesh": mesh_rows, "acads_1a": acads, "infinite": inf_rows, "targets": {
+        "bishop_tolerance": BISHOP_TOLERANCE, "cost_limit_equilibrium_runs": COST_LIMIT,
+        "infinite_tolerance": INFINITE_TOLERANCE}, "passed": {"bishop": bishop_ok, "cost": cost_ok,
+                                                              "infinite": inf_ok, "acads_1a": acads_ok}}
+    write_json(out_dir / "fos.json", data)
+
+    report = Report(out_dir, "Study fos: factor of safety by strength reduction")
+    report.text(machine_line(), "Quick version." if quick else "Full version.")
+    report.heading("Verdict")
+    report.text(("PASS" if passed else "FAIL") + f": example within {BISHOP_TOLERANCE:.0%} of Bishop at the finest "
+                f"cell: {'yes' if bishop_ok else 'NO'}; search cost <= {COST_LIMIT:g} equilibrium runs: "
+                f"{'yes' if cost_ok else 'NO'}; infinite slope within {INFINITE_TOLERANCE:.0%}: "
+                f"{'yes' if inf_ok else 'NO'}.")
+    report.heading("Example slope against the cell size")
+    report.table(["cell (m)", "particles", "F (SRM)", "bracket", "criterion", "trials", "Bishop", "SRM/Bishop - 1",
+                  "cost (equilibrium runs)", "cost (gravity stages)", "search wall (s)", "equilibrium wall (s)"],
+                 [[r["cell_size_m"], r["particles"], fmt(r["fos"], 4), f"[{fmt(r['lower'], 4)}, {fmt(r['upper'], 4)}]",
+                   r["criterion"], r["trials"], fmt(r["bishop"], 4),
+                   fmt(r["bishop_difference"]), fmt(r["cost_equilibrium_runs"]), fmt(r["cost_initial_stress_runs"]),
+                   fmt(r["search_wall_s"]),
+                   fmt(r["equilibrium_wall_s"])] for r in mesh_rows])
+    report.text("Cost: steps of all trials over the steps of one equilibrium run, the initial stress and its "
+                "settling at full gravity (the same model, so steps measure cost whatever the machine's load); "
+                "also over the gravity stage alone. The equilibrium wall time includes Taichi's kernel "
+                "compilation on the first run.")
+    report.heading("ACADS benchmark 1(a)")
+    report.text("Giam and Donald (1989): 10 m high 2:1 slope, c' = 3 kPa, phi' = 19.6 deg, gamma = 20 kN/m3, "
+                "dry; referee factor of safety 1.00. Here with 0.5 m cells (20 over the height), psi = 0, "
+                "E = 10 MPa, nu = 0.3.")
+    report.table(["referee", "F (SRM)", "bracket", "SRM / referee - 1", "Bishop (here)", "trials",
+                  "cost (equilibrium runs)", "particles"],
+                 [[ACADS_REFEREE, fmt(acads["fos"], 4), f"[{fmt(acads['lower'], 4)}, {fmt(acads['upper'], 4)}]",
+                   fmt(acads["error"]), fmt(acads["bishop"], 4), acads["trials"], fmt(acads["cost_equilibrium_runs"]),
+                   acads["particles"]]])
+    report.heading("Infinite slope")
+    report.table(["beta (deg)", "c (Pa)", "phi (deg)", "cell (m)", "closed form", "F (SRM)", "bracket", "error",
+                  "trials", "run"],
+                 [[r["beta_deg"], r["cohesion_pa"], r["phi_deg"], r["cell_size_m"], fmt(r["exact"], 4),
+                   fmt(r["fos"], 4), f"[{fmt(r['lower'], 4)}, {fmt(r['upper'], 4)}]", fmt(r["error"]), r["trials"],
+                   r["status"] if r["status"] == "completed" else f"{r['status']}: {r['message']}"]
+                  for r in inf_rows])
+    report.text("The layer is finite (12 m, free ends: the grid has no periodic boundary). Its ends are free "
+                "faces and let it spread along the slope, which the closed form (an infinite layer, no "
+                "strain along the slope) excludes; a purely frictional layer's free downslope face collapses "
+                "at any factor. Both make the strength-reduction factor of this model lower than the "
+                "closed form's.")
+    fig, ax = new_figure(6.0, 4.0)
+    ax.plot([r["cell_size_m"] for r in mesh_rows], [r["fos"] for r in mesh_rows], "o-", label="strength reduction")
+    ax.axhline(mesh_rows[0]["bishop"] or float("nan"), color="c", ls="--", label="Bishop (simplified)")
+    ax.set_xlabel("cell size (m)")
+    ax.set_ylabel("factor of safety")
+    ax.invert_xaxis()
+    ax.legend()
+    report.figure(fig, "mesh", "Factor of safety of the example slope against the cell size.")
+    report.text("Raw data: `mesh.csv`, `infinite.csv`, `trials-*.csv` (also `trials-acads-1a.csv`), `fos.json`; "
+                "results folders beside them.")
+    path = report.write()
+    verdict = [
+        ("PASS" if passed else "FAIL") + f": F = {fmt(finest['fos'])} at {finest['cell_size_m']:g} m cells "
+        f"(Bishop {fmt(finest['bishop'])}), cost {fmt(finest['cost_equilibrium_runs'])} equilibrium runs",
+        f"ACADS 1(a): F = {fmt(acads['fos'])} against the referee 1.00 (Bishop here {fmt(acads['bishop'])})",
+        *(f"infinite slope beta {r['beta_deg']:g} c {r['cohesion_pa']:g} phi {r['phi_deg']:g} at {r['cell_size_m']:g} m: "
+          f"F = {fmt(r['fos'])} against {fmt(r['exact'])} ({fmt(r['error'])})" for r in inf_rows),
+    ]
+    return StudyResult("fos", passed, verdict, path, time.perf_counter() - t0, data)

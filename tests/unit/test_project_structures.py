@@ -1,0 +1,96 @@
+"""``[[structures]]``: validation, round trip through TOML, conversion for the solver, seeding
+around them; ``contacts.csv`` and the contact peaks of ``summary.json``."""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+
+import numpy as np
+import pytest
+
+from projects.build import resolve
+from projects.document import dumps_project, loads_project
+from projects.schema import validate_project
+from solver.config import ContactForce, Diagnostics, Frame
+from tests.unit.test_project_schema import BASE, problems_of
+
+WALL = {"name": "wall", "polygon_m": [[0.5, 0.0], [0.55, 0.0], [0.55, 0.1], [0.5, 0.1]],
+        "contact": {"type": "friction", "friction_angle_deg": 20.0}}
+
+
+def with_structures(*structures) -> dict:
+    data = copy.deepcopy(BASE)
+    data["structures"] = [copy.deepcopy(s) for s in structures]
+    return data
+
+
+def test_structures_are_optional_and_round_trip_through_toml():
+    assert validate_project(BASE).structures == []
+    ramp = {"name": "ramp", "polygon_m": [[0.6, 0.0], [0.8, 0.0], [0.8, 0.05]], "contact": "fixed"}
+    project = validate_project(with_structures(WALL, ramp))
+    assert [s.name for s in project.structures] == ["wall", "ramp"]
+    assert project.structures[1].contact.type == "fixed"
+    assert validate_project({**with_structures(WALL), "structures": [{"name": "w", "polygon_m": WALL["polygon_m"]}]}
+                            ).structures[0].contact.type == "slip"  # the default
+    text = dumps_project(project)
+    assert "[[structures]]" in text
+    assert loads_project(text) == project
+    assert "structures" not in validate_project(BASE).to_dict()
+
+
+@pytest.mark.parametrize("structure, expected", [
+    ({**WALL, "contact": "open"}, 'structures.0.contact = "open": must be "fixed", "slip" or a table'),
+    ({**WALL, "contact": {"type": "friction"}}, 'structures.0.contact.friction_angle_deg: required for type "friction"'),
+    ({**WALL, "contact": {"type": "slip", "friction_angle_deg": 10.0}},
+     'structures.0.contact.friction_angle_deg = 10.0: only allowed with type "friction"'),
+    ({**WALL, "name": "bottom"}, 'structures.0.name = "bottom": is a side\'s name'),
+    ({**WALL, "polygon_m": [[0.5, 0.0], [0.9, 0.0], [0.9, 0.1]]}, "structures.0.polygon_m.1 = [0.9, 0.0]: outside the domain"),
+    ({**WALL, "polygon_m": [[0.5, 0.0], [0.55, 0.1], [0.55, 0.0], [0.5, 0.1]]}, "structures.0.polygon_m = "),
+])
+def test_bad_structures_are_one_line_problems_naming_the_key(structure, expected):
+    problems = problems_of(with_structures(structure))
+    assert any(p.startswith(expected) for p in problems), problems
+
+
+def test_structure_names_are_unique():
+    problems = problems_of(with_structures(WALL, WALL))
+    assert any(p.startswith('structures.1.name = "wall": duplicate') for p in problems), problems
+
+
+def test_build_converts_structures_and_seeds_no_particle_inside_one():
+    # the body (0..0.2 m) is drawn across a structure covering x in 0.1..0.15
+    cut = {**WALL, "polygon_m": [[0.1, 0.0], [0.15, 0.0], [0.15, 0.1], [0.1, 0.1]]}
+    data = with_structures(cut)
+    data["domain"]["cell_size_m"] = 0.01
+    built = resolve(validate_project(data))
+    (structure,) = built.config.structures
+    assert structure.name == "wall" and structure.contact.kind == "friction"
+    assert structure.contact.friction_angle_rad == pytest.approx(math.radians(20.0))
+    x = built.particles.positions_m[:, 0]
+    assert len(x) > 0 and not np.any((x > 0.1) & (x < 0.15))
+    assert np.any(x > 0.15)
+
+
+def test_contacts_csv_rows_and_peaks_in_the_summary(tmp_path):
+    from projects.results import CONTACT_COLUMNS, ResultsWriter, read_contacts
+
+    writer = ResultsWriter(tmp_path / "r", "", {"particles": 1})
+    pos = np.zeros((1, 2), np.float32)
+    for i, (fx, peak) in enumerate([(0.0, 0.0), (10.0, 40.0), (5.0, 12.0)]):
+        diag = Diagnostics(0.1 * i, "s", 0, 0.1 * i, i, 1e-3, 0, 0, 0, 0, 0, 0, 1.0, 0)
+        contacts = (ContactForce("bottom", fx, -2 * fx, 2 * fx, fx, peak, peak / 2, -peak),
+                    ContactForce("wall", -fx, 0.0, None, None, peak / 4, -peak / 4, 0.0))
+        writer.write_frame(Frame(diag, {"positions": pos, "active": np.ones(1, bool)}, contacts))
+    summary = writer.close("completed")
+    header = (tmp_path / "r" / "contacts.csv").read_text().splitlines()[0]
+    assert tuple(header.split(",")) == CONTACT_COLUMNS
+    table = read_contacts(tmp_path / "r")
+    np.testing.assert_allclose(table["bottom"]["time_s"], [0.0, 0.1, 0.2])
+    np.testing.assert_allclose(table["bottom"]["force_y_N_per_m"], [0.0, -20.0, -10.0])
+    assert np.isnan(table["wall"]["force_normal_N_per_m"]).all()
+    peaks = json.loads((tmp_path / "r" / "summary.json").read_text())["contacts"]
+    assert peaks == summary["contacts"]
+    assert peaks["bottom"]["peak_force_N_per_m"] == 40.0 and peaks["bottom"]["peak_time_s"] == pytest.approx(0.1)
+    assert peaks["wall"]["max_mean_force_N_per_m"] == 10.0

@@ -1,0 +1,178 @@
+"""The grid contact law (docs/solver.md, contact): Coulomb friction on walls and structures, the
+force on each contact, and structures that no particle enters (CPU, small scenes).
+
+Inclines: a block at rest, in equilibrium (:func:`studies.contact_scenes.slope_stress`), on a
+frictional contact; sliding cases within 3 % of ``1/2 g (sin th - tan d cos th) t^2`` over at least
+20 cells of travel, sticking cases slip less than 0.1 % of the frictionless distance. The cases
+sample the matrix of benchmarks/contact_matrix.py (which runs all of it) so that every value of
+every axis occurs: schemes, f32/f64, thickness 1/5/20 cells, E 1e6/1e8 Pa, bottom/left wall and
+a ramp structure, inclines 10-40 degrees, friction 0-45 degrees.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from solver import runtime
+from solver.config import (Boundary, Grid, Material, Numerics, Output, Particles, SimulationConfig, Stage,
+                           Structure)
+from solver.simulation import Simulation
+from solver.structures import signed_distance
+from studies.contact_scenes import RampIncline, WallIncline
+
+SLIDE_TOL = 0.03
+STICK_TOL = 1e-3
+
+# (scheme, precision, thickness cells, E Pa, side) -> [(incline deg, friction deg), ...]
+WALL_CASES = [
+    ("apic-affine", "f32", 1, 1e8, "bottom", [(10, 0), (20, 30)]),
+    ("apic", "f64", 5, 1e6, "left", [(30, 20), (40, 45)]),
+    ("mpm", "f32", 5, 1e8, "bottom", [(40, 30), (10, 20)]),
+    ("apic-affine", "f64", 20, 1e6, "bottom", [(20, 10), (30, 45)]),
+    ("mpm", "f64", 1, 1e6, "left", [(20, 0), (10, 30)]),
+    ("apic", "f32", 20, 1e6, "left", [(40, 20)]),
+    ("apic-affine", "f32", 5, 1e8, "left", [(30, 10), (20, 45)]),
+    pytest.param("apic-affine", "f64", 20, 1e8, "bottom", [(40, 20), (30, 40)], marks=pytest.mark.slow),
+]
+
+
+def _check(outcome, label):
+    if outcome.slides:
+        assert outcome.distance_m >= 20 * outcome.cell_m, label
+        assert abs(outcome.error) < SLIDE_TOL, f"{label}: slid {outcome.distance_m:.4g} m, analytic {outcome.analytic_m:.4g} m"
+    else:
+        assert outcome.error < STICK_TOL, f"{label}: slipped {outcome.distance_m:.3g} m of {outcome.frictionless_m:.3g} m"
+
+
+@pytest.mark.parametrize("scheme, precision, thickness, youngs, side, angles", WALL_CASES)
+def test_a_block_at_rest_on_a_frictional_wall_slides_or_sticks_as_coulomb_says(scheme, precision, thickness,
+                                                                               youngs, side, angles):
+    runtime.acquire("cpu", precision)
+    try:
+        scene = WallIncline(scheme, precision, thickness, youngs, side)
+        for theta, delta in angles:
+            _check(scene.run(theta, delta), f"{scheme} {precision} {thickness} cells E={youngs:g} {side} th={theta} d={delta}")
+    finally:
+        runtime.release()
+
+
+RAMP_CASES = [
+    ("apic-affine", "f64", 5, 1e6, 30, [(20, True), (40, False)]),
+    ("mpm", "f32", 1, 1e8, 20, [(10, True), (45, False)]),
+    ("apic", "f64", 5, 1e8, 40, [(30, True), (0, True)]),
+]
+
+
+@pytest.mark.parametrize("scheme, precision, thickness, youngs, theta, cases", RAMP_CASES)
+def test_a_block_on_an_inclined_structure_slides_or_sticks_as_coulomb_says(scheme, precision, thickness, youngs,
+                                                                           theta, cases):
+    runtime.acquire("cpu", precision)
+    try:
+        scene = RampIncline(scheme, precision, thickness, youngs, theta)
+        for delta, slides in cases:
+            outcome = scene.run(delta)
+            assert outcome.slides == slides
+            _check(outcome, f"ramp {scheme} {precision} {thickness} cells E={youngs:g} th={theta} d={delta}")
+            # never inside the ramp
+            x = scene.engine.x.to_numpy().astype(np.float64)
+            assert signed_distance(x, scene.polygon).min() >= -1e-6 * scene.dx
+    finally:
+        runtime.release()
+
+
+# ---------------------------------------------------------------------------- forces and momentum
+SOFT = Material("soft", "linear-elastic", 1000.0, 2e6, 0.3)
+WALL = ((0.6, 0.0), (0.7, 0.0), (0.7, 0.5), (0.6, 0.5))
+
+
+def _box(scheme, precision, structures, velocity, duration=0.3, gravity=(1.5, -9.81)):
+    dx = 0.02
+    h = dx / 2
+    X, Y = np.meshgrid(0.2 + (np.arange(20) + 0.5) * h, 0.05 + (np.arange(16) + 0.5) * h)
+    pos = np.c_[X.ravel(), Y.ravel()]
+    parts = Particles(pos, np.full(len(pos), h * h), np.zeros(len(pos), np.int32), np.tile(velocity, (len(pos), 1)))
+    grid = Grid((0.0, 0.0), (1.0, 0.6), dx, left=Boundary("friction", math.radians(25)),
+                right=Boundary("slip"), bottom=Boundary("friction", math.radians(30)), top=Boundary("fixed"))
+    cfg = SimulationConfig(grid, (SOFT,), (Stage("move", "dynamic", duration_s=duration),), gravity,
+                           Numerics(scheme=scheme, cfl=0.4, arch="cpu", precision=precision), Output(duration / 6),
+                           structures)
+    return cfg, parts
+
+
+@pytest.mark.parametrize("scheme, precision", [("mpm", "f64"), ("apic", "f32"), ("apic-affine", "f64")])
+def test_the_impulse_on_the_contacts_is_the_change_of_momentum_less_gravity(scheme, precision):
+    structures = (Structure("barrier", WALL, Boundary("friction", math.radians(20))),)
+    gravity = (1.5, -9.81)
+    cfg, parts = _box(scheme, precision, structures, (3.0, -1.0), gravity=gravity)
+    with Simulation(cfg, parts) as sim:
+        frames = list(sim.run())
+    mass = frames[0].diagnostics.total_mass_kg_per_m
+    p0 = np.array([frames[0].diagnostics.momentum_x, frames[0].diagnostics.momentum_y])
+    p1 = np.array([frames[-1].diagnostics.momentum_x, frames[-1].diagnostics.momentum_y])
+    t = frames[-1].diagnostics.time_s
+    on_contacts = np.zeros(2)
+    for prev, frame in zip(frames, frames[1:]):
+        interval = frame.diagnostics.time_s - prev.diagnostics.time_s
+        for c in frame.contacts:
+            on_contacts += interval * np.array([c.force_x_N_per_m, c.force_y_N_per_m])
+    names = {c.contact for c in frames[-1].contacts}
+    assert names == {"left", "right", "bottom", "top", "barrier"}
+    # the material's momentum changes by gravity's impulse less the impulse it gives the contacts
+    expected = p1 - p0 - mass * np.asarray(gravity) * t
+    assert np.linalg.norm(-on_contacts - expected) < 0.02 * np.linalg.norm(expected)
+    # the barrier was hit: a peak force at least the mean
+    barrier = [c for f in frames for c in f.contacts if c.contact == "barrier"]
+    assert max(c.peak_force_N_per_m for c in barrier) > 0
+    for c in barrier:
+        assert c.peak_force_N_per_m >= math.hypot(c.force_x_N_per_m, c.force_y_N_per_m) * (1 - 1e-9)
+
+
+@pytest.mark.parametrize("scheme", ["mpm", "apic-affine"])
+def test_an_elastic_column_at_rest_pushes_on_a_vertical_structure_with_the_at_rest_thrust(scheme):
+    # elastic column under gravity loading, confined by frictionless contacts: uniaxial strain, so the
+    # lateral stress is K0 sigma_v with K0 = nu / (1 - nu) (no yield: Jaky's 1 - sin(phi) is an
+    # empirical rule for normally consolidated soil, not what this material does)
+    rho, nu, height, dx = 1800.0, 0.25, 1.0, 0.05
+    mat = Material("column", "linear-elastic", rho, 5e6, nu)
+    h = dx / 2
+    X, Y = np.meshgrid((np.arange(8) + 0.5) * h, (np.arange(40) + 0.5) * h)
+    pos = np.c_[X.ravel(), Y.ravel()]
+    parts = Particles(pos, np.full(len(pos), h * h), np.zeros(len(pos), np.int32))
+    wall = Structure("retaining wall", ((0.2, -0.1), (0.35, -0.1), (0.35, 1.5), (0.2, 1.5)), Boundary("slip"))
+    grid = Grid((0.0, 0.0), (0.5, 1.4), dx, left=Boundary("slip"), right=Boundary("slip"),
+                bottom=Boundary("slip"), top=Boundary("open"))
+    cfg = SimulationConfig(grid, (mat,), (Stage("settle", "gravity", duration_s=0.6, damping=0.7),), (0.0, -9.81),
+                           Numerics(scheme=scheme, cfl=0.5, arch="cpu", precision="f64"), Output(0.05), (wall,))
+    with Simulation(cfg, parts) as sim:
+        frames = list(sim.run())
+    force = {c.contact: c for c in frames[-1].contacts}["retaining wall"]
+    k0 = nu / (1 - nu)
+    thrust = 0.5 * k0 * rho * 9.81 * height ** 2
+    assert force.force_x_N_per_m == pytest.approx(thrust, rel=0.05)
+    assert abs(force.force_y_N_per_m) < 0.05 * thrust  # frictionless: no shear
+
+
+@pytest.mark.parametrize("scheme, precision", [("mpm", "f32"), ("apic", "f64"), ("apic-affine", "f32")])
+def test_a_block_thrown_at_a_structure_never_ends_inside_it(scheme, precision):
+    from solver.simulation import Simulation
+
+    polygon = ((0.6, 0.0), (0.75, 0.0), (0.68, 0.45))  # inclined faces, a sharp top
+    structures = (Structure("dam", polygon, Boundary("friction", math.radians(30))),)
+    cfg, parts = _box(scheme, precision, structures, (0.0, 0.0), duration=0.25)
+    with Simulation(cfg, parts) as sim:
+        speed = 0.9 * sim.speed_bound_m_s / math.sqrt(2)  # the bound is not raised by v0 here
+    fast = Particles(parts.positions_m, parts.volumes_m2, parts.material_ids, np.tile([speed, 0.0], (len(parts), 1)))
+    cfg = SimulationConfig(cfg.grid, cfg.materials, cfg.stages, cfg.gravity_m_s2,
+                           Numerics(scheme=scheme, cfl=0.4, arch="cpu", precision=precision, guard="remove"),
+                           Output(0.01), structures)
+    with Simulation(cfg, fast) as sim:
+        frames = list(sim.run())
+    mass0 = frames[0].diagnostics.total_mass_kg_per_m
+    for f in frames:
+        act = f.fields["active"]
+        assert act.all()
+        assert f.diagnostics.total_mass_kg_per_m == pytest.approx(mass0, rel=1e-5)
+        sd = signed_distance(f.fields["positions"].astype(np.float64), polygon)
+        assert sd.min() >= -1e-6, f"a particle {-sd.min():.3g} m inside the structure at t = {f.diagnostics.time_s}"
+    assert max(c.peak_force_N_per_m for f in frames for c in f.contacts if c.contact == "dam") > 0
