@@ -1,9 +1,14 @@
 """The workbench's main window: the model view, project panels, the run panel and the results.
 
-Layout: the project panels dock on the left, the run panel (estimate, progress, problems) on the
-right, and the centre holds three tabs: *Model* (the 2D scene with drawing), *Results* (live
-view of a run, then the inspector of its results folder) and *Compare* (two results side by
-side, created when first used).
+Layout: the project panels dock on the left, the run panel (what will run, progress, the runs
+of this session, problems) on the right, and the centre holds three tabs: *Model* (the 2D scene
+with drawing), *Results* (the followed run, live, then the inspector of its results folder) and
+*Compare* (two results side by side, created when first used).
+
+Runs are child processes (:class:`app.gui.run_process.RunProcess`, ``runout run --progress
+jsonl``) writing their own folders; several may go on at once. The window follows one of them
+by rereading its results folder with the same reader as any finished folder; this process
+never imports Taichi.
 
 All questions to the user go through small methods (``ask_save_changes``, ``ask_open_path``,
 ...) so that scripts and tests can answer them without a modal dialog.
