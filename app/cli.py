@@ -400,6 +400,7 @@ def run(
     events = _JsonProgress(sys.stdout, Path(where_to).expanduser().absolute()) if jsonl else None
     stop = StopRequest()
     with stop_on_signals(stop):
+        _stop_with_parent(stop)
         try:
             if project is None:
                 model = None
@@ -469,6 +470,27 @@ def run(
         raise typer.Exit(code)
     err.print(f"failed: {result.message} {where}", markup=False)
     raise typer.Exit(EXIT_FAILED)
+
+
+#: Environment variable a parent sets to its process id so that its ``runout run`` children stop
+#: (SIGTERM: a stopped run with its final status) when it dies; the workbench sets it.
+STOP_WITH_PARENT_ENV = "RUNOUT_STOP_WITH_PARENT"
+
+
+def _stop_with_parent(stop: StopRequest) -> None:
+    """SIGTERM when the parent named by :data:`STOP_WITH_PARENT_ENV` dies (Linux, PR_SET_PDEATHSIG);
+    a parent already gone stops the run at once. Call with the SIGTERM handler installed."""
+    parent = os.environ.get(STOP_WITH_PARENT_ENV, "")
+    if not parent.isdigit() or not sys.platform.startswith("linux"):
+        return
+    import ctypes
+
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(signal.SIGTERM), 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != int(parent):  # it died before the request took effect
+        stop.request("SIGTERM")
 
 
 def _load_or_report(path: Path, overrides: list[str] | None, events: _JsonProgress) -> Project:

@@ -1,9 +1,14 @@
 """The workbench's main window: the model view, project panels, the run panel and the results.
 
-Layout: the project panels dock on the left, the run panel (estimate, progress, problems) on the
-right, and the centre holds three tabs: *Model* (the 2D scene with drawing), *Results* (live
-view of a run, then the inspector of its results folder) and *Compare* (two results side by
-side, created when first used).
+Layout: the project panels dock on the left, the run panel (what will run, progress, the runs
+of this session, problems) on the right, and the centre holds three tabs: *Model* (the 2D scene
+with drawing), *Results* (the followed run, live, then the inspector of its results folder) and
+*Compare* (two results side by side, created when first used).
+
+Runs are child processes (:class:`app.gui.run_process.RunProcess`, ``runout run --progress
+jsonl``) writing their own folders; several may go on at once. The window follows one of them
+by rereading its results folder with the same reader as any finished folder; this process
+never imports Taichi.
 
 All questions to the user go through small methods (``ask_save_changes``, ``ask_open_path``,
 ...) so that scripts and tests can answer them without a modal dialog.
@@ -819,8 +824,9 @@ class MainWindow(QMainWindow):
     def ask_replace_results(self, path: Path) -> str:
         """"replace", "new" (a new folder beside it) or "cancel" for an existing results folder."""
         box = QMessageBox(QMessageBox.Icon.Question, APP_NAME,
-                          f"{path} holds the results of an earlier run. Replace them (the run deletes the "
-                          "folder's frames, series and summary) or write this run to a new folder beside it?",
+                          f"{path} holds the results of an earlier run. Replace them (only the files that "
+                          "run wrote are removed; pictures and notes you put there stay) or write this run "
+                          "to a new folder beside it?",
                           parent=self)
         new = box.addButton("New folder", QMessageBox.ButtonRole.AcceptRole)
         replace = box.addButton("Replace", QMessageBox.ButtonRole.DestructiveRole)

@@ -232,3 +232,48 @@ def test_a_child_that_crashes_reports_its_last_words(qtbot, tmp_path):
     assert run.outcome.status == "crashed" and run.outcome.exit_code == 139
     assert run.outcome.message == ("the run process ended with exit code 139: "
                                    "Fatal Python error: Segmentation fault")
+
+
+ORPHAN_PARENT = """
+import sys, time
+from PySide6.QtCore import QCoreApplication
+from app.gui.run_process import RunProcess
+app = QCoreApplication([])
+run = RunProcess(open(sys.argv[1]).read(), sys.argv[2], "orphan")
+run.runStarted.connect(lambda e: print(run.pid, flush=True))
+run.start()
+app.exec()
+"""
+
+
+def test_a_run_stops_when_the_workbench_dies(long_file, tmp_path):
+    """The workbench killed with SIGKILL (no chance to stop its runs): its run gets SIGTERM
+    and closes its folder as "stopped", instead of going on as an orphan."""
+    import json
+    import subprocess
+
+    from tests.conftest import REPO
+
+    out = tmp_path / "orphan.results"
+    env = dict(os.environ, PYTHONPATH=str(REPO), QT_QPA_PLATFORM="offscreen")
+    parent = subprocess.Popen([sys.executable, "-c", ORPHAN_PARENT, str(long_file), str(out)],
+                              stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        child = int(parent.stdout.readline())
+    finally:
+        parent.kill()
+        parent.wait(30)
+    import time
+
+    start = time.monotonic()
+    try:
+        while time.monotonic() - start < 120.0:  # a deadline for a loaded machine, not a timing claim
+            os.kill(child, 0)
+            time.sleep(0.2)
+    except ProcessLookupError:
+        pass
+    else:
+        os.kill(child, signal.SIGKILL)
+    status = json.loads((out / "summary.json").read_text())
+    assert status["status"] == "stopped", status
+    assert "SIGTERM" in status["message"]
