@@ -7,17 +7,30 @@ instead of a traceback.
 
 from __future__ import annotations
 
+import os
+import signal
 import sys
+
+
+def _interrupted_while_starting(_signum: int, _frame: object) -> None:
+    # nothing is written yet: leave at once, with one line and no interpreter clean-up that
+    # could meet a second KeyboardInterrupt
+    os.write(2, b"error: interrupted (Ctrl-C) while starting\n")
+    os._exit(130)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``runout`` with ``argv`` (default: the process arguments); the exit status."""
+    if hasattr(signal, "SIGINT"):
+        signal.signal(signal.SIGINT, _interrupted_while_starting)
     try:
         from app.cli import main as cli_main
 
         cli_main(argv)
     except KeyboardInterrupt:
-        sys.stderr.write("error: interrupted (Ctrl-C)\n")
+        cli = sys.modules.get("app.cli")
+        if not getattr(cli, "INTERRUPT_SHOWN", False):
+            sys.stderr.write("error: interrupted (Ctrl-C)\n")
         return 130
     return 0
 

@@ -331,7 +331,16 @@ def _factor_line(result: RunResult) -> str:
     le = result.summary.get("limit_equilibrium") or {}
     if le.get("factor_of_safety") is not None:
         line += f"; Bishop {le['factor_of_safety']:.3f}"
-    if fos.get("runout_max_displacement_m") is not None:
+    runout = None
+    try:  # the hazard measures of the run-out stage, when the run wrote them
+        import json
+
+        runout = json.loads((Path(result.out_dir) / "hazard.json").read_text(encoding="utf-8")).get("runout_distance_m")
+    except (OSError, ValueError):
+        runout = None
+    if runout is not None:
+        line += f"; if it fails it runs out {runout:.3g} m (hazard.json runout_distance_m)"
+    elif fos.get("runout_max_displacement_m") is not None:
         line += f"; if it fails it runs out {fos['runout_max_displacement_m']:.3g} m (largest displacement)"
     return line
 
@@ -391,6 +400,7 @@ def run(
     events = _JsonProgress(sys.stdout, Path(where_to).expanduser().absolute()) if jsonl else None
     stop = StopRequest()
     with stop_on_signals(stop):
+        _stop_with_parent(stop)
         try:
             if project is None:
                 model = None
@@ -462,6 +472,27 @@ def run(
     raise typer.Exit(EXIT_FAILED)
 
 
+#: Environment variable a parent sets to its process id so that its ``runout run`` children stop
+#: (SIGTERM: a stopped run with its final status) when it dies; the workbench sets it.
+STOP_WITH_PARENT_ENV = "RUNOUT_STOP_WITH_PARENT"
+
+
+def _stop_with_parent(stop: StopRequest) -> None:
+    """SIGTERM when the parent named by :data:`STOP_WITH_PARENT_ENV` dies (Linux, PR_SET_PDEATHSIG);
+    a parent already gone stops the run at once. Call with the SIGTERM handler installed."""
+    parent = os.environ.get(STOP_WITH_PARENT_ENV, "")
+    if not parent.isdigit() or not sys.platform.startswith("linux"):
+        return
+    import ctypes
+
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(signal.SIGTERM), 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != int(parent):  # it died before the request took effect
+        stop.request("SIGTERM")
+
+
 def _load_or_report(path: Path, overrides: list[str] | None, events: _JsonProgress) -> Project:
     """:func:`load_or_exit` that also sends a ``finished`` event with status "error"."""
     from projects.document import load_project
@@ -508,12 +539,12 @@ def validate(
     force: Annotated[bool, typer.Option("--force", help="Skip the size limits.")] = False,
 ) -> None:
     """Check a project: every problem, or what it would run."""
-    from projects.runner import check_project
+    from projects.runner import check_project, default_results_dir
     from projects.schema import ProjectError
 
     model = load_or_exit(project, overrides)
     try:
-        resolved = check_project(model, force=force)
+        resolved = check_project(model, force=force, out_dir=default_results_dir(project))
     except ProjectError as exc:
         fail(f"{project}: {exc}")
     _print_warnings(model)
@@ -683,6 +714,19 @@ def study(
     raise typer.Exit(0 if result.passed else 4)
 
 
+def _interrupt(_signum: int, _frame: object) -> None:
+    """Ctrl-C outside a run: one line, then the command unwinds (typer exits with 130)."""
+    global INTERRUPT_SHOWN
+    if not INTERRUPT_SHOWN:
+        INTERRUPT_SHOWN = True
+        err.print("error: interrupted (Ctrl-C)", markup=False)
+    raise KeyboardInterrupt
+
+
+#: Whether the one line about a Ctrl-C has been printed (``python -m app`` prints none then).
+INTERRUPT_SHOWN = False
+
+
 # sweep and calibrate (sweeps on Ray): app/sweep_commands.py
 from app.sweep_commands import register as _register_sweep_commands  # noqa: E402
 
@@ -691,6 +735,10 @@ _register_sweep_commands(cli)
 
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point (``runout``)."""
+    if _in_main_thread():
+        # `run` turns Ctrl-C into a clean stop while it runs (stop_on_signals) and comes back
+        # to this handler afterwards
+        signal.signal(signal.SIGINT, _interrupt)
     # Taichi prints a banner on import; keep standard output for results
     os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "0")
     # `run` redirects stdout around the solver; without this Taichi, imported meanwhile, would

@@ -138,7 +138,7 @@ def context(doc: Mapping[str, Any], project: Any, summary: Mapping[str, Any]) ->
             "rows": rows,
             "note": "the branches of each fit change at a = 2.3 (run-out) and a = 1.15 (height)",
         })
-    area = doc.get("mobilised_area_m2_per_m") or 0.0
+    area = doc.get("source_area_m2_per_m") or doc.get("mobilised_area_m2_per_m") or 0.0
     hl = doc.get("h_over_l")
     if area > 0 and hl is not None:
         source_len = None
@@ -162,8 +162,8 @@ def context(doc: Mapping[str, Any], project: Any, summary: Mapping[str, Any]) ->
                          + ("" if inside else " - outside the data")))
         out.append({
             "name": "Volume and travel angle of landslides", "source": COROMINAS_1996["source"],
-            "applies": applies, "points": points,
-            "assumption": (f"a 2D section has no width: the volume is the mobilised area "
+            "applies": applies, "points": points, "area_m2_per_m": area,
+            "assumption": (f"a 2D section has no width: the volume is the source's area "
                            f"({area:.3g} m2/m) times an assumed width W, shown for the widths listed; "
                            "the regression spans natural landslides of about 1e1 to 1e10 m3 and its "
                            "scatter is large (a factor of about 2 in H/L)"),
@@ -330,7 +330,7 @@ def context_png(ctx: list[dict[str, Any]], doc: Mapping[str, Any], path: Path) -
             ax.axvspan(vmin, lo, color="0.9", label="outside the data")
             for label, vol in pts:
                 ax.loglog([vol], [doc["h_over_l"]], "o", label=f"this run, {label}")
-            ax.set_xlabel(f"volume V = {doc['mobilised_area_m2_per_m']:.3g} m2/m x W (m3)")
+            ax.set_xlabel(f"volume V = {item['area_m2_per_m']:.3g} m2/m x W (m3)")
             ax.set_ylabel("H / L")
             ax.legend(fontsize=7)
         ax.set_title(item["name"], fontsize=9)
@@ -418,6 +418,7 @@ MEASURES = [
     ("drop_height_m", "drop height H (source top to run-out point)", "m", ""),
     ("travel_length_m", "travel length L", "m", ""),
     ("mobilised_area_m2_per_m", "mobilised area", "m2/m", "mobilised_displacement_m"),
+    ("source_area_m2_per_m", "source area (mobilised and descended)", "m2/m", "mobilised_displacement_m"),
     ("centroid_travel_angle_deg", "centroid travel angle", "deg", "mobilised_displacement_m"),
     ("slide_duration_s", "slide duration (from the release)", "s", "kinetic_energy_fraction"),
     ("peak_kinetic_energy_J_per_m", "peak kinetic energy", "J/m", ""),

@@ -206,7 +206,8 @@ def self_intersections(polygon_m: np.ndarray) -> list[tuple[int, int]]:
         return []
     scale = float(np.max(np.abs(p - p.mean(axis=0)))) or 1.0
     tol = _REL_TOL * scale * scale
-    lengths = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
+    edges = np.roll(p, -1, axis=0) - p
+    lengths = np.hypot(edges[:, 0], edges[:, 1])  # no overflow warning for huge coordinates
     # Work on the edges of non-zero length; keep their original numbers for the report.
     edge_ids = np.nonzero(lengths > _REL_TOL * scale)[0]
     k = len(edge_ids)

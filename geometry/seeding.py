@@ -28,6 +28,8 @@ logger = logging.getLogger(__name__)
 
 # Lattice points are located in blocks of rows to bound the temporary memory.
 _LATTICE_BLOCK_POINTS = 2_000_000
+# Sub-cell indices beyond this cannot be counted (int64 with room to spare).
+_MAX_SUBCELL_INDEX = 2.0**60
 
 
 @dataclass(frozen=True)
@@ -146,10 +148,17 @@ def seed_lattice(
     allpts = np.concatenate(polys)
     lo, hi = allpts.min(axis=0), allpts.max(axis=0)
     # Sub-cell indices whose centres can fall inside the bounding box.
-    i0 = int(np.floor((lo[0] - ox) / h)) - 1
-    i1 = int(np.ceil((hi[0] - ox) / h)) + 1
-    j0 = int(np.floor((lo[1] - oy) / h)) - 1
-    j1 = int(np.ceil((hi[1] - oy) / h)) + 1
+    with np.errstate(all="ignore"):
+        spans = np.array([(lo[0] - ox) / h, (hi[0] - ox) / h, (lo[1] - oy) / h, (hi[1] - oy) / h])
+    if h <= 0.0 or not np.all(np.isfinite(spans)) or np.max(np.abs(spans)) > _MAX_SUBCELL_INDEX:
+        raise ValueError(
+            f"cell_size_m = {cell_size_m!r} is too small for bodies {hi[0] - lo[0]:g} x {hi[1] - lo[1]:g} m "
+            f"from the grid origin (sub-cells of {h:g} m cannot be numbered)"
+        )
+    i0 = int(np.floor(spans[0])) - 1
+    i1 = int(np.ceil(spans[1])) + 1
+    j0 = int(np.floor(spans[2])) - 1
+    j1 = int(np.ceil(spans[3])) + 1
     # Centres computed from integer indices, so that no rounding accumulates along a row.
     xs = ox + (np.arange(i0, i1) + 0.5) * h
     ys = oy + (np.arange(j0, j1) + 0.5) * h

@@ -208,7 +208,10 @@ def _seed_particles(project: Project, config: sc.SimulationConfig) -> tuple[sc.P
         When a body receives no particles (it is thinner than the particle spacing or
         entirely covered by later bodies).
     """
-    seeds = seed_bodies(project)
+    try:
+        seeds = seed_bodies(project)
+    except ValueError as err:  # what the size limits did not stop (--force): one line, no traceback
+        raise ProjectError([Problem("domain.cell_size_m", project.domain.cell_size_m, f"cannot seed the bodies: {err}")]) from None
     if project.structures:  # a structure takes precedence: no material is seeded inside one
         from solver.structures import signed_distance
 

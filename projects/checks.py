@@ -103,7 +103,10 @@ def _wall_gaps(project: Project) -> list[str]:
     dx = domain.cell_size_m
     x0, y0 = domain.origin_m
     # the grid has whole cells: its right and top walls lie where the last cell ends
-    cells = [max(1, math.ceil(size / dx - 1e-9)) for size in domain.size_m]
+    ratios = [size / dx for size in domain.size_m]
+    if not all(math.isfinite(r) for r in ratios):
+        return []  # a grid beyond any size: the size limits report it
+    cells = [max(1, math.ceil(r - 1e-9)) for r in ratios]
     x1, y1 = x0 + cells[0] * dx, y0 + cells[1] * dx
     warnings = []
     for index, body in enumerate(project.bodies):
@@ -155,7 +158,8 @@ def project_warnings(project: Project) -> list[str]:
     list of str
         One line each, naming the key and what to do.
     """
-    return [*_wall_gaps(project), *_k0_on_slope(project)]
+    with np.errstate(all="ignore"):  # absurd coordinates (1e300 m) are the size limits' business
+        return [*_wall_gaps(project), *_k0_on_slope(project)]
 
 
 def recommended_initial_stage(project: Project) -> dict[str, Any]:

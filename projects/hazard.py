@@ -16,8 +16,10 @@ Definitions (all thresholds are in ``hazard.json`` under ``thresholds``):
   per m of width); its centroid's travel from the release to now.
 - **run-out direction**: the sign of the mobilised particles' mean (volume-weighted) displacement
   along x: +1 (towards +x) or -1.
-- **source**: the mobilised particles at the release. Its *front* is their outermost edge along the
-  run-out direction; its *top* (the crown) is the highest point of their squares (of the tops
+- **source**: the mobilised particles that also descended (along gravity) by more than
+  ``mobilised_displacement_m``, at the release (all mobilised particles when none descended, as in
+  motion along the level); material pushed along or heaved up in front of a slide is mobilised but
+  not source. Its *front* is their outermost edge along the run-out direction; its *top* (the crown) is the highest point of their squares (of the tops
   level with it within a quarter of a particle, the rearmost, at its rear edge).
 - **deposit**: the surface now less the ground (m; negative where material left).
   ``runout_x_m``: the outermost particle edge, along the run-out direction, of the farthest
@@ -35,6 +37,7 @@ Definitions (all thresholds are in ``hazard.json`` under ``thresholds``):
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import json
 import logging
@@ -189,6 +192,7 @@ def measures(snap: Mapping[str, Any], hs: HazardSettings, gravity_m_s2: tuple[fl
         "travel_angle_deg": None, "h_over_l": None, "drop_height_m": None, "travel_length_m": None,
         "source_top_m": None, "source_front_x_m": None,
         "mobilised_area_m2_per_m": 0.0, "mobilised_particles": 0,
+        "source_area_m2_per_m": 0.0, "source_particles": 0,
         "centroid_start_m": None, "centroid_end_m": None, "centroid_travel_m": None,
         "centroid_travel_angle_deg": None,
         "slide_duration_s": None, "slide_end_time_s": None, "still_moving": None,
@@ -276,8 +280,16 @@ def measures(snap: Mapping[str, Any], hs: HazardSettings, gravity_m_s2: tuple[fl
                                 "horizontal_m": lc}
     out["centroid_travel_angle_deg"] = math.degrees(math.atan2(hc, lc)) if lc > 0 else None
 
-    half0 = 0.5 * np.sqrt(vol0[mob])
-    xs, ys = x0[mob, 0], x0[mob, 1]
+    # the source: mobilised material that descended (along gravity) by more than the mobilised
+    # displacement; material pushed along or heaved up in front of a slide is mobilised but no source
+    drop = disp @ gdir
+    src = mob & (drop > hs.mobilised_displacement_m)
+    if not src.any():
+        src = mob  # nothing descended (motion along the level): the mobilised material
+    out["source_particles"] = int(src.sum())
+    out["source_area_m2_per_m"] = float(vol0[src].sum())
+    half0 = 0.5 * np.sqrt(vol0[src])
+    xs, ys = x0[src, 0], x0[src, 1]
     front = float((xs + half0).max()) if direction > 0 else float((xs - half0).min())
     out["source_front_x_m"] = front
     # the crown: the highest particle top; among tops level with it (within a quarter of a particle)
@@ -319,27 +331,25 @@ def measures(snap: Mapping[str, Any], hs: HazardSettings, gravity_m_s2: tuple[fl
 # files
 
 
-def _num(value: float) -> str:
-    return "" if not np.isfinite(value) else repr(float(value))
+def _csv_text(columns: tuple[str, ...], table: np.ndarray) -> str:
+    """CSV with a header row; numbers with 9 significant digits (the envelopes are float32 or
+    better), empty fields for NaN (never reached)."""
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow(columns)
+    if len(table):
+        body = io.StringIO()
+        np.savetxt(body, np.asarray(table, float), fmt="%.9g", delimiter=",")
+        buf.write(body.getvalue().replace("nan", ""))
+    return buf.getvalue()
 
 
 def profile_csv(snap: Mapping[str, Any]) -> str:
     prof = profile(snap)
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(PROFILE_COLUMNS)
-    for row in zip(*(prof[c] for c in PROFILE_COLUMNS)):
-        w.writerow([_num(v) for v in row])
-    return buf.getvalue()
+    return _csv_text(PROFILE_COLUMNS, np.column_stack([prof[c] for c in PROFILE_COLUMNS]))
 
 
 def targets_csv(snap: Mapping[str, Any]) -> str:
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(snap["series_columns"])
-    for row in np.asarray(snap["series"]):
-        w.writerow([_num(v) for v in row])
-    return buf.getvalue()
+    return _csv_text(tuple(snap["series_columns"]), np.asarray(snap["series"]))
 
 
 def vti_bytes(snap: Mapping[str, Any]) -> bytes:
@@ -399,10 +409,15 @@ def vti_bytes(snap: Mapping[str, Any]) -> bytes:
     return head + b"".join(blobs) + b"\n</AppendedData>\n</VTKFile>\n"
 
 
+@functools.lru_cache(maxsize=1)
+def _version() -> str:
+    return runout_version()
+
+
 def hazard_document(snap: Mapping[str, Any], hs: HazardSettings, gravity_m_s2: tuple[float, float],
                     targets: tuple[sc.Target, ...], status: str) -> dict[str, Any]:
     """The content of ``hazard.json``."""
-    doc = {"status": status, "runout_version": runout_version()}
+    doc = {"status": status, "runout_version": _version()}
     doc.update(measures(snap, hs, gravity_m_s2, targets))
     nx, ny = snap["shape"]
     doc["raster"] = {"origin_m": list(snap["origin_m"]), "cell_size_m": snap["cell_size_m"], "shape": [nx, ny]}

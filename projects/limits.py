@@ -46,7 +46,16 @@ LIMITS: tuple[Limit, ...] = (
 
 
 def _fmt(value: float) -> str:
+    from projects.build import MAX_COUNT
+
+    if value >= MAX_COUNT:
+        return f"more than {MAX_COUNT:.3g}"  # the estimate's cap: beyond any number that matters
     return f"{value:,.0f}" if value < 1e7 else f"{value:.3g}"
+
+
+def _about(value: float) -> str:
+    text = _fmt(value)
+    return text if text.startswith("more") else f"about {text}"
 
 
 def _bytes(value: float) -> str:
@@ -122,7 +131,7 @@ def limit_problems(
             if limit.estimate_key == "steps":
                 extra = (f"; {estimate.get('simulated_time_s', 0):.3g} s simulated with a time step of "
                          f"{estimate.get('time_step_s', 0):.3g} s")
-            problems.append(Problem(key, shown, f"the run would take about {_fmt(value)} {limit.what}, more "
+            problems.append(Problem(key, shown, f"the run would take {_about(value)} {limit.what}, more "
                                     f"than the limit of {_fmt(limit.maximum)}{extra}; --force runs it anyway"))
     if memory_bytes is None:
         memory_bytes = available_memory_bytes()

@@ -814,7 +814,11 @@ class ResultsWriter:
         self._closed = True
         self._queue.put(_Stop)
         self._thread.join()
-        self._series.close()
+        try:
+            self._series.close()  # flushes the last row: may fail on a full disk
+        except OSError as err:
+            if self._error is None:
+                self._error = err
         self._contacts.close()
         if self._error is not None and status != "failed":
             status, message = "failed", f"writing results failed: {self._error}"

@@ -335,6 +335,9 @@ def _simulation(resolved: ResolvedRun) -> Any:
                           damping_support=settings_of(resolved.project) is not None)
     except SolverError as err:
         raise _solver_rejects(err) from None
+    except (MemoryError, OverflowError, RuntimeError, ValueError) as err:  # e.g. --force past the limits
+        first_line = (str(err).strip().splitlines() or [""])[0]
+        raise _solver_rejects(f"{type(err).__name__}: {first_line}") from None
 
 
 def _start_from(sim: Any, checkpoint: Any, source: Any) -> None:
@@ -368,8 +371,9 @@ def _run(
 ) -> RunResult:
     from projects.hazard import HazardOutput, settings
     from projects.results import write_checkpoint
-    from projects.strength import strength_reduction
+    from projects.strength import TRIALS_NAME, strength_reduction
 
+    driver = strength_reduction(resolved)  # None unless the project has a strength-reduction stage
     hazard = None
     if writer is not None:
         from projects import hazard as hazard_files
@@ -377,12 +381,9 @@ def _run(
         for name in (hazard_files.HAZARD_JSON, hazard_files.PROFILE_CSV, hazard_files.TARGETS_CSV,
                      hazard_files.HAZARD_VTI):
             writer.own(name)
+        if driver is not None:
+            writer.own(TRIALS_NAME)
         hazard = HazardOutput(writer.out_dir, sim, settings(resolved.project), writer.submit)
-    driver = strength_reduction(resolved)  # None unless the project has a strength-reduction stage
-    if driver is not None and writer is not None:
-        from projects.strength import TRIALS_NAME
-
-        writer.own(TRIALS_NAME)
     setup_s = time.perf_counter() - started
     status, message = "failed", "the run ended unexpectedly"
     loop_start = time.perf_counter()

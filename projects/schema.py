@@ -716,7 +716,8 @@ class Project(_Model):
         """The project as plain TOML-shaped data (lists, dicts, str, int, float).
 
         Keys with no value are left out, boundaries without a friction angle are written as
-        their type string, empty ``material_changes`` are left out. ``validate_project`` of the
+        their type string, empty ``material_changes``, a ``[hazard]`` table of defaults and an
+        empty ``targets`` list are left out. ``validate_project`` of the
         result gives back an equal project.
 
         Returns
@@ -735,6 +736,11 @@ class Project(_Model):
         for stage in data["stages"]:
             if not stage.get("material_changes"):
                 stage.pop("material_changes", None)
+        # the hazard keys are left out while they hold their defaults (files stay as they were)
+        if data.get("hazard") == _plain(Hazard().model_dump(mode="python", exclude_none=True)):
+            data.pop("hazard")
+        if not data.get("targets"):
+            data.pop("targets", None)
         return data
 
 

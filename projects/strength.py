@@ -408,16 +408,18 @@ class StrengthReduction:
         self.equilibrium_steps = sim.steps - steps0
         checkpoint = sim.engine.state()
         t0, label_index = sim.time_s, len(self.initial_stages)
+        # the engine works relative to the grid's origin; the project's coordinates are origin + x
+        origin = np.asarray(getattr(sim, "origin_m", (0.0, 0.0)), dtype=np.float64)
         x_eq = checkpoint["x"].astype(np.float64)
         active = checkpoint["active"].astype(bool)
         spacing = float(np.sqrt(np.median(self.built.particles.volumes_m2)))
         if s.monitor_point_m is not None:
-            point = np.asarray(s.monitor_point_m, dtype=float)
+            point = np.asarray(s.monitor_point_m, dtype=float) - origin
         else:
             point = crest_point(x_eq[active], cfg.gravity_m_s2, max(spacing, cfg.grid.cell_size_m))
         candidates = np.flatnonzero(active)
         idx = int(candidates[np.argmin(np.linalg.norm(x_eq[candidates] - point, axis=1))])
-        self.monitor_point_m = (float(x_eq[idx, 0]), float(x_eq[idx, 1]))
+        self.monitor_point_m = (float(x_eq[idx, 0] + origin[0]), float(x_eq[idx, 1] + origin[1]))
         self.monitor_particle = idx
         use_displacement = "displacement" in s.criteria
         use_energy = "kinetic-energy" in s.criteria
@@ -512,7 +514,7 @@ class StrengthReduction:
             last = frame
             yield self._yield(frame)
         if last is not None:
-            moved = np.linalg.norm(last.fields["positions"].astype(np.float64) - x_eq, axis=1)
+            moved = np.linalg.norm(last.fields["positions"].astype(np.float64) - origin - x_eq, axis=1)
             self.runout_max_displacement_m = float(moved[last.fields["active"]].max(initial=0.0))
 
     def _runout_materials(self, base, project_stage) -> tuple[sc.Material, ...]:

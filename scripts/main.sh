@@ -4,6 +4,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 OUT=${OUT:-out/bui2008}
-.venv/bin/runout run projects/examples/bui2008_aluminium_bars.toml --out "$OUT" "$@"
+# --overwrite: this script owns $OUT; a re-run replaces its own earlier results (nothing else)
+.venv/bin/runout run projects/examples/bui2008_aluminium_bars.toml --out "$OUT" --overwrite "$@"
 .venv/bin/runout render "$OUT" --field displacement -o "$OUT/final_displacement.png"
 echo "results: $OUT (particles.pvd opens in ParaView), picture: $OUT/final_displacement.png"

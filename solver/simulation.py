@@ -412,8 +412,9 @@ class Simulation:
                 f"largest unbalanced acceleration {check['max_unbalanced_acceleration_m_s2']:.3g} m/s2, "
                 f"largest speed at its end {max_speed_m_s:.3g} m/s")
         if not ratio <= EQUILIBRIUM_WARN_RATIO:
-            log.warning("%s: above %g, the initial state is not in equilibrium (a k0 stage on sloping "
-                        "ground? use a gravity stage)", text, EQUILIBRIUM_WARN_RATIO)
+            log.warning("%s: above %g, the initial state is not in equilibrium and the next stage starts "
+                        "with motion of its own (free faces, or K0 under sloping ground: use a gravity "
+                        "stage there)", text, EQUILIBRIUM_WARN_RATIO)
         else:
             log.info(text)
         return check

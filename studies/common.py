@@ -267,7 +267,7 @@ def run_project_measured(
     limit = WallClockLimit(time_limit_s)
     cpu0 = cpu_seconds()
     wall0 = time.perf_counter()
-    result = run_project(project, out_dir, cancel=limit, on_frame=on_frame)
+    result = run_project(project, out_dir, cancel=limit, on_frame=on_frame, overwrite=True)  # a study owns its folders
     wall = time.perf_counter() - wall0
     cpu = cpu_seconds() - cpu0
     res = open_results(out_dir)

@@ -349,10 +349,8 @@ class RayEngine:
             kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False,
                                       "logging_level": logging.WARNING}
             if address is None:
-                # "local": always a new embedded Ray, never a stale or foreign cluster that
-                # ray.init() would otherwise find through RAY_ADDRESS or /tmp/ray
-                kwargs["address"] = "local"
-                kwargs["num_cpus"] = workers * threads
+                # "local": always a new embedded Ray, never a cluster that `ray start` left behind
+                kwargs.update(address="local", num_cpus=workers * threads)
             else:
                 kwargs["address"] = address
             t0 = time.perf_counter()

@@ -1,5 +1,6 @@
 """Curves against simulated time (matplotlib's Qt canvas): the run's energy, momentum and speed,
-live or from ``series.csv``, and the history of one picked particle.
+live or from ``series.csv``, the force on each contact from ``contacts.csv``, and the history of
+one picked particle.
 
 Redraws are throttled (a timer collects updates), so a fast run cannot flood the event loop.
 """
@@ -219,6 +220,89 @@ class ProfileCurve(_Canvas):
         self.axes[0].set_ylabel(label, fontsize=8)
         self.axes[0].set_title(title, fontsize=8)
         self.redraw_now()
+
+
+#: Line colours of the contacts (matplotlib's tab10 without the material blue and orange first).
+CONTACT_COLORS: tuple[str, ...] = ("#d62728", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+                                   "#bcbd22", "#17becf", "#1f77b4", "#ff7f0e")
+
+
+def contact_curves(contacts: dict[str, dict[str, np.ndarray]]) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Per contact ``(time_s, mean_N_per_m, peak_N_per_m)`` from :func:`projects.results.read_contacts`.
+
+    The mean force of an output interval is the magnitude of its mean components
+    ``hypot(force_x, force_y)`` (N per metre out of plane); the peak is the largest single-step force
+    in it (``peak_force_N_per_m``). Each value belongs to the interval that *ends* at its time.
+    """
+    out = {}
+    for name, columns in contacts.items():
+        t = np.asarray(columns.get("time_s", []), dtype=float)
+        fx = np.asarray(columns.get("force_x_N_per_m", np.full(len(t), np.nan)), dtype=float)
+        fy = np.asarray(columns.get("force_y_N_per_m", np.full(len(t), np.nan)), dtype=float)
+        peak = np.asarray(columns.get("peak_force_N_per_m", np.full(len(t), np.nan)), dtype=float)
+        if not (len(t) == len(fx) == len(fy) == len(peak)):
+            continue
+        out[name] = (t, np.hypot(fx, fy), peak)
+    return out
+
+
+class ContactCurves(_Canvas):
+    """The force the material exerts on each closed side and structure against time: the mean
+    over each output interval (left) and the largest single-step force in it (right), N/m, one
+    line per contact, drawn as steps over the interval each value belongs to."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(2, parent)
+        self.axes[0].set_ylabel("Mean force (N/m)", fontsize=8)
+        self.axes[1].set_ylabel("Peak force (N/m)", fontsize=8)
+        self.axes[0].set_title("No contacts.csv in these results", fontsize=8)
+        self.curves: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self.lines: dict[str, tuple[Any, Any]] = {}
+        self.markers = [ax.axvline(0.0, color="#5f6368", linewidth=0.8, linestyle="--") for ax in self.axes]
+        for m in self.markers:
+            m.set_visible(False)
+
+    def clear(self) -> None:
+        self.set_contacts({})
+
+    def set_contacts(self, contacts: dict[str, dict[str, np.ndarray]], now: bool = True) -> None:
+        """Show ``contacts.csv`` as :func:`projects.results.read_contacts` gives it (redrawn at once,
+        or with the next scheduled redraw when ``now`` is False: a run under way)."""
+        curves = contact_curves(contacts)
+        if list(curves) != list(self.curves):
+            for first, second in self.lines.values():
+                first.remove()
+                second.remove()
+            self.lines = {}
+            for i, name in enumerate(curves):
+                color = CONTACT_COLORS[i % len(CONTACT_COLORS)]
+                (mean,) = self.axes[0].plot([], [], color=color, linewidth=1.4, drawstyle="steps-pre", label=name)
+                (peak,) = self.axes[1].plot([], [], color=color, linewidth=1.2, drawstyle="steps-pre", label=name)
+                self.lines[name] = (mean, peak)
+            legend = self.axes[0].get_legend()
+            if legend is not None:
+                legend.remove()
+            if curves:
+                self.axes[0].legend(fontsize=7, loc="best")
+        self.curves = curves
+        for name, (t, mean, peak) in curves.items():
+            self.lines[name][0].set_data(t, mean)
+            self.lines[name][1].set_data(t, peak)
+        if curves:
+            title = f"{len(curves)} contact{'' if len(curves) == 1 else 's'}: mean over each output interval"
+        else:
+            title = "No contacts.csv in these results"
+        self.axes[0].set_title(title, fontsize=8)
+        self.schedule()
+        if now:
+            self.redraw_now()
+
+    def set_time(self, time_s: float | None) -> None:
+        for m in self.markers:
+            m.set_visible(time_s is not None)
+            if time_s is not None:
+                m.set_xdata([time_s, time_s])
+        self.schedule()
 
 
 def write_curves_csv(path: str | os.PathLike[str], series: dict[str, Any],

@@ -39,7 +39,12 @@ from projects.schema import (
 
 logger = logging.getLogger(__name__)
 
-SECTIONS: tuple[str, ...] = ("runout", "domain", "materials", "bodies", "particles", "numerics", "stages", "output")
+SECTIONS: tuple[str, ...] = ("runout", "domain", "materials", "bodies", "structures", "particles", "numerics",
+                             "stages", "output", "targets")
+#: The parts of a project drawn as polygons (edited with the same scene tools and vertex table).
+POLYGON_KINDS: tuple[str, ...] = ("bodies", "structures")
+#: What can be selected: a polygon's kind or ``"targets"``.
+SELECTABLE_KINDS: tuple[str, ...] = (*POLYGON_KINDS, "targets")
 
 #: Label and unit of each numeric key of the project file (units as shown next to fields).
 FIELD_INFO: dict[str, tuple[str, str]] = {
@@ -243,6 +248,10 @@ def editable_data(data: Any) -> dict[str, Any] | None:
         "stages": list,
         "output": Mapping,
     }
+    optional_lists = ("structures", "targets")
+    for key in optional_lists:
+        if key in data and (not isinstance(data[key], list) or any(not isinstance(t, Mapping) for t in data[key])):
+            return None
     for key, shape in shapes.items():
         if key in data and not isinstance(data[key], shape):
             return None
@@ -252,7 +261,7 @@ def editable_data(data: Any) -> dict[str, Any] | None:
     for key in ("bodies", "stages"):
         if any(not isinstance(item, Mapping) for item in data.get(key, [])):
             return None
-    for body in data.get("bodies", []):
+    for body in [*data.get("bodies", []), *data.get("structures", [])]:
         polygon = body.get("polygon_m", [])
         if not isinstance(polygon, list) or any(
             not isinstance(p, list) or len(p) != 2 or not all(_is_number(c) for c in p) for p in polygon
@@ -309,18 +318,48 @@ class SnapshotCommand(QUndoCommand):
 
 
 class Selection(QObject):
-    """The body and vertex the user works on, shared by the scene view and the bodies panel."""
+    """The object and vertex the user works on, shared by the scene view and the panels.
+
+    ``kind`` is ``"bodies"``, ``"structures"`` (polygons, with a vertex) or ``"targets"``;
+    ``index`` is the position in that list. :attr:`body` (and :attr:`structure`,
+    :attr:`target`) is the index when the selection is of that kind, else None.
+    """
 
     changed = Signal()
 
     def __init__(self, parent: QObject | None = None) -> None:
         super().__init__(parent)
-        self.body: int | None = None
+        self.kind = "bodies"
+        self.index: int | None = None
         self.vertex: int | None = None
 
+    def _of(self, kind: str) -> int | None:
+        return self.index if self.kind == kind else None
+
+    @property
+    def body(self) -> int | None:
+        return self._of("bodies")
+
+    @property
+    def structure(self) -> int | None:
+        return self._of("structures")
+
+    @property
+    def target(self) -> int | None:
+        return self._of("targets")
+
     def set(self, body: int | None, vertex: int | None = None) -> None:
-        if (body, vertex) != (self.body, self.vertex):
-            self.body, self.vertex = body, vertex
+        """Select body ``body`` (None: nothing) and its vertex ``vertex``."""
+        self.select("bodies", body, vertex)
+
+    def select(self, kind: str, index: int | None, vertex: int | None = None) -> None:
+        """Select item ``index`` of ``kind`` (one of :data:`SELECTABLE_KINDS`; None: nothing)."""
+        if kind not in SELECTABLE_KINDS:
+            raise ValueError(f"cannot select {kind!r}: one of {', '.join(SELECTABLE_KINDS)}")
+        if index is None:
+            vertex = None
+        if (kind, index, vertex) != (self.kind, self.index, self.vertex):
+            self.kind, self.index, self.vertex = kind, index, vertex
             self.changed.emit()
 
 
@@ -529,11 +568,13 @@ class ProjectDocument(QObject):
         self.changed.emit(sections)
 
     def _clamp_selection(self) -> None:
-        bodies = self._data.get("bodies", [])
-        body, vertex = self.selection.body, self.selection.vertex
-        if body is not None and body >= len(bodies):
-            self.selection.set(len(bodies) - 1 if bodies else None)
-        elif body is not None and vertex is not None:
-            count = len(bodies[body].get("polygon_m", []))
+        sel = self.selection
+        items = self._data.get(sel.kind, [])
+        items = items if isinstance(items, list) else []
+        index, vertex = sel.index, sel.vertex
+        if index is not None and index >= len(items):
+            sel.select(sel.kind, len(items) - 1 if items else None)
+        elif index is not None and vertex is not None:
+            count = len(items[index].get("polygon_m", []) or [])
             if vertex >= count:
-                self.selection.set(body, count - 1 if count else None)
+                sel.select(sel.kind, index, count - 1 if count else None)

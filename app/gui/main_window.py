@@ -1,9 +1,14 @@
 """The workbench's main window: the model view, project panels, the run panel and the results.
 
-Layout: the project panels dock on the left, the run panel (estimate, progress, problems) on the
-right, and the centre holds three tabs: *Model* (the 2D scene with drawing), *Results* (live
-view of a run, then the inspector of its results folder) and *Compare* (two results side by
-side, created when first used).
+Layout: the project panels dock on the left, the run panel (what will run, progress, the runs
+of this session, problems) on the right, and the centre holds three tabs: *Model* (the 2D scene
+with drawing), *Results* (the followed run, live, then the inspector of its results folder) and
+*Compare* (two results side by side, created when first used).
+
+Runs are child processes (:class:`app.gui.run_process.RunProcess`, ``runout run --progress
+jsonl``) writing their own folders; several may go on at once. The window follows one of them
+by rereading its results folder with the same reader as any finished folder; this process
+never imports Taichi.
 
 All questions to the user go through small methods (``ask_save_changes``, ``ask_open_path``,
 ...) so that scripts and tests can answer them without a modal dialog.
@@ -134,6 +139,7 @@ class MainWindow(QMainWindow):
                              (self.bodies_panel, "Bodies"), (self.numerics_panel, "Numerics"),
                              (self.stages_panel, "Stages"), (self.output_panel, "Output")):
             self.panels.addTab(panel, title)
+        self._add_object_panels()
         self.panels.setUsesScrollButtons(True)
         left = QDockWidget("Project", self)
         left.setObjectName("project-dock")
@@ -299,6 +305,30 @@ class MainWindow(QMainWindow):
         self.run_panel.problemActivated.connect(self.go_to_problem)
         self.run_panel.runSelected.connect(self._select_run)
         self.run_panel.removeUnknownRequested.connect(self.remove_unknown_keys)
+
+    def _add_object_panels(self) -> None:
+        """The Structures and Targets panels (after Bodies), linked to the scene view's selection."""
+        from app.gui.object_panels import StructuresPanel, TargetsPanel
+
+        self.structures_panel = StructuresPanel(self.doc)
+        self.targets_panel = TargetsPanel(self.doc)
+        at = self.panels.indexOf(self.bodies_panel) + 1
+        self.panels.insertTab(at, self.structures_panel, "Structures")
+        self.panels.insertTab(at + 1, self.targets_panel, "Targets")
+        self.structures_panel.drawRequested.connect(self._start_drawing_structure)
+        self.doc.selection.changed.connect(self._show_selection_panel)
+
+    def _show_selection_panel(self) -> None:
+        """A body, structure or target picked in the view brings its panel forward."""
+        sel = self.doc.selection
+        panel = {"bodies": self.bodies_panel, "structures": self.structures_panel,
+                 "targets": self.targets_panel}.get(sel.kind)
+        if sel.index is not None and panel is not None and self.panels.currentWidget() is not panel:
+            self.panels.setCurrentWidget(panel)
+
+    def _start_drawing_structure(self) -> None:
+        self.tabs.setCurrentWidget(self.scene)
+        self.scene.set_mode("draw", "structures")
 
     def _mode_changed(self, mode: str) -> None:
         self.actions_["draw" if mode == "draw" else "select"].setChecked(True)
@@ -746,7 +776,8 @@ class MainWindow(QMainWindow):
         section = parts[0] if parts else ""
         target = {"runout": self.domain_panel, "domain": self.domain_panel, "materials": self.materials_panel,
                   "bodies": self.bodies_panel, "particles": self.numerics_panel, "numerics": self.numerics_panel,
-                  "stages": self.stages_panel, "output": self.output_panel}.get(section)
+                  "stages": self.stages_panel, "output": self.output_panel,
+                  "structures": self.structures_panel, "targets": self.targets_panel}.get(section)
         if target is None:
             return
         self.panels.setCurrentWidget(target)
@@ -755,6 +786,9 @@ class MainWindow(QMainWindow):
         elif section == "bodies" and len(parts) > 1 and parts[1].isdigit():
             vertex = int(parts[3]) if len(parts) > 3 and parts[3].isdigit() else None
             self.doc.selection.set(int(parts[1]), vertex)
+        elif section in ("structures", "targets") and len(parts) > 1 and parts[1].isdigit():
+            vertex = int(parts[3]) if len(parts) > 3 and parts[3].isdigit() else None
+            self.doc.selection.select(section, int(parts[1]), vertex)
         elif section == "stages" and len(parts) > 1 and parts[1].isdigit():
             self.stages_panel.select(int(parts[1]))
 
@@ -791,8 +825,9 @@ class MainWindow(QMainWindow):
     def ask_replace_results(self, path: Path) -> str:
         """"replace", "new" (a new folder beside it) or "cancel" for an existing results folder."""
         box = QMessageBox(QMessageBox.Icon.Question, APP_NAME,
-                          f"{path} holds the results of an earlier run. Replace them (the run deletes the "
-                          "folder's frames, series and summary) or write this run to a new folder beside it?",
+                          f"{path} holds the results of an earlier run. Replace them (only the files that "
+                          "run wrote are removed; pictures and notes you put there stay) or write this run "
+                          "to a new folder beside it?",
                           parent=self)
         new = box.addButton("New folder", QMessageBox.ButtonRole.AcceptRole)
         replace = box.addButton("Replace", QMessageBox.ButtonRole.DestructiveRole)

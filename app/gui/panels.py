@@ -483,19 +483,22 @@ class _NumberDelegate(QStyledItemDelegate):
         return editor
 
 
-class BodiesPanel(Panel):
-    """Bodies in painting order (overlaps go to the later body), the selected body's form and vertices.
+class PolygonPanel(Panel):
+    """A list of polygons of one kind (``bodies`` or ``structures``), the selected one's form and
+    its vertex table, bound to the document's selection.
+
+    Subclasses set :attr:`KIND` and :attr:`NOUN`, add their buttons in :meth:`_buttons` and their
+    fields in :meth:`_form_rows`, and bind them in :meth:`_bind_item`.
 
     Signals
     -------
     drawRequested()
-        The user wants to draw a new body in the scene view.
-    templateRequested()
-        The user wants the slope-from-template dialog.
+        The user wants to draw a new polygon of this kind in the scene view.
     """
 
+    KIND = "bodies"
+    NOUN = "body"
     drawRequested = Signal()
-    templateRequested = Signal()
 
     def __init__(self, doc: ProjectDocument, parent: QWidget | None = None) -> None:
         super().__init__(doc, parent)
@@ -507,30 +510,18 @@ class BodiesPanel(Panel):
         buttons = QHBoxLayout()
         self.draw_button = QPushButton("Draw…")
         self.draw_button.setToolTip(
-            "Draw a new body in the view: click vertices, click the first one (or Enter) to close")
+            f"Draw a new {self.NOUN} in the view: click vertices, click the first one (or Enter) to close")
         self.draw_button.clicked.connect(self.drawRequested)
-        self.template_button = QPushButton("Slope…")
-        self.template_button.setToolTip("Bodies of a slope from a template (height, angle, layers)")
-        self.template_button.clicked.connect(self.templateRequested)
         self.delete_button = QPushButton("Delete")
-        self.delete_button.clicked.connect(self.delete_body)
-        self.up_button = _small_button("▲", "Paint earlier (overlaps go to the later body)")
-        self.up_button.clicked.connect(lambda: self.move_body(-1))
-        self.down_button = _small_button("▼", "Paint later")
-        self.down_button.clicked.connect(lambda: self.move_body(1))
-        for b in (self.draw_button, self.template_button, self.delete_button, self.up_button, self.down_button):
+        self.delete_button.clicked.connect(self.delete_item)
+        for b in (self.draw_button, *self._buttons(), self.delete_button, *self._order_buttons()):
             buttons.addWidget(b)
         self.layout_.addLayout(buttons)
 
-        box, form = _form("Selected body")
-        self.name = TextField(doc, None, "Body name")
-        self.material = QComboBox()
-        self.material.setAccessibleName("Body material")
-        self.material.activated.connect(self._material_chosen)
-        self.velocity = PairField(doc, None, "Initial velocity", "m/s", names=("vx", "vy"))
+        box, form = _form(f"Selected {self.NOUN}")
+        self.name = TextField(doc, None, f"{self.NOUN.capitalize()} name")
         form.addRow("Name", self.name)
-        form.addRow("Material", self.material)
-        form.addRow("Initial velocity", self.velocity)
+        self._form_rows(form)
         self.layout_.addWidget(box)
 
         box = QGroupBox("Vertices")
@@ -558,71 +549,87 @@ class BodiesPanel(Panel):
         self.shape_status = QLabel("")
         self.shape_status.setWordWrap(True)
         self.layout_.addWidget(self.shape_status)
-        self.watch(self.name, self.velocity)
+        self.watch(self.name)
         self.finish()
         doc.selection.changed.connect(self._selection_changed)
         self._filling = False
-        self._on_changed(frozenset({"bodies"}))
+        self._on_changed(frozenset({self.KIND}))
+
+    # -- hooks for the kinds --------------------------------------------------------------------
+
+    def _buttons(self) -> list[QWidget]:
+        return []
+
+    def _order_buttons(self) -> list[QWidget]:
+        return []
+
+    def _form_rows(self, form: QFormLayout) -> None:
+        """Add the kind's fields below the name."""
+
+    def _bind_item(self, base: str | None) -> None:
+        """Point the kind's fields at ``base`` (``"bodies.2"``; None: nothing selected)."""
+
+    def _label(self, item: dict[str, Any]) -> tuple[QIcon | None, str]:
+        return None, str(item.get("name", "?"))
 
     # -- sync ---------------------------------------------------------------------------------
 
-    def _bodies(self) -> list[dict[str, Any]]:
-        return self.doc.get("bodies", [])
+    @property
+    def selected(self) -> int | None:
+        """The selected item of this panel's kind, or None."""
+        sel = self.doc.selection
+        return sel.index if sel.kind == self.KIND else None
+
+    def _items(self) -> list[dict[str, Any]]:
+        items = self.doc.get(self.KIND, [])
+        return items if isinstance(items, list) else []
 
     def _row_chosen(self, row: int) -> None:
         if not self._filling:
-            self.doc.selection.set(row if row >= 0 else None)
+            if row >= 0:
+                self.doc.selection.select(self.KIND, row)
+            elif self.selected is not None:
+                self.doc.selection.select(self.KIND, None)
 
     def _vertex_chosen(self, row: int, _col: int, _prow: int, _pcol: int) -> None:
-        if not self._filling and self.doc.selection.body is not None:
-            self.doc.selection.set(self.doc.selection.body, row if row >= 0 else None)
+        if not self._filling and self.selected is not None:
+            self.doc.selection.select(self.KIND, self.selected, row if row >= 0 else None)
 
     def _selection_changed(self) -> None:
         self._fill()
 
     def _on_changed(self, sections: frozenset) -> None:
-        if sections & {"bodies", "materials", "domain"}:
+        if sections & {self.KIND, "materials", "domain"}:
             self._fill()
 
     def _fill(self) -> None:
         self._filling = True
         try:
-            bodies = self._bodies()
-            names = self.doc.material_names
+            items = self._items()
             self.list.clear()
-            for body in bodies:
-                mat = body.get("material", "?")
-                index = names.index(mat) if mat in names else -1
-                item = QListWidgetItem(swatch(material_color(index)), f"{body.get('name', '?')}   ({mat})")
-                self.list.addItem(item)
-            sel = self.doc.selection.body
+            for item in items:
+                icon, text = self._label(item)
+                self.list.addItem(QListWidgetItem(icon, text) if icon is not None else QListWidgetItem(text))
+            sel = self.selected
             self.list.setCurrentRow(sel if sel is not None else -1)
-            base = f"bodies.{sel}" if sel is not None else None
+            base = f"{self.KIND}.{sel}" if sel is not None else None
             self.name.set_path(f"{base}.name" if base else None)
-            self.velocity.set_path(f"{base}.initial_velocity_m_s" if base else None)
-            if base is not None and self.doc.get(f"{base}.initial_velocity_m_s") is None:
-                for edit in self.velocity.edits:
-                    edit.setText("0")
-            self.material.clear()
-            self.material.addItems(names)
-            self.material.setEnabled(base is not None)
-            if base is not None:
-                self.material.setCurrentText(str(self.doc.get(f"{base}.material", "")))
+            self._bind_item(base)
             polygon = self.doc.get(f"{base}.polygon_m", []) if base else []
+            polygon = polygon if isinstance(polygon, list) else []
             self.table.setRowCount(len(polygon))
             for i, point in enumerate(polygon):
                 for j in range(2):
-                    item = QTableWidgetItem(format_number(point[j]))
-                    item.setTextAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
-                    self.table.setItem(i, j, item)
+                    cell = QTableWidgetItem(format_number(point[j]))
+                    cell.setTextAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+                    self.table.setItem(i, j, cell)
             self._flag_vertices(sel)
-            vertex = self.doc.selection.vertex
+            vertex = self.doc.selection.vertex if sel is not None else None
             if vertex is not None and vertex < len(polygon):
                 self.table.setCurrentCell(vertex, 0)
             else:
                 self.table.clearSelection()
-            for b in (self.delete_button, self.up_button, self.down_button, self.insert_button,
-                      self.remove_vertex_button):
+            for b in (self.delete_button, *self._order_buttons(), self.insert_button, self.remove_vertex_button):
                 b.setEnabled(sel is not None)
         finally:
             self._filling = False
@@ -632,7 +639,7 @@ class BodiesPanel(Panel):
         if sel is None:
             self.shape_status.setText("")
             return
-        problems = self.doc.problems_at(f"bodies.{sel}")
+        problems = self.doc.problems_at(f"{self.KIND}.{sel}")
         bad_rows = set()
         for p in problems:
             parts = p.path.split(".")
@@ -647,23 +654,128 @@ class BodiesPanel(Panel):
         self.shape_status.setStyleSheet("color: #b3261e;" if problems else "")
 
     def _cell_edited(self, item: QTableWidgetItem) -> None:
-        if self._filling or self.doc.selection.body is None:
+        sel = self.selected
+        if self._filling or sel is None:
             return
         value = parse_number(item.text())
-        body, row, col = self.doc.selection.body, item.row(), item.column()
+        row, col = item.row(), item.column()
         if value is None:
             self.show_message(f"vertex {row}: {'x' if col == 0 else 'y'} must be a number")
             self._fill()
             return
-        self.set_vertex(body, row, col, value)
+        self.set_vertex(sel, row, col, value)
 
     # -- edits --------------------------------------------------------------------------------
 
-    def set_vertex(self, body: int, row: int, col: int, value: float) -> None:
-        def mutate(d: dict[str, Any]) -> None:
-            d["bodies"][body]["polygon_m"][row][col] = float(value)
+    def free_name(self, base: str) -> str:
+        """``base-N`` with the first N no item of this kind is named."""
+        taken = {item.get("name") for item in self._items()}
+        k = len(self._items()) + 1
+        while f"{base}-{k}" in taken:
+            k += 1
+        return f"{base}-{k}"
 
-        self.doc.edit(f"move vertex {row} of {self._bodies()[body].get('name', body)}", mutate)
+    def set_vertex(self, index: int, row: int, col: int, value: float) -> None:
+        kind = self.KIND
+
+        def mutate(d: dict[str, Any]) -> None:
+            d[kind][index]["polygon_m"][row][col] = float(value)
+
+        self.doc.edit(f"move vertex {row} of {self._items()[index].get('name', index)}", mutate)
+
+    def delete_item(self) -> None:
+        sel, kind = self.selected, self.KIND
+        if sel is None:
+            return
+        name = self._items()[sel].get("name", sel)
+
+        def mutate(d: dict[str, Any]) -> None:
+            d[kind].pop(sel)
+            if not d[kind] and kind != "bodies":
+                d.pop(kind)  # an optional list: no empty table left in the file
+
+        self.doc.edit(f"delete {self.NOUN} {name}", mutate)
+        items = self._items()
+        self.doc.selection.select(kind, min(sel, len(items) - 1) if items else None)
+
+    def insert_vertex(self) -> None:
+        sel, kind = self.selected, self.KIND
+        if sel is None:
+            return
+        vertex = self.doc.selection.vertex
+        polygon = self._items()[sel].get("polygon_m", [])
+        if len(polygon) < 2:
+            return
+        i = vertex if vertex is not None else len(polygon) - 1
+        a, b = polygon[i], polygon[(i + 1) % len(polygon)]
+        mid = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0]
+        self.doc.edit("insert vertex", lambda d: d[kind][sel]["polygon_m"].insert(i + 1, mid))
+        self.doc.selection.select(kind, sel, i + 1)
+
+    def delete_vertex(self) -> None:
+        sel, kind, vertex = self.selected, self.KIND, self.doc.selection.vertex
+        if sel is None or vertex is None:
+            return
+        self.doc.edit("delete vertex", lambda d: d[kind][sel]["polygon_m"].pop(vertex))
+
+
+class BodiesPanel(PolygonPanel):
+    """Bodies in painting order (overlaps go to the later body), the selected body's form and vertices.
+
+    Signals
+    -------
+    drawRequested()
+        The user wants to draw a new body in the scene view.
+    templateRequested()
+        The user wants the slope-from-template dialog.
+    """
+
+    KIND = "bodies"
+    NOUN = "body"
+    templateRequested = Signal()
+
+    def _buttons(self) -> list[QWidget]:
+        self.template_button = QPushButton("Slope…")
+        self.template_button.setToolTip("Bodies of a slope from a template (height, angle, layers)")
+        self.template_button.clicked.connect(self.templateRequested)
+        return [self.template_button]
+
+    def _order_buttons(self) -> list[QWidget]:
+        if not hasattr(self, "up_button"):
+            self.up_button = _small_button("▲", "Paint earlier (overlaps go to the later body)")
+            self.up_button.clicked.connect(lambda: self.move_body(-1))
+            self.down_button = _small_button("▼", "Paint later")
+            self.down_button.clicked.connect(lambda: self.move_body(1))
+        return [self.up_button, self.down_button]
+
+    def _form_rows(self, form: QFormLayout) -> None:
+        self.material = QComboBox()
+        self.material.setAccessibleName("Body material")
+        self.material.activated.connect(self._material_chosen)
+        self.velocity = PairField(self.doc, None, "Initial velocity", "m/s", names=("vx", "vy"))
+        form.addRow("Material", self.material)
+        form.addRow("Initial velocity", self.velocity)
+        self.watch(self.velocity)
+
+    def _label(self, item: dict[str, Any]) -> tuple[QIcon | None, str]:
+        names = self.doc.material_names
+        mat = item.get("material", "?")
+        index = names.index(mat) if mat in names else -1
+        return swatch(material_color(index)), f"{item.get('name', '?')}   ({mat})"
+
+    def _bind_item(self, base: str | None) -> None:
+        self.velocity.set_path(f"{base}.initial_velocity_m_s" if base else None)
+        if base is not None and self.doc.get(f"{base}.initial_velocity_m_s") is None:
+            for edit in self.velocity.edits:
+                edit.setText("0")
+        self.material.clear()
+        self.material.addItems(self.doc.material_names)
+        self.material.setEnabled(base is not None)
+        if base is not None:
+            self.material.setCurrentText(str(self.doc.get(f"{base}.material", "")))
+
+    def _bodies(self) -> list[dict[str, Any]]:
+        return self._items()
 
     def _material_chosen(self, _index: int) -> None:
         sel = self.doc.selection.body
@@ -675,13 +787,7 @@ class BodiesPanel(Panel):
         self._material_chosen(self.material.currentIndex())
 
     def delete_body(self) -> None:
-        sel = self.doc.selection.body
-        if sel is None:
-            return
-        name = self._bodies()[sel].get("name", sel)
-        self.doc.edit(f"delete body {name}", lambda d: d["bodies"].pop(sel))
-        bodies = self._bodies()
-        self.doc.selection.set(min(sel, len(bodies) - 1) if bodies else None)
+        self.delete_item()
 
     def move_body(self, step: int) -> None:
         sel = self.doc.selection.body
@@ -695,25 +801,6 @@ class BodiesPanel(Panel):
 
         self.doc.edit("reorder bodies", mutate)
         self.doc.selection.set(sel + step)
-
-    def insert_vertex(self) -> None:
-        sel, vertex = self.doc.selection.body, self.doc.selection.vertex
-        if sel is None:
-            return
-        polygon = self._bodies()[sel].get("polygon_m", [])
-        if len(polygon) < 2:
-            return
-        i = vertex if vertex is not None else len(polygon) - 1
-        a, b = polygon[i], polygon[(i + 1) % len(polygon)]
-        mid = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0]
-        self.doc.edit("insert vertex", lambda d: d["bodies"][sel]["polygon_m"].insert(i + 1, mid))
-        self.doc.selection.set(sel, i + 1)
-
-    def delete_vertex(self) -> None:
-        sel, vertex = self.doc.selection.body, self.doc.selection.vertex
-        if sel is None or vertex is None:
-            return
-        self.doc.edit("delete vertex", lambda d: d["bodies"][sel]["polygon_m"].pop(vertex))
 
 
 # --------------------------------------------------------------------------------------------

@@ -34,7 +34,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.curves import HistoryCurve, MonitorCurves, ProfileCurve, SeriesCurves, write_curves_csv
+from app.gui.curves import ContactCurves, HistoryCurve, MonitorCurves, ProfileCurve, SeriesCurves, write_curves_csv
 from app.gui.document import parse_number
 from app.render import FIELDS, field_info, field_values, value_range
 
@@ -100,6 +100,7 @@ class ParticleScene(QWidget):
         self._fitted = False
         self._auto_fit = True
         self.picked_id: int | None = None
+        self.structure_count = 0
 
     def close_view(self) -> None:
         if self._closed:
@@ -135,6 +136,36 @@ class ParticleScene(QWidget):
             outline = np.array([[x0, y0, 0], [x1, y0, 0], [x1, y1, 0], [x0, y1, 0], [x0, y0, 0]], float)
             self.plotter.add_mesh(pv.MultipleLines(outline), color="#9aa0a6", line_width=1, name="domain",
                                   render=False, reset_camera=False, pickable=False)
+
+    def show_structures(self, structures: list[dict[str, Any]]) -> None:
+        """The run's rigid structures (``summary.json`` ``structures``: ``name``, ``polygon_m``), grey
+        with an outline, as in :mod:`app.render`'s pictures."""
+        import pyvista as pv
+
+        for name in ("structures", "structure-outlines"):
+            self.plotter.remove_actor(name, render=False)
+        faces, segments = [], []
+        for structure in structures:
+            pts = np.asarray(structure.get("polygon_m") or [], dtype=float).reshape(-1, 2)
+            if len(pts) < 3:
+                continue
+            xyz = np.column_stack([pts, np.full(len(pts), -0.01)])
+            face = pv.PolyData(xyz, faces=np.r_[len(pts), np.arange(len(pts))])
+            try:
+                face = face.triangulate()
+            except (RuntimeError, ValueError):
+                pass
+            faces.append(face)
+            segments.append(np.vstack([xyz, xyz[:1]]))
+        if faces:
+            merged = faces[0].merge(faces[1:]) if len(faces) > 1 else faces[0]
+            self.plotter.add_mesh(merged, color="#b4b4b4", name="structures", render=False, reset_camera=False,
+                                  pickable=False, lighting=False)
+            lines = segments[0] if len(segments) == 1 else None
+            outline = pv.MultipleLines(lines) if lines is not None else pv.merge([pv.MultipleLines(r) for r in segments])
+            self.plotter.add_mesh(outline, color="#5f6368", line_width=1.5, name="structure-outlines", render=False,
+                                  reset_camera=False, pickable=False)
+        self.structure_count = len(faces)
 
     def show_arrays(self, arrays: dict[str, np.ndarray], time_s: float, caption: str = "") -> None:
         """Draw one frame (``positions``, ``active`` and the field's source array)."""
@@ -497,6 +528,7 @@ class ResultsView(QWidget):
         self.scene = ParticleScene()
         self.scene.picked.connect(self.pick_particle)
         self.curves = SeriesCurves()
+        self.contact_plot = ContactCurves()
         self.history_plot = HistoryCurve()
         self.monitor_plot = MonitorCurves()
         self.profile_plot = ProfileCurve()
@@ -507,6 +539,7 @@ class ResultsView(QWidget):
         self.section: tuple[float, float, float, float] | None = None
         self.side = QTabWidget()
         self.side.addTab(self.curves, "Run curves")
+        self.side.addTab(self.contact_plot, "Contact forces")
         self.side.addTab(self.history_plot, "Particle history")
         self.side.addTab(self._with_inputs(self.monitor_plot, "monitor"), "Monitoring points")
         self.side.addTab(self._with_inputs(self.profile_plot, "section"), "Cross-section")
@@ -528,6 +561,7 @@ class ResultsView(QWidget):
         self.controls.stop()
         self.scene.close_view()
         self.curves.close_canvas()
+        self.contact_plot.close_canvas()
         self.history_plot.close_canvas()
         self.monitor_plot.close_canvas()
         self.profile_plot.close_canvas()
@@ -701,6 +735,8 @@ class ResultsView(QWidget):
         self.scene.clear()
         self.curves.clear()
         self.curves.set_time(None)
+        self.contact_plot.clear()
+        self.contact_plot.set_time(None)
         self.controls.slider.blockSignals(True)
         self.controls.slider.setRange(0, 0)
         self.controls.slider.blockSignals(False)
@@ -758,7 +794,9 @@ class ResultsView(QWidget):
             spacing = results.summary.get("particle_spacing_m") or 0.0
             self.scene.clear()
             self.scene.set_domain(_domain_of(results.summary), float(spacing), results.material_names)
+            self.scene.show_structures(results.summary.get("structures") or [])
         self.results = results
+        self._show_contacts(results.path, live)
         if live:
             self.curves.set_series(results.series, now=False)
         else:
@@ -787,6 +825,17 @@ class ResultsView(QWidget):
             self.update_monitors()
         self.resultsShown.emit()
 
+    def _show_contacts(self, path: Path, live: bool) -> None:
+        """The force on each contact from the folder's ``contacts.csv`` (reread while a run goes on)."""
+        from projects.results import read_contacts
+
+        try:
+            contacts = read_contacts(path)
+        except (OSError, ValueError) as err:
+            logger.debug("contacts.csv not readable: %s", err)
+            contacts = {}
+        self.contact_plot.set_contacts(contacts, now=not live)
+
     def show_frame(self, index: int) -> None:
         """Show frame ``index`` of the open results folder (also while its run goes on)."""
         if self.results is None:
@@ -806,6 +855,7 @@ class ResultsView(QWidget):
         stage = self._stage_at(index)
         self.controls.time_label.setText(f"t = {time_s:.4g} s   frame {index + 1}/{n}{stage}")
         self.curves.set_time(time_s)
+        self.contact_plot.set_time(time_s)
         if self.section is not None:
             self.update_section()
         self.message.emit(self.scene.message)
@@ -959,6 +1009,7 @@ class CompareView(QWidget):
         scene.clear()
         scene.set_domain(_domain_of(results.summary), float(results.summary.get("particle_spacing_m") or 0.0),
                          results.material_names)
+        scene.show_structures(results.summary.get("structures") or [])
         s = results.summary
         self.labels[side].setText(f"{'AB'[side]}: {s.get('title') or results.path.name} — {results.path.name} "
                                   f"({s.get('scheme', '?')}, {s.get('particles', '?')} particles, {results.status})")

@@ -79,17 +79,22 @@ class RunPanel(QWidget):
         self.cell = QLabel("–")
         self.numerics = QLabel("–")
         self.steps = QLabel("–")
+        self.frames = QLabel("–")
         self.runtime = QLabel("–")
+        self.rate_info = QLabel("")
         self.preset_note = QLabel("")
-        for w in (self.runtime, self.cell, self.numerics, self.preset_note, self.steps):
-            w.setWordWrap(True)
+        # short values, one line each: word-wrapped labels in a form get no room in a dock
+        self.preset_note.setWordWrap(True)
+        self.rate_info.setWordWrap(True)
         self.preset_note.setStyleSheet("color: #e37400;")
         form.addRow("Particles", self.particles)
         form.addRow("Cell size", self.cell)
         form.addRow("Grid", self.grid)
         form.addRow("Numerics", self.numerics)
         form.addRow("Time steps", self.steps)
+        form.addRow("Frames", self.frames)
         form.addRow("Run time", self.runtime)
+        form.addRow("", self.rate_info)
         layout.addWidget(box)
         layout.addWidget(self.preset_note)
 
@@ -200,8 +205,9 @@ class RunPanel(QWidget):
         self.remove_unknown.setVisible(bool(self.doc.unknown_keys()))
         self.problems.setMaximumHeight(260 if n or warnings else 48)
         if project is None:
-            for w in (self.particles, self.grid, self.steps, self.cell, self.numerics):
+            for w in (self.particles, self.grid, self.steps, self.cell, self.numerics, self.frames):
                 w.setText("–")
+            self.rate_info.setText("")
             self.preset_note.setText("")
             self.runtime.setText("fix the problems below first")
             return None
@@ -218,9 +224,10 @@ class RunPanel(QWidget):
         nx, ny = e["grid_shape"]
         dx = effective.domain.cell_size_m
         num = effective.numerics
-        self.cell.setText(f"{dx:.4g} m, {effective.particles.per_cell}² particles per cell")
+        self.cell.setText(f"{dx:.4g} m, {effective.particles.per_cell}² per cell")
         step = f"time step {num.time_step_s:g} s" if num.time_step_s is not None else f"CFL {num.cfl or DEFAULT_CFL:g}"
         self.numerics.setText(f"{num.scheme}, {step}, {num.precision}")
+        self.numerics.setToolTip("scheme, time step, precision as the run will use them")
         changed = []
         if project.numerics.preset is not None:
             if dx != project.domain.cell_size_m:
@@ -236,14 +243,14 @@ class RunPanel(QWidget):
         e["effective"] = effective
         self.particles.setText(f"about {e['particles']:,}")
         self.grid.setText(f"{nx} × {ny} = {e['grid_cells']:,} cells")
-        self.steps.setText(f"{e['steps']:,} of {e['time_step_s']:.3g} s ({e['time_step_source']}), "
-                           f"{e['frames']} frames")
+        self.steps.setText(f"{e['steps']:,} of {e['time_step_s']:.3g} s")
+        self.frames.setText(f"{e['frames']:,}, every {effective.output.interval_s:g} s")
         arch = self.arch()
         rate, measured = self.settings.throughput(arch)
         seconds = SETUP_S + e["particles"] * e["steps"] / rate
         source = "measured on this machine" if measured else "assumed; the first run measures it"
-        self.runtime.setText(f"about {format_duration(seconds)} on {arch} "
-                             f"({rate / 1e6:.3g} M particle-steps/s, {source})")
+        self.runtime.setText(f"about {format_duration(seconds)} on {arch}")
+        self.rate_info.setText(f"{rate / 1e6:.3g} M particle-steps/s, {source}")
         e["run_time_s"] = seconds
         return e
 

@@ -10,7 +10,8 @@ folder (:class:`projects.results.Results`), the same way as a finished or a kill
 The workbench process never imports Taichi; the solver, its runtime and any crash of it live in
 the child. The project that runs is a temporary copy of the document (the user's file is left
 alone, unsaved edits included). Cancel sends SIGTERM, which ``runout run`` turns into a stopped
-run with its final frame and status; if the child has not ended :data:`KILL_AFTER_MS` later it
+run with its final frame and status (so does the death of the workbench: the child asks Linux
+for SIGTERM when its parent dies, ``RUNOUT_STOP_WITH_PARENT``); if the child has not ended :data:`KILL_AFTER_MS` later it
 gets SIGKILL. A child that dies without a ``finished`` line (killed, crashed) ends with status
 ``"killed"`` (by a signal) or ``"crashed"`` (an exit code) and a message saying so; its folder
 reads up to its last complete frame.
@@ -143,7 +144,6 @@ class RunProcess(QObject):
         self._tmp: Path | None = None
         self._kill_timer = QTimer(self)
         self._kill_timer.setSingleShot(True)
-        self._kill_timer.setInterval(KILL_AFTER_MS)
         self._kill_timer.timeout.connect(self.kill)
 
     # -- control --------------------------------------------------------------------------------
@@ -172,6 +172,8 @@ class RunProcess(QObject):
         env.insert("PYTHONPATH", os.pathsep.join(dict.fromkeys(paths)))
         env.insert("PYTHONUNBUFFERED", "1")
         env.insert("ENABLE_TAICHI_HEADER_PRINT", "0")
+        # the run stops (SIGTERM, a "stopped" folder) if the workbench dies without stopping it
+        env.insert("RUNOUT_STOP_WITH_PARENT", str(os.getpid()))
         self.process.setProcessEnvironment(env)
         self.process.setWorkingDirectory(str(self._tmp))
         self.started_at = time.perf_counter()
@@ -194,7 +196,7 @@ class RunProcess(QObject):
         if self.process.state() != QProcess.ProcessState.NotRunning:
             self.process.terminate()  # SIGTERM on POSIX
             if not self._kill_timer.isActive():
-                self._kill_timer.start()
+                self._kill_timer.start(KILL_AFTER_MS)
 
     def kill(self) -> None:
         """End the child at once (SIGKILL); its folder stays readable up to its last frame."""

@@ -1,10 +1,13 @@
 """The 2D model view: background grid, domain box with its boundary conditions, bodies coloured
-by material, a preview of the seeded particles, and drawing and editing of body polygons.
+by material, rigid structures (grey, hatched, labelled with their contact), targets (vertical
+lines or markers with their names), a preview of the seeded particles, and drawing and editing
+of body and structure polygons.
 
-Mouse, in the *select* mode: click a body to select it, drag one of its vertices (snapped to the
-grid when snapping is on), drag empty space to pan, wheel or right-drag to zoom. In the *draw*
-mode every click adds a vertex; clicking the first vertex again, double-clicking or Enter closes
-the polygon into a new body; Backspace removes the last vertex and Escape cancels. Delete
+Mouse, in the *select* mode: click a body or structure to select it, drag one of its vertices
+(snapped to the grid when snapping is on), click and drag a target to move it, drag empty space
+to pan, wheel or right-drag to zoom. In the *draw* mode every click adds a vertex; clicking the
+first vertex again, double-clicking or Enter closes the polygon into a new body (or structure,
+see :meth:`SceneView.set_mode`); Backspace removes the last vertex and Escape cancels. Delete
 removes the selected vertex. Problems of a shape (crossing edges, vertices outside the domain)
 are drawn in red where they are.
 
@@ -23,7 +26,8 @@ from PySide6.QtCore import QEvent, QObject, QPointF, Qt, QTimer, Signal
 from PySide6.QtGui import QKeyEvent, QMouseEvent
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
-from app.gui.document import ProjectDocument
+from app.gui.document import POLYGON_KINDS, ProjectDocument
+from app.gui.object_panels import STRUCTURE_COLOR, TARGET_COLOR, contact_text
 from app.gui.panels import material_color
 
 logger = logging.getLogger(__name__)
@@ -68,6 +72,38 @@ def _points3(xy: np.ndarray, z: float = 0.0) -> np.ndarray:
     out[:, :2] = xy
     out[:, 2] = z
     return out
+
+
+def _hatch(poly: np.ndarray, step_m: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Diagonal (45°) hatching lines of a simple polygon, ``step_m`` apart (shapely clips them)."""
+    from shapely.geometry import LineString, Polygon
+
+    shape = Polygon(poly)
+    if not shape.is_valid or shape.area <= 0 or step_m <= 0:
+        return []
+    x0, y0, x1, y1 = shape.bounds
+    span = (x1 - x0) + (y1 - y0)
+    out = []
+    for c in np.arange(x0 - (y1 - y0), x1 + step_m, step_m):  # lines x - y = c - y0 ... as x = c + (y - y0)
+        piece = shape.intersection(LineString([(c, y0), (c + span, y0 + span)]))
+        parts = getattr(piece, "geoms", [piece])
+        for part in parts:
+            coords = np.asarray(getattr(part, "coords", []), dtype=float)
+            if len(coords) >= 2:
+                out.append((coords[0], coords[-1]))
+    return out
+
+
+def target_place(target: Any) -> tuple[float, float | None] | None:
+    """(x, y) of a point target, (x, None) of a line target, None when it has no valid place."""
+    point = target.get("point_m") if isinstance(target, dict) else None
+    if point is not None:
+        pts = _as_points([point])
+        return None if pts is None else (float(pts[0, 0]), float(pts[0, 1]))
+    x = target.get("x_m") if isinstance(target, dict) else None
+    if isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x):
+        return float(x), None
+    return None
 
 
 def _left(event: QEvent) -> bool:
@@ -122,8 +158,10 @@ class SceneView(QWidget):
         self.snap = True
         self.show_particles = True
         self.draft: list[list[float]] = []
+        #: what a drawn polygon becomes: "bodies" or "structures"
+        self.draw_kind = "bodies"
         self._cursor: np.ndarray | None = None
-        self._drag: tuple[int, int] | None = None
+        self._drag: tuple[str, int, int | None] | None = None
         self._drag_count = 0
         self._fitted_domain: Any = None
         self._auto_fit = True
@@ -242,9 +280,9 @@ class SceneView(QWidget):
         every = sections is None
         if every or "domain" in sections:
             self._draw_domain()
-        if every or sections & {"domain", "bodies", "materials"}:
+        if every or sections & {"domain", "bodies", "materials", "structures", "targets"}:
             self._draw_bodies()
-        if every or sections & {"domain", "bodies", "particles", "materials"}:
+        if every or sections & {"domain", "bodies", "particles", "materials", "structures"}:
             self._preview_timer.start()
         box = self._domain_box()
         if box is not None and box != self._fitted_domain:
@@ -298,73 +336,159 @@ class SceneView(QWidget):
         names = self.doc.material_names
         return names.index(name) if name in names else -1
 
+    def _polygons(self, kind: str) -> list[dict[str, Any]]:
+        items = self.doc.get(kind, [])
+        return [it for it in items if isinstance(it, dict)] if isinstance(items, list) else []
+
     def _draw_bodies(self) -> None:
+        """Bodies (filled by material), structures (grey, hatched), shape problems and the selection."""
         import pyvista as pv
 
         from geometry.polygons import self_intersections
 
         pl = self.plotter
         for name in ("fills", "outlines", "bad-edges", "bad-points", "vertices", "vertex", "draft",
-                     "draft-points", "legend"):
+                     "draft-points", "legend", "structure-fills", "structure-hatch", "structure-outlines",
+                     "structure-labels-labels"):  # add_point_labels names its actor NAME-labels
             pl.remove_actor(name, render=False)
-        bodies = self.doc.get("bodies", [])
-        fills, outlines, bad_segments, bad_points = [], [], [], []
+        fills: dict[str, list[Any]] = {kind: [] for kind in POLYGON_KINDS}
+        outlines: dict[str, list[Any]] = {kind: [] for kind in POLYGON_KINDS}
+        bad_segments, bad_points, hatch, labels, label_points = [], [], [], [], []
         box = self._domain_box()
-        for i, body in enumerate(bodies):
-            poly = _as_points(body.get("polygon_m"))
-            if poly is None or len(poly) < 2:
-                continue
-            color = _rgb(material_color(self._material_index(body.get("material"))))
-            if len(poly) >= 3:
-                try:
-                    crossings = self_intersections(poly)
-                except ValueError:
-                    crossings = []
-                for a, b in crossings:
-                    for e in (a, b):
-                        bad_segments.append((poly[e], poly[(e + 1) % len(poly)]))
-                face = pv.PolyData(_points3(poly, -0.01), faces=np.r_[len(poly), np.arange(len(poly))])
-                if not crossings:
+        for kind in POLYGON_KINDS:
+            for i, item in enumerate(self._polygons(kind)):
+                poly = _as_points(item.get("polygon_m"))
+                if poly is None or len(poly) < 2:
+                    continue
+                if kind == "bodies":
+                    color = _rgb(material_color(self._material_index(item.get("material"))))
+                else:
+                    color = _rgb(STRUCTURE_COLOR)
+                if len(poly) >= 3:
                     try:
-                        face = face.triangulate()
-                    except (RuntimeError, ValueError):
-                        logger.debug("could not triangulate body %d", i)
-                face.cell_data["rgb"] = np.tile(np.array(color) * 255, (face.n_cells, 1)).astype(np.uint8)
-                fills.append(face)
-            ring = np.vstack([poly, poly[:1]])
-            outlines.extend((ring[k], ring[k + 1]) for k in range(len(poly)))
-            if box is not None:
-                outside = (poly[:, 0] < box[0] - 1e-9) | (poly[:, 0] > box[1] + 1e-9) | \
-                          (poly[:, 1] < box[2] - 1e-9) | (poly[:, 1] > box[3] + 1e-9)
-                bad_points.extend(poly[outside])
-        if fills:
-            merged = fills[0].merge(fills[1:]) if len(fills) > 1 else fills[0]
-            self._add(merged, scalars="rgb", rgb=True, opacity=0.3, name="fills", show_scalar_bar=False,
-                        render=False, lighting=False)
-        if outlines:
-            self._add(_lines(outlines), color="#3c4043", line_width=1.5, name="outlines", render=False,
-                        lighting=False)
+                        crossings = self_intersections(poly)
+                    except ValueError:
+                        crossings = []
+                    for a, b in crossings:
+                        for e in (a, b):
+                            bad_segments.append((poly[e], poly[(e + 1) % len(poly)]))
+                    z = -0.01 if kind == "bodies" else -0.005
+                    face = pv.PolyData(_points3(poly, z), faces=np.r_[len(poly), np.arange(len(poly))])
+                    if not crossings:
+                        try:
+                            face = face.triangulate()
+                        except (RuntimeError, ValueError):
+                            logger.debug("could not triangulate %s %d", kind, i)
+                        if kind == "structures":
+                            hatch.extend(_hatch(poly, self._hatch_step(poly)))
+                    face.cell_data["rgb"] = np.tile(np.array(color) * 255, (face.n_cells, 1)).astype(np.uint8)
+                    fills[kind].append(face)
+                ring = np.vstack([poly, poly[:1]])
+                outlines[kind].extend((ring[k], ring[k + 1]) for k in range(len(poly)))
+                if kind == "structures":
+                    top = poly[np.argmax(poly[:, 1])]
+                    labels.append(f"{item.get('name', '?')} ({contact_text(item.get('contact'))})")
+                    lift = 0.02 * (box[3] - box[2]) if box is not None else 0.0
+                    label_points.append([float(np.mean(poly[:, 0])), float(top[1]) + lift, 0.05])
+                if box is not None:
+                    outside = (poly[:, 0] < box[0] - 1e-9) | (poly[:, 0] > box[1] + 1e-9) | \
+                              (poly[:, 1] < box[2] - 1e-9) | (poly[:, 1] > box[3] + 1e-9)
+                    bad_points.extend(poly[outside])
+        for kind, prefix, opacity in (("structures", "structure-", 0.75), ("bodies", "", 0.3)):
+            if fills[kind]:
+                merged = fills[kind][0].merge(fills[kind][1:]) if len(fills[kind]) > 1 else fills[kind][0]
+                self._add(merged, scalars="rgb", rgb=True, opacity=opacity, name=f"{prefix}fills",
+                          show_scalar_bar=False, render=False, lighting=False)
+            if outlines[kind]:
+                self._add(_lines(outlines[kind]), color="#3c4043" if kind == "bodies" else "#5f6368",
+                          line_width=1.5 if kind == "bodies" else 2.0, name=f"{prefix}outlines", render=False,
+                          lighting=False)
+        if hatch:
+            self._add(_lines(hatch), color="#5f6368", line_width=1, name="structure-hatch", render=False,
+                      lighting=False, pickable=False)
+        if labels:
+            pl.add_point_labels(np.array(label_points), labels, name="structure-labels", font_size=10,
+                                text_color="#3c4043", shape=None, show_points=False, always_visible=True,
+                                render=False, reset_camera=False, justification_horizontal="center",
+                                justification_vertical="bottom")
         if bad_segments:
             self._add(_lines(bad_segments), color=PROBLEM_COLOR, line_width=4, name="bad-edges", render=False,
                         lighting=False)
         if bad_points:
             self._add(pv.PolyData(_points3(np.array(bad_points), 0.02)), color=PROBLEM_COLOR, point_size=14,
                         render_points_as_spheres=True, name="bad-points", render=False)
-        sel = self.doc.selection.body
-        if sel is not None and sel < len(bodies):
-            poly = _as_points(bodies[sel].get("polygon_m"))
+        sel = self.doc.selection
+        items = self._polygons(sel.kind) if sel.kind in POLYGON_KINDS else []
+        if sel.index is not None and sel.index < len(items):
+            poly = _as_points(items[sel.index].get("polygon_m"))
             if poly is not None and len(poly):
                 ring = np.vstack([poly, poly[:1]])
                 seg = [(ring[k], ring[k + 1]) for k in range(len(poly))]
                 self._add(_lines(seg), color="#202124", line_width=3, name="draft", render=False, lighting=False)
                 self._add(pv.PolyData(_points3(poly, 0.03)), color="white", point_size=10,
                             render_points_as_spheres=True, name="vertices", render=False)
-                v = self.doc.selection.vertex
+                v = sel.vertex
                 if v is not None and v < len(poly):
                     self._add(pv.PolyData(_points3(poly[v:v + 1], 0.04)), color="#fbbc04", point_size=15,
                                 render_points_as_spheres=True, name="vertex", render=False)
+        self._draw_targets()
         self._update_legend()
         self._draw_draft()
+
+    def _hatch_step(self, poly: np.ndarray) -> float:
+        """The spacing of a structure's hatching, m: about 1/60 of the domain's larger side, closer
+        in a structure too thin for three lines at that spacing (down to 1/400 of the domain)."""
+        box = self._domain_box()
+        size = max(box[1] - box[0], box[3] - box[2]) if box is not None else 1.0
+        extent = float(np.min(np.ptp(poly, axis=0)))
+        return max(min(size / 60.0, extent / 3.0), size / 400.0)
+
+    def _draw_targets(self) -> None:
+        """Line targets as vertical lines over the domain's height, point targets as markers, with names."""
+        import pyvista as pv
+
+        pl = self.plotter
+        for name in ("target-lines", "target-points", "target-labels-labels", "target-selected"):
+            pl.remove_actor(name, render=False)
+        box = self._domain_box()
+        if box is None:
+            return
+        lines, points, labels, label_points, selected = [], [], [], [], []
+        pad = 0.02 * (box[3] - box[2])
+        for i, target in enumerate(self._polygons("targets")):
+            where = target_place(target)
+            if where is None:
+                continue
+            x, y = where
+            name = str(target.get("name", "?"))
+            if y is None:
+                segment = (np.array([x, box[2]]), np.array([x, box[3]]))
+                lines.append(segment)
+                label_points.append([x, box[3] + pad, 0.05])
+            else:
+                segment = None
+                points.append([x, y])
+                label_points.append([x, y + pad, 0.05])
+            labels.append(name)
+            if self.doc.selection.target == i:
+                selected.append((segment, (x, y)))
+        if lines:
+            self._add(_lines(lines), color=TARGET_COLOR, line_width=2, name="target-lines", render=False,
+                      lighting=False)
+        if points:
+            self._add(pv.PolyData(_points3(np.array(points), 0.04)), color=TARGET_COLOR, point_size=12,
+                      render_points_as_spheres=True, name="target-points", render=False)
+        if labels:
+            pl.add_point_labels(np.array(label_points), labels, name="target-labels", font_size=10,
+                                text_color=TARGET_COLOR, shape=None, show_points=False, always_visible=True,
+                                render=False, reset_camera=False, justification_horizontal="center")
+        for segment, (x, y) in selected:
+            if segment is not None:
+                self._add(_lines([segment]), color="#fbbc04", line_width=5, name="target-selected", render=False,
+                          lighting=False)
+            else:
+                self._add(pv.PolyData(_points3(np.array([[x, y]]), 0.045)), color="#fbbc04", point_size=17,
+                          render_points_as_spheres=True, name="target-selected", render=False)
 
     def _update_legend(self) -> None:
         names = self.doc.material_names
@@ -373,10 +497,18 @@ class SceneView(QWidget):
         sides = "".join(
             f'&nbsp;&nbsp;<span style="color:{c}">━</span>&nbsp;{k}' for k, (c, _w) in BOUNDARY_STYLE.items())
         count = len(self.doc.get("bodies", []))
+        extra = ""
+        structures, targets = len(self._polygons("structures")), len(self._polygons("targets"))
+        if structures:
+            extra += (f' &nbsp;<span style="color:{STRUCTURE_COLOR}; font-size:14px">▨</span>&nbsp;'
+                      f'{structures} structure{"" if structures == 1 else "s"}')
+        if targets:
+            extra += (f' &nbsp;<span style="color:{TARGET_COLOR}">┃</span>&nbsp;'
+                      f'{targets} target{"" if targets == 1 else "s"}')
         grid = f"&nbsp;&nbsp;&nbsp;&nbsp;grid lines every {self.grid_step} cells" if self.grid_step > 1 else ""
         self.legend.setText(f"<b>Materials</b>&nbsp; {'&nbsp;&nbsp;'.join(parts) or 'none'}"
-                            f"&nbsp;&nbsp;&nbsp;&nbsp;<b>Boundaries</b>{sides}"
-                            f"&nbsp;&nbsp;&nbsp;&nbsp;{count} bod{'y' if count == 1 else 'ies'}"
+                            f" &nbsp;&nbsp;&nbsp;<b>Boundaries</b>{sides}"
+                            f" &nbsp;&nbsp;&nbsp;{count} bod{'y' if count == 1 else 'ies'}{extra}"
                             + (f", {self.preview_count:,} particles" if self.show_particles and self.preview_count
                                else "")
                             + grid)
@@ -481,16 +613,23 @@ class SceneView(QWidget):
 
     # -- modes --------------------------------------------------------------------------------
 
-    def set_mode(self, mode: str) -> None:
-        """``"select"`` (pick, drag vertices, pan) or ``"draw"`` (click vertices of a new body)."""
-        if mode == self.mode:
+    def set_mode(self, mode: str, kind: str | None = None) -> None:
+        """``"select"`` (pick, drag vertices, pan) or ``"draw"`` (click vertices of a new polygon of
+        ``kind``: ``"bodies"`` or ``"structures"``; by default what is being drawn, else a body)."""
+        if kind is None:
+            kind = self.draw_kind if mode == self.mode else "bodies"
+        if kind not in POLYGON_KINDS:
+            raise ValueError(f"cannot draw {kind!r}: one of {', '.join(POLYGON_KINDS)}")
+        if mode == self.mode and kind == self.draw_kind:
             return
+        self.draw_kind = kind
         self.mode = mode
         self.draft = []
         self._cursor = None
         self.plotter.setCursor(Qt.CursorShape.CrossCursor if mode == "draw" else Qt.CursorShape.ArrowCursor)
         if mode == "draw":
-            self.message.emit("Click to add vertices; click the first vertex, double-click or Enter to close; "
+            noun = "body" if kind == "bodies" else "structure"
+            self.message.emit(f"Drawing a {noun}. Click to add vertices; click the first vertex, double-click or Enter to close; "
                               "Backspace removes the last, Esc cancels")
         self._draw_draft()
         self.plotter.render()
@@ -502,22 +641,26 @@ class SceneView(QWidget):
     def snapped(self, xy: np.ndarray, moving: tuple[int, int] | None = None) -> np.ndarray:
         """Snap to a nearby vertex of a body (shared edges), else to the grid when snapping is on.
 
-        ``moving`` (body, vertex) is the vertex being dragged, which must not snap to itself.
+        ``moving`` (body, vertex) or (kind, index, vertex) is the vertex being dragged, which must
+        not snap to itself. Vertices of bodies and structures are snapped to alike.
         """
         tol = PICK_PIXELS * self.pixel_size_m()
-        for i, body in enumerate(self.doc.get("bodies", [])):
-            poly = _as_points(body.get("polygon_m"))
-            if poly is None or not len(poly):
-                continue
-            d = np.hypot(*(poly - xy).T)
-            if moving is not None and moving[0] == i:
-                # its own neighbours are not targets either: snapping onto them collapses an edge
-                count = len(poly)
-                for k in (moving[1] - 1, moving[1], moving[1] + 1):
-                    d[k % count] = np.inf
-            k = int(np.argmin(d))
-            if d[k] <= tol:
-                return poly[k].copy()
+        if moving is not None and len(moving) == 2:
+            moving = ("bodies", *moving)
+        for kind in POLYGON_KINDS:
+            for i, body in enumerate(self._polygons(kind)):
+                poly = _as_points(body.get("polygon_m"))
+                if poly is None or not len(poly):
+                    continue
+                d = np.hypot(*(poly - xy).T)
+                if moving is not None and moving[0] == kind and moving[1] == i:
+                    # its own neighbours are not targets either: snapping onto them collapses an edge
+                    count = len(poly)
+                    for k in (moving[2] - 1, moving[2], moving[2] + 1):
+                        d[k % count] = np.inf
+                k = int(np.argmin(d))
+                if d[k] <= tol:
+                    return poly[k].copy()
         if not self.snap:
             return xy
         cell = self.doc.get("domain.cell_size_m")
@@ -547,10 +690,13 @@ class SceneView(QWidget):
         self.plotter.render()
 
     def close_draft(self) -> bool:
-        """Turn the drawn polygon into a new body of the selected (or first) material."""
+        """Turn the drawn polygon into a new body of the selected (or first) material, or a new
+        structure (slip contact) when a structure is being drawn."""
         if len(self.draft) < 3:
-            self.message.emit("A body needs at least 3 vertices")
+            self.message.emit(f"A {'body' if self.draw_kind == 'bodies' else 'structure'} needs at least 3 vertices")
             return False
+        if self.draw_kind == "structures":
+            return self._close_structure()
         names = self.doc.material_names
         current = self.doc.selection.body
         bodies = self.doc.get("bodies", [])
@@ -568,58 +714,108 @@ class SceneView(QWidget):
         self.set_mode("select")
         return True
 
+    def _close_structure(self) -> bool:
+        items = self._polygons("structures")
+        taken = {b.get("name") for b in items}
+        k = len(items) + 1
+        while f"structure-{k}" in taken:
+            k += 1
+        item = {"name": f"structure-{k}", "polygon_m": [list(p) for p in self.draft], "contact": "slip"}
+        self.draft = []
+        self._cursor = None
+        self.doc.edit(f"draw structure {item['name']}", lambda d: d.setdefault("structures", []).append(item))
+        self.doc.selection.select("structures", len(self._polygons("structures")) - 1)
+        self.set_mode("select")
+        return True
+
     def cancel_draft(self) -> None:
         self.draft = []
         self._draw_draft()
         self.plotter.render()
 
-    def _nearest_vertex(self, xy: np.ndarray) -> tuple[int, int] | None:
+    def _nearest_vertex(self, xy: np.ndarray) -> tuple[str, int, int] | None:
+        """(kind, index, vertex) of the polygon vertex within a few pixels of ``xy``, or None."""
         tol = PICK_PIXELS * self.pixel_size_m()
-        bodies = self.doc.get("bodies", [])
-        order = list(range(len(bodies)))
-        sel = self.doc.selection.body
-        if sel is not None and sel in order:  # the selected body wins ties
-            order.remove(sel)
-            order.insert(0, sel)
-        best: tuple[float, int, int] | None = None
-        for i in order:
-            poly = _as_points(bodies[i].get("polygon_m"))
+        order = [(kind, i) for kind in POLYGON_KINDS for i in range(len(self._polygons(kind)))]
+        sel = self.doc.selection
+        if (sel.kind, sel.index) in order:  # the selected polygon wins ties
+            order.remove((sel.kind, sel.index))
+            order.insert(0, (sel.kind, sel.index))
+        best: tuple[float, str, int, int] | None = None
+        for kind, i in order:
+            poly = _as_points(self._polygons(kind)[i].get("polygon_m"))
             if poly is None or not len(poly):
                 continue
             d = np.hypot(*(poly - xy).T)
             k = int(np.argmin(d))
             if d[k] <= tol and (best is None or d[k] < best[0] - 1e-12):
-                best = (float(d[k]), i, k)
-        return None if best is None else (best[1], best[2])
+                best = (float(d[k]), kind, i, k)
+        return None if best is None else (best[1], best[2], best[3])
 
-    def _body_at(self, xy: np.ndarray) -> int | None:
+    def _polygon_at(self, xy: np.ndarray) -> tuple[str, int] | None:
+        """(kind, index) of the body (on top) or else structure under ``xy``."""
         from geometry.polygons import points_in_polygon
 
-        bodies = self.doc.get("bodies", [])
-        for i in reversed(range(len(bodies))):  # the later body is painted on top
-            poly = _as_points(bodies[i].get("polygon_m"))
-            if poly is not None and len(poly) >= 3:
-                try:
-                    if bool(points_in_polygon(xy[None, :], poly)[0]):
-                        return i
-                except ValueError:
-                    continue
+        for kind in POLYGON_KINDS:
+            items = self._polygons(kind)
+            for i in reversed(range(len(items))):  # the later body is painted on top
+                poly = _as_points(items[i].get("polygon_m"))
+                if poly is not None and len(poly) >= 3:
+                    try:
+                        if bool(points_in_polygon(xy[None, :], poly)[0]):
+                            return kind, i
+                    except ValueError:
+                        continue
         return None
 
-    def move_vertex(self, body: int, vertex: int, xy: Any, merge_key: str | None = None) -> None:
+    def _body_at(self, xy: np.ndarray) -> int | None:
+        hit = self._polygon_at(xy)
+        return hit[1] if hit is not None and hit[0] == "bodies" else None
+
+    def _target_at(self, xy: np.ndarray) -> int | None:
+        """The target whose line or marker is within a few pixels of ``xy``."""
+        tol = PICK_PIXELS * self.pixel_size_m()
+        best: tuple[float, int] | None = None
+        for i, target in enumerate(self._polygons("targets")):
+            where = target_place(target)
+            if where is None:
+                continue
+            d = abs(xy[0] - where[0]) if where[1] is None else float(np.hypot(xy[0] - where[0], xy[1] - where[1]))
+            if d <= tol and (best is None or d < best[0]):
+                best = (d, i)
+        return None if best is None else best[1]
+
+    def move_target(self, index: int, xy: Any, merge_key: str | None = None) -> None:
+        """Move target ``index`` to ``xy`` (a line target only along x)."""
         x, y = float(xy[0]), float(xy[1])
 
         def mutate(d: dict[str, Any]) -> None:
-            d["bodies"][body]["polygon_m"][vertex] = [x, y]
+            target = d["targets"][index]
+            if target.get("point_m") is not None:
+                target["point_m"] = [x, y]
+            else:
+                target["x_m"] = x
 
-        name = self.doc.get(f"bodies.{body}.name", body)
+        name = self.doc.get(f"targets.{index}.name", index)
+        self.doc.edit(f"move target {name}", mutate, merge_key)
+
+    def move_vertex(self, body: int, vertex: int, xy: Any, merge_key: str | None = None,
+                    kind: str = "bodies") -> None:
+        """Move vertex ``vertex`` of polygon ``body`` of ``kind`` (bodies or structures) to ``xy``."""
+        x, y = float(xy[0]), float(xy[1])
+
+        def mutate(d: dict[str, Any]) -> None:
+            d[kind][body]["polygon_m"][vertex] = [x, y]
+
+        name = self.doc.get(f"{kind}.{body}.name", body)
         self.doc.edit(f"move vertex {vertex} of {name}", mutate, merge_key)
 
     def delete_selected_vertex(self) -> None:
-        body, vertex = self.doc.selection.body, self.doc.selection.vertex
-        if body is None or vertex is None:
+        sel = self.doc.selection
+        kind, index, vertex = sel.kind, sel.index, sel.vertex
+        if kind not in POLYGON_KINDS or index is None or vertex is None:
             return
-        self.doc.edit("delete vertex", lambda d: d["bodies"][body]["polygon_m"].pop(vertex))
+        self.doc.edit("delete vertex", lambda d: d[kind][index]["polygon_m"].pop(vertex))
 
     # -- Qt events ------------------------------------------------------------------------------
 
@@ -653,8 +849,12 @@ class SceneView(QWidget):
         xy = self.widget_to_world(event.position())
         self.cursorMoved.emit(float(xy[0]), float(xy[1]))
         if self._drag is not None:
-            body, vertex = self._drag
-            self.move_vertex(body, vertex, self.snapped(xy, moving=self._drag), merge_key=f"drag-{self._drag_count}")
+            kind, index, vertex = self._drag
+            key = f"drag-{self._drag_count}"
+            if kind == "targets":
+                self.move_target(index, self.snapped(xy), merge_key=key)
+            else:
+                self.move_vertex(index, vertex, self.snapped(xy, moving=self._drag), merge_key=key, kind=kind)
             return True
         if self.mode == "draw" and self.draft:
             self._cursor = self.snapped(xy)
@@ -670,13 +870,19 @@ class SceneView(QWidget):
             return True
         hit = self._nearest_vertex(xy)
         if hit is not None:
-            self.doc.selection.set(*hit)
+            self.doc.selection.select(*hit)
             self._drag = hit
             self._drag_count += 1
             return True
-        body = self._body_at(xy)
-        if body is not None:
-            self.doc.selection.set(body)
+        target = self._target_at(xy)
+        if target is not None:
+            self.doc.selection.select("targets", target)
+            self._drag = ("targets", target, None)
+            self._drag_count += 1
+            return True
+        polygon = self._polygon_at(xy)
+        if polygon is not None:
+            self.doc.selection.select(*polygon)
             return False  # a drag from inside a body still pans
         self.doc.selection.set(None)
         return False

@@ -52,7 +52,7 @@ def test_a_run_is_a_child_process_shown_live_from_its_folder(window, tiny_file, 
     # the throughput of this run feeds the next estimate
     rate, measured = window.settings.throughput("cpu")
     assert measured and rate == pytest.approx(result.summary["particle_steps_per_s"])
-    assert "measured on this machine" in window.run_panel.runtime.text()
+    assert "measured on this machine" in window.run_panel.rate_info.text()
     # the folder holds results now: a new run asks before replacing them
     asked = []
     window.ask_replace_results = lambda path: (asked.append(path), "cancel")[1]
@@ -187,3 +187,93 @@ def test_a_field_shown_red_blocks_the_run_and_names_the_field(window, tiny_file)
     assert "Density (materials.sand.density_kg_m3)" in errors[0][1]
     density.set_text("1900")
     assert window.invalid_fields() == []
+
+
+class _FakeRun:
+    """A RunProcess whose child is a small script instead of ``runout run``."""
+
+    @staticmethod
+    def make(script: str, tmp_path):
+        from app.gui.run_process import RunProcess
+
+        class Fake(RunProcess):
+            def command(self):
+                import tempfile
+                from pathlib import Path
+
+                self._tmp = Path(tempfile.mkdtemp(prefix="runout-run-test-"))
+                return [sys.executable, "-c", script]
+
+        return Fake("", tmp_path / "fake.results", "fake")
+
+
+def test_a_child_that_ignores_sigterm_gets_sigkill(qtbot, tmp_path, monkeypatch):
+    import app.gui.run_process as rp
+
+    monkeypatch.setattr(rp, "KILL_AFTER_MS", 300)
+    script = ("import json, signal, sys, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
+              "print(json.dumps({'event': 'started', 'out_dir': 'x', 'particles': 1, 'total_time_s': 1.0}), "
+              "flush=True); time.sleep(120)")
+    run = _FakeRun.make(script, tmp_path)
+    run.start()
+    qtbot.waitUntil(lambda: run.started_event is not None, timeout=30_000)
+    run.cancel()
+    qtbot.waitUntil(lambda: run.outcome is not None, timeout=30_000)
+    assert run.outcome.status == "killed"
+    assert run.outcome.message.startswith("the run process was killed by SIGKILL after the cancel request")
+    assert not run._tmp.exists()  # the temporary project folder is removed
+
+
+def test_a_child_that_crashes_reports_its_last_words(qtbot, tmp_path):
+    script = "import sys; print('Fatal Python error: Segmentation fault', file=sys.stderr); sys.exit(139)"
+    run = _FakeRun.make(script, tmp_path)
+    run.start()
+    qtbot.waitUntil(lambda: run.outcome is not None, timeout=30_000)
+    assert run.outcome.status == "crashed" and run.outcome.exit_code == 139
+    assert run.outcome.message == ("the run process ended with exit code 139: "
+                                   "Fatal Python error: Segmentation fault")
+
+
+ORPHAN_PARENT = """
+import sys, time
+from PySide6.QtCore import QCoreApplication
+from app.gui.run_process import RunProcess
+app = QCoreApplication([])
+run = RunProcess(open(sys.argv[1]).read(), sys.argv[2], "orphan")
+run.runStarted.connect(lambda e: print(run.pid, flush=True))
+run.start()
+app.exec()
+"""
+
+
+def test_a_run_stops_when_the_workbench_dies(long_file, tmp_path):
+    """The workbench killed with SIGKILL (no chance to stop its runs): its run gets SIGTERM
+    and closes its folder as "stopped", instead of going on as an orphan."""
+    import json
+    import subprocess
+
+    from tests.conftest import REPO
+
+    out = tmp_path / "orphan.results"
+    env = dict(os.environ, PYTHONPATH=str(REPO), QT_QPA_PLATFORM="offscreen")
+    parent = subprocess.Popen([sys.executable, "-c", ORPHAN_PARENT, str(long_file), str(out)],
+                              stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        child = int(parent.stdout.readline())
+    finally:
+        parent.kill()
+        parent.wait(30)
+    import time
+
+    start = time.monotonic()
+    try:
+        while time.monotonic() - start < 120.0:  # a deadline for a loaded machine, not a timing claim
+            os.kill(child, 0)
+            time.sleep(0.2)
+    except ProcessLookupError:
+        pass
+    else:
+        os.kill(child, signal.SIGKILL)
+    status = json.loads((out / "summary.json").read_text())
+    assert status["status"] == "stopped", status
+    assert "SIGTERM" in status["message"]

@@ -84,7 +84,7 @@ def test_the_run_panel_shows_what_a_preset_runs(window, tiny_file):
     window.open_project(tiny_file)
     panel = window.run_panel
     panel.update_estimate()
-    assert panel.cell.text().startswith("0.02 m")
+    assert panel.cell.text() == "0.02 m, 2² per cell"
     assert panel.numerics.text() == "apic-affine, time step 0.0002 s, f32"
     assert panel.preset_note.text() == ""
 

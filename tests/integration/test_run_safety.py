@@ -112,7 +112,7 @@ def test_real_world_coordinates_give_the_run_at_the_origin(tiny_project, tmp_pat
     np.testing.assert_allclose(rb.frame(-1)["displacement"], ra.frame(-1)["displacement"], rtol=0, atol=1e-6)
 
 
-@pytest.mark.parametrize("delay_s", [0.5, 1.5])
+@pytest.mark.parametrize("delay_s", [0.3, 0.6, 1.5])
 def test_ctrl_c_at_any_moment_of_the_start_is_one_line(tiny_project, tmp_path, delay_s):
     proc = subprocess.Popen(_cli("run", str(tiny_project), "--arch", "cpu", "-q", "--out", str(tmp_path / "r")),
                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env())
@@ -127,4 +127,6 @@ def test_ctrl_c_at_any_moment_of_the_start_is_one_line(tiny_project, tmp_path, d
         pytest.skip("the signal came while the Python interpreter itself was starting")
     assert "Traceback" not in stderr, stderr
     assert proc.returncode in (0, 1, 130), stderr  # 0: it finished before the signal came
-    assert len(stderr.strip().splitlines()) <= 2, stderr
+    assert stderr.count("error: ") <= 1, stderr
+    if proc.returncode == 130:
+        assert "interrupted" in stderr or "stopped" in stderr, stderr

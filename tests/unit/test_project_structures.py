@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from projects.build import build_simulation
+from projects.build import resolve
 from projects.document import dumps_project, loads_project
 from projects.schema import validate_project
 from solver.config import ContactForce, Diagnostics, Frame
@@ -64,7 +64,7 @@ def test_build_converts_structures_and_seeds_no_particle_inside_one():
     cut = {**WALL, "polygon_m": [[0.1, 0.0], [0.15, 0.0], [0.15, 0.1], [0.1, 0.1]]}
     data = with_structures(cut)
     data["domain"]["cell_size_m"] = 0.01
-    built = build_simulation(validate_project(data))
+    built = resolve(validate_project(data))
     (structure,) = built.config.structures
     assert structure.name == "wall" and structure.contact.kind == "friction"
     assert structure.contact.friction_angle_rad == pytest.approx(math.radians(20.0))

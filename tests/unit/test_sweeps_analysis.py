@@ -199,3 +199,26 @@ def test_a_run_past_its_timeout_is_recorded_as_error(tmp_path):
     assert data["status"] == "error" and data["message"] == "timed out after 1 s"
     assert data["wall_time_s"] < 30
     assert (tmp_path / "slow.toml").read_text(encoding="utf-8") == text
+
+
+def test_resume_reads_measures_asked_for_later_from_the_kept_results(tmp_path):
+    from sweeps.sweep import _load_record
+
+    runs = tmp_path / "runs"
+    write_results(runs / "abc", {"status": "completed", "wall_time_s": 2.0, "steps": 7})
+    rec = RunRecord("abc", "completed", "ok", 3.0, str(runs / "abc"), {"summary.steps": 7.0})
+    atomic_write(runs / "abc.json", json.dumps(rec.to_json()))
+    plan = RunPlan(0, {}, (), "abc", "text")
+    again = _load_record(runs, plan, ["summary.steps", "summary.wall_time_s"], None)
+    assert again is not None and again.reused
+    assert again.measures == {"summary.steps": 7.0, "summary.wall_time_s": 2.0}
+    assert json.loads((runs / "abc.json").read_text())["measures"]["summary.wall_time_s"] == 2.0
+    # an interrupted ("error") run is not reused; nor is one whose folder is gone when a measure is missing
+    atomic_write(runs / "abc.json", json.dumps(RunRecord("abc", "error", "killed").to_json()))
+    assert _load_record(runs, plan, ["summary.steps"], None) is None
+    atomic_write(runs / "abc.json", json.dumps(rec.to_json()))
+    import shutil
+
+    shutil.rmtree(runs / "abc")
+    assert _load_record(runs, plan, ["summary.steps"], None) is not None
+    assert _load_record(runs, plan, ["summary.status_code"], None) is None

@@ -1,0 +1,291 @@
+"""Panels of the objects placed in the scene besides bodies: rigid structures and hazard targets.
+
+A structure is a polygon edited exactly like a body (:class:`app.gui.panels.PolygonPanel`: drawn in
+the scene view, vertices dragged there or typed in the table) with a contact instead of a
+material. A target is a named vertical line (``x_m``) or point (``point_m``) whose hazard a run
+records (docs/project-format.md). Both panels only push edits to the document, so every change
+is one undo step and is saved with the project.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from PySide6.QtCore import Signal
+from PySide6.QtGui import QIcon
+from PySide6.QtWidgets import (
+    QComboBox,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLineEdit,
+    QListWidget,
+    QPushButton,
+    QWidget,
+)
+
+from app.gui.document import ProjectDocument, format_number, parse_number
+from app.gui.fields import NumberField, PairField, TextField
+from app.gui.panels import Panel, PolygonPanel, _form, swatch
+from projects.schema import CONTACT_TYPES
+
+logger = logging.getLogger(__name__)
+
+#: The colour of structures in the scene and results views (grey like :mod:`app.render`'s pictures).
+STRUCTURE_COLOR = "#b4b4b4"
+#: The colour of targets in the scene view.
+TARGET_COLOR = "#9334e6"
+
+
+def contact_kind(contact: Any) -> str:
+    """``"fixed"``, ``"slip"`` or ``"friction"`` of a contact as written (a string or a table)."""
+    if isinstance(contact, dict):
+        return str(contact.get("type", "?"))
+    return "slip" if contact is None else str(contact)
+
+
+def contact_text(contact: Any) -> str:
+    """A contact for a label: ``slip``, ``friction 20°``."""
+    kind = contact_kind(contact)
+    if kind == "friction" and isinstance(contact, dict):
+        return f"friction {format_number(contact.get('friction_angle_deg', '?'))}°"
+    return kind
+
+
+class StructuresPanel(PolygonPanel):
+    """Rigid structures (walls, barriers, bedrock): list, contact, friction angle and vertices.
+
+    Signals
+    -------
+    drawRequested()
+        The user wants to draw a new structure in the scene view.
+    """
+
+    KIND = "structures"
+    NOUN = "structure"
+    drawRequested = Signal()
+
+    def _buttons(self) -> list[QWidget]:
+        self.add_button = QPushButton("Add wall")
+        self.add_button.setToolTip("A vertical wall (2 cells wide, a quarter of the domain high) at the middle "
+                                   "of the base; edit its vertices in the table or drag them in the view")
+        self.add_button.clicked.connect(lambda: self.add_structure())
+        return [self.add_button]
+
+    def _form_rows(self, form: QFormLayout) -> None:
+        self.contact = QComboBox()
+        self.contact.addItems(list(CONTACT_TYPES))
+        self.contact.setAccessibleName("Structure contact")
+        self.contact.activated.connect(lambda _i: self.set_contact(self.contact.currentText()))
+        self.angle = NumberField(self.doc, None, "Structure friction angle", "°")
+        form.addRow("Contact", self.contact)
+        form.addRow("Friction angle", self.angle)
+        self.watch(self.angle)
+
+    def _label(self, item: dict[str, Any]) -> tuple[QIcon | None, str]:
+        return swatch(STRUCTURE_COLOR), f"{item.get('name', '?')}   ({contact_text(item.get('contact'))})"
+
+    def _bind_item(self, base: str | None) -> None:
+        self.contact.setEnabled(base is not None)
+        kind = contact_kind(self.doc.get(f"{base}.contact")) if base else "slip"
+        self.contact.setCurrentText(kind)
+        friction = base is not None and kind == "friction"
+        self.angle.set_path(f"{base}.contact.friction_angle_deg" if friction else None)
+        if not friction:
+            self.angle.edit.setText("")
+            self.angle.edit.setPlaceholderText("only with friction" if base else "")
+
+    # -- edits ------------------------------------------------------------------------------------
+
+    def add_structure(self, polygon: list[list[float]] | None = None, name: str | None = None,
+                      contact: Any = "slip") -> int:
+        """Append a structure (by default a wall in the middle of the base) and select it; its index."""
+        if polygon is None:
+            origin = self.doc.get("domain.origin_m", [0.0, 0.0])
+            size = self.doc.get("domain.size_m", [1.0, 1.0])
+            cell = self.doc.get("domain.cell_size_m", 0.1)
+            try:
+                x0 = float(origin[0]) + round(float(size[0]) / 2.0 / float(cell)) * float(cell)
+                y0, width, height = float(origin[1]), 2.0 * float(cell), float(size[1]) / 4.0
+            except (TypeError, ValueError, IndexError, ZeroDivisionError):
+                x0, y0, width, height = 0.0, 0.0, 0.1, 0.25
+            polygon = [[x0, y0], [x0 + width, y0], [x0 + width, y0 + height], [x0, y0 + height]]
+        item = {"name": name or self.free_name("structure"), "polygon_m": [list(map(float, p)) for p in polygon],
+                "contact": contact}
+        self.doc.edit(f"add structure {item['name']}", lambda d: d.setdefault("structures", []).append(item))
+        index = len(self._items()) - 1
+        self.doc.selection.select("structures", index)
+        return index
+
+    def set_contact(self, kind: str) -> bool:
+        """Give the selected structure the contact ``kind`` (friction starts at 20° or the old angle)."""
+        sel = self.selected
+        if sel is None or kind not in CONTACT_TYPES:
+            return False
+        old = self.doc.get(f"structures.{sel}.contact")
+        if contact_kind(old) == kind:
+            return False
+        value: Any = {"type": "friction", "friction_angle_deg": 20.0} if kind == "friction" else kind
+        return self.doc.set_value(f"structures.{sel}.contact", value,
+                                  f"set {self._items()[sel].get('name', sel)} contact to {kind}")
+
+    def set_friction_angle(self, angle_deg: float) -> bool:
+        sel = self.selected
+        if sel is None or contact_kind(self.doc.get(f"structures.{sel}.contact")) != "friction":
+            return False
+        return self.doc.set_value(f"structures.{sel}.contact.friction_angle_deg", float(angle_deg),
+                                  "change structure friction angle")
+
+
+class TargetsPanel(Panel):
+    """Hazard targets: named vertical lines (a road, a gauge) or points (a house wall), added by
+    their coordinates, renamed, moved and removed; the selection is shared with the scene view."""
+
+    def __init__(self, doc: ProjectDocument, parent: QWidget | None = None) -> None:
+        super().__init__(doc, parent)
+        self.list = QListWidget()
+        self.list.setMaximumHeight(130)
+        self.list.currentRowChanged.connect(self._row_chosen)
+        self.layout_.addWidget(self.list)
+
+        box = QGroupBox("Add a target")
+        row = QHBoxLayout(box)
+        self.new_kind = QComboBox()
+        self.new_kind.addItems(["vertical line", "point"])
+        self.new_kind.setAccessibleName("New target kind")
+        self.new_kind.currentTextChanged.connect(lambda t: self.new_y.setEnabled(t == "point"))
+        self.new_x = QLineEdit()
+        self.new_x.setPlaceholderText("x (m)")
+        self.new_x.setAccessibleName("New target x")
+        self.new_y = QLineEdit()
+        self.new_y.setPlaceholderText("y (m)")
+        self.new_y.setAccessibleName("New target y")
+        self.new_y.setEnabled(False)
+        self.add_button = QPushButton("Add")
+        self.add_button.clicked.connect(self._add_typed)
+        for w in (self.new_kind, self.new_x, self.new_y, self.add_button):
+            row.addWidget(w)
+        self.layout_.addWidget(box)
+
+        box, form = _form("Selected target")
+        self.name = TextField(doc, None, "Target name")
+        self.x = NumberField(doc, None, "Target x", "m")
+        self.point = PairField(doc, None, "Target point", "m", names=("x", "y"))
+        form.addRow("Name", self.name)
+        form.addRow("Line at x", self.x)
+        form.addRow("Point", self.point)
+        self.layout_.addWidget(box)
+        self.remove_button = QPushButton("Remove")
+        self.remove_button.clicked.connect(self.remove_target)
+        self.layout_.addWidget(self.remove_button)
+        self.watch(self.name, self.x, self.point)
+        self.finish()
+        self._filling = False
+        doc.selection.changed.connect(self._fill)
+        self._fill()
+
+    @property
+    def selected(self) -> int | None:
+        return self.doc.selection.target
+
+    def _targets(self) -> list[dict[str, Any]]:
+        items = self.doc.get("targets", [])
+        return items if isinstance(items, list) else []
+
+    def _row_chosen(self, row: int) -> None:
+        if not self._filling:
+            if row >= 0:
+                self.doc.selection.select("targets", row)
+            elif self.selected is not None:
+                self.doc.selection.select("targets", None)
+
+    def _on_changed(self, sections: frozenset) -> None:
+        if sections & {"targets", "domain"}:
+            self._fill()
+
+    @staticmethod
+    def describe(target: dict[str, Any]) -> str:
+        """``road   (line at x = 0.4 m)``, ``house   (point 0.55, 0.02 m)``."""
+        name = target.get("name", "?")
+        point = target.get("point_m")
+        if isinstance(point, list) and len(point) == 2:
+            return f"{name}   (point {format_number(point[0])}, {format_number(point[1])} m)"
+        return f"{name}   (line at x = {format_number(target.get('x_m', '?'))} m)"
+
+    def _fill(self) -> None:
+        self._filling = True
+        try:
+            targets = self._targets()
+            self.list.clear()
+            for target in targets:
+                self.list.addItem(self.describe(target))
+            sel = self.selected
+            self.list.setCurrentRow(sel if sel is not None else -1)
+            base = f"targets.{sel}" if sel is not None else None
+            is_point = base is not None and self.doc.get(f"{base}.point_m") is not None
+            self.name.set_path(f"{base}.name" if base else None)
+            self.x.set_path(f"{base}.x_m" if base and not is_point else None)
+            self.point.set_path(f"{base}.point_m" if is_point else None)
+            if base is None or is_point:
+                self.x.edit.setText("")
+            if not is_point:
+                for edit in self.point.edits:
+                    edit.setText("")
+            self.remove_button.setEnabled(base is not None)
+        finally:
+            self._filling = False
+
+    # -- edits ------------------------------------------------------------------------------------
+
+    def _free_name(self) -> str:
+        taken = {t.get("name") for t in self._targets()}
+        k = len(taken) + 1
+        while f"target-{k}" in taken:
+            k += 1
+        return f"target-{k}"
+
+    def _add_typed(self) -> None:
+        x = parse_number(self.new_x.text())
+        point = self.new_kind.currentText() == "point"
+        y = parse_number(self.new_y.text()) if point else None
+        if x is None or (point and y is None):
+            self.show_message("New target: type its x" + (" and y" if point else "") + " in metres")
+            return
+        self.show_message("")
+        self.add_target(x, y)
+
+    def add_target(self, x_m: float, y_m: float | None = None, name: str | None = None) -> int:
+        """Add a vertical line at ``x_m`` (or the point ``(x_m, y_m)``) and select it; its index."""
+        target: dict[str, Any] = {"name": name or self._free_name()}
+        if y_m is None:
+            target["x_m"] = float(x_m)
+        else:
+            target["point_m"] = [float(x_m), float(y_m)]
+        self.doc.edit(f"add target {target['name']}", lambda d: d.setdefault("targets", []).append(target))
+        index = len(self._targets()) - 1
+        self.doc.selection.select("targets", index)
+        return index
+
+    def rename(self, new: str) -> bool:
+        """Rename the selected target (the schema checks the name: letters, digits, _ and -)."""
+        sel = self.selected
+        if sel is None:
+            return False
+        self.name.edit.setText(new)
+        return bool(self.name.commit())
+
+    def remove_target(self) -> None:
+        sel = self.selected
+        if sel is None:
+            return
+        name = self._targets()[sel].get("name", sel)
+
+        def mutate(d: dict[str, Any]) -> None:
+            d["targets"].pop(sel)
+            if not d["targets"]:
+                d.pop("targets")
+
+        self.doc.edit(f"remove target {name}", mutate)
+        targets = self._targets()
+        self.doc.selection.select("targets", min(sel, len(targets) - 1) if targets else None)
