@@ -431,3 +431,24 @@ def test_stop_sweep_ends_the_process_and_keeps_the_finished_runs(window, tmp_pat
     assert not view.running
     assert _statuses(view) == ["completed", "pending", "pending"]
     assert "1 of 3 runs done" in view.header.text() and "[stopped]" in view.header.text()
+
+
+def test_a_run_of_the_workbench_ends_with_its_hazard_tab_filled(window, tiny_file, qtbot):
+    """End to end: a real run (a child process) with a line target; when it ends the Hazard tab
+    shows its hazard.json, the same numbers `runout run` wrote."""
+    from projects.hazard import read_hazard
+
+    text = tiny_file.read_text() + '\n[[targets]]\nname = "gauge"\nx_m = 0.13\n'
+    tiny_file.write_text(text)
+    window.open_project(tiny_file, ask=False)
+    window.tabs.setCurrentWidget(window.hazard_view)
+    assert window.start_run()
+    qtbot.waitUntil(lambda: not window.running, timeout=120_000)
+    assert window.last_result.status == "completed", window.last_result.message
+    doc = read_hazard(window.last_result.out_dir)
+    view = window.hazard_view
+    assert view.path == window.last_result.out_dir
+    measures = {row[0]: row[1] for row in _cells(view.measures)}
+    assert measures["largest speed"] == f"{doc['max_speed_m_s']:.4g} m/s"
+    targets = _cells(view.targets)
+    assert targets[0][0] == "gauge (line)" and targets[0][1] == "0.13"
