@@ -39,8 +39,10 @@ CONTACTS_CSV = "contacts.csv"
 
 #: Lube, Huppert, Sparks & Freundt (2005), "Collapses of two-dimensional granular columns",
 #: Phys. Rev. E 72, 041301: dry granular columns released in a channel (planar), aspect ratio
-#: a = H0 / L0. Run-out (L_inf - L0) / L0 = 1.2 a for a < 2.3, 1.9 a^(2/3) above; final height
-#: H_inf / L0 = a for a < 1.15, a^(2/5) above. Empirical fits; the branches do not meet exactly.
+#: a = H0 / L0. Run-out (L_inf - L0) / L0 = 1.2 a, fitted for a < 1.8, and 1.9 a^(2/3), fitted for
+#: a > 2.8 (as cited by later column-collapse studies); between the two fits (a transition the
+#: paper leaves open) the report switches at a = 2.3. Final height H_inf / L0 = a for a < 1.15,
+#: a^(2/5) above. Empirical fits; the branches do not meet exactly.
 LUBE_2005 = {
     "source": "Lube, Huppert, Sparks & Freundt (2005), Phys. Rev. E 72, 041301 (planar granular columns)",
     "runout_break": 2.3, "runout_low": (1.2, 1.0), "runout_high": (1.9, 2.0 / 3.0),
@@ -136,7 +138,8 @@ def context(doc: Mapping[str, Any], project: Any, summary: Mapping[str, Any]) ->
                            "(independent of friction angle within their data); L0 is the column's length "
                            "from the wall, the run-out is measured from its front"),
             "rows": rows,
-            "note": "the branches of each fit change at a = 2.3 (run-out) and a = 1.15 (height)",
+            "note": "run-out fits hold for a < 1.8 and a > 2.8 (the report switches at a = 2.3 in between); "
+                    "height fits change at a = 1.15",
         })
     area = doc.get("source_area_m2_per_m") or doc.get("mobilised_area_m2_per_m") or 0.0
     hl = doc.get("h_over_l")
