@@ -44,7 +44,7 @@ def test_a_run_marks_its_folder_and_lists_its_own_files(tmp_path):
     assert "frames/frame_*.vtp" in marker["files"]
     (folder / "notes.txt").write_text("mine")
     owned = {p.relative_to(folder).as_posix() for p in own_files(folder, marker["files"])}
-    assert owned == {"particles.pvd", "series.csv", "summary.json", "project.toml",
+    assert owned == {"particles.pvd", "series.csv", "summary.json", "project.toml", "contacts.csv",
                      "frames/frame_00000.vtp", "frames/frame_00001.vtp", "frames/frame_00002.vtp"}
     assert not (folder / LOCK_NAME).exists()  # released at close
 
