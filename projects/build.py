@@ -241,8 +241,8 @@ def build_simulation(project: Project, *, arch_override: str | None = None) -> B
             f"bodies.{i}.polygon_m",
             None,
             "receives no particles: smaller than the particle spacing "
-            f"({project.domain.cell_size_m / project.particles.per_cell:g} m) or covered by later bodies "
-            "or structures",
+            f"({project.domain.cell_size_m / project.particles.per_cell:g} m) or covered by later bodies"
+            + (" or structures" if project.structures else ""),
         )
         for i, count in enumerate(counts)
         if count == 0

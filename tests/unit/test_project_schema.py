@@ -275,7 +275,7 @@ GOLDEN = [
     (
         "simulation",
         {},
-        "simulation: unknown key; allowed: runout, domain, materials, bodies, particles, numerics, stages, output",
+        "simulation: unknown key; allowed: runout, domain, materials, bodies, structures, particles, numerics, stages, output",
     ),
     (
         "bodies",

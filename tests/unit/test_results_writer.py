@@ -35,7 +35,7 @@ def test_folder_layout_and_round_trip(make_results):
     path = make_results(n_frames=4)
     frames = synthetic_frames(4)
     assert sorted(p.name for p in path.iterdir()) == [
-        "frames", "particles.pvd", "project.toml", "series.csv", "summary.json"
+        "contacts.csv", "frames", "particles.pvd", "project.toml", "series.csv", "summary.json"
     ]
     assert sorted(p.name for p in (path / "frames").iterdir()) == [
         f"frame_{i:05d}.vtp" for i in range(4)
