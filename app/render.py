@@ -323,7 +323,7 @@ class _Scene:
             outline = [[dx0, dy0, 0], [dx1, dy0, 0], [dx1, dy1, 0], [dx0, dy1, 0], [dx0, dy0, 0]]
             pl.add_mesh(pv.MultipleLines(outline), color="#8c8c8c", line_width=1)
         for structure in _structures(self.results):
-            pl.add_mesh(structure.triangulate(), color="#b4b4b4", show_edges=False)
+            pl.add_mesh(structure.triangulate(), color="#b4b4b4", show_edges=False, lighting=False)
             ring = np.vstack([structure.points, structure.points[:1]])
             pl.add_mesh(pv.MultipleLines(ring), color="#505050", line_width=2)
         pl.show_bounds(

@@ -225,8 +225,8 @@ def _seed_particles(project: Project, config: sc.SimulationConfig) -> tuple[sc.P
             f"bodies.{i}.polygon_m",
             None,
             "receives no particles: smaller than the particle spacing "
-            f"({project.domain.cell_size_m / project.particles.per_cell:g} m) or covered by later bodies "
-            "or structures",
+            f"({project.domain.cell_size_m / project.particles.per_cell:g} m) or covered by later bodies"
+            + (" or structures" if project.structures else ""),
         )
         for i, count in enumerate(counts)
         if count == 0

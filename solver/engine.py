@@ -162,6 +162,9 @@ class Engine:
         self.g_mom = ti.Vector.field(2, float, self.nodes)
         self.g_f = ti.Vector.field(2, float, self.nodes if self.separate_forces else (1, 1))
         self.g_v_old = ti.Vector.field(2, float, self.nodes if self.six_stage else (1, 1))
+        # mpm: the interpolated velocity before the contact law, against which the FLIP increment is
+        # taken, so that the particles receive what the contact did to the velocity at both stages
+        self.g_v_free = ti.Vector.field(2, float, self.nodes if scheme == "mpm" else (1, 1))
 
         # contacts: the four sides, then the structures. Per structure its contact kind and friction
         # coefficient, its edges (for pushing particles out) and bounding box; per grid node the
@@ -407,7 +410,7 @@ class Engine:
         elif ti.static(stage == "grid update"):
             self._grid_update_fused(dt, damping, damped)
         elif ti.static(stage == "mirror walls (old)"):
-            self._mirror_ghosts(True, self.scheme == "apic")
+            self._mirror_ghosts(True, True)
         elif ti.static(stage == "mirror walls"):
             self._mirror_ghosts(False, True)
         elif ti.static(stage == "contact tally"):
@@ -804,11 +807,16 @@ class Engine:
             I = lo + ti.Vector([k // width[1], k % width[1]])
             mass = self.g_mass[I]
             v = ti.Vector.zero(float, 2)
+            free = ti.Vector.zero(float, 2)
             if mass > 0.0:
-                # the contact law on the interpolated velocity too (Bardenhagen et al. 2000); with
-                # APIC the particles take the new grid velocity, so this impulse reaches them
-                v = self._contact(I, self.g_mom[I] / mass, mass, self.scheme == "apic")
+                # the contact law on the interpolated velocity too (Bardenhagen et al. 2000): the
+                # stress update sees the constrained velocity; the particles receive this impulse
+                # (APIC: they take the new grid velocity; FLIP: the increment is taken from ``free``)
+                free = self.g_mom[I] / mass
+                v = self._contact(I, free, mass, True)
             self.g_v_old[I] = v
+            if ti.static(self.scheme == "mpm"):
+                self.g_v_free[I] = free
 
     @ti.func
     def _stress_and_force(self, dt, g):
@@ -997,7 +1005,7 @@ class Engine:
                     gv = self.g_mom[base + offset]  # the new grid velocity
                     new_v += weight * gv
                     if ti.static(self.scheme == "mpm"):
-                        dv += weight * (gv - self.g_v_old[base + offset])
+                        dv += weight * (gv - self.g_v_free[base + offset])
                     else:
                         dpos = (ti.cast(offset, float) - fx) * self.dx
                         new_C += 4.0 * self.inv_dx * self.inv_dx * weight * gv.outer_product(dpos)  # eq 17

@@ -149,8 +149,8 @@ def _sliding_block(bottom, gravity, v0, duration, rows=10, scheme="apic-affine")
     parts = Particles(pos, np.full(len(pos), h * h), np.zeros(len(pos), np.int32), np.tile([v0, 0.0], (len(pos), 1)))
     grid = Grid((0.0, 0.0), (1.0, 0.2), 0.01, left=Boundary("open"), right=Boundary("open"), bottom=bottom,
                 top=Boundary("open"))
-    # soft like the granular materials of the examples (E ~ 1 MPa): with a much stiffer block the
-    # contact chatters (elastic noise rectified by the one-sided wall) and friction is over-counted
+    # soft like the granular materials of the examples (E ~ 1 MPa); stiff blocks, inclines and
+    # structures: tests/unit/test_solver_contact.py
     soft = Material("block", "linear-elastic", 2000.0, 1e6, 0.2)
     cfg = SimulationConfig(grid, (soft,), (Stage("k0", "k0"), Stage("slide", "dynamic", duration_s=duration)),
                            gravity, Numerics(scheme=scheme, cfl=0.5, arch="cpu", precision="f64"),
