@@ -439,7 +439,32 @@ def write_files(out_dir: Path, snap: Mapping[str, Any], hs: HazardSettings, grav
     _atomic_write_text(out_dir / PROFILE_CSV, profile_csv(snap))
     _atomic_write_text(out_dir / TARGETS_CSV, targets_csv(snap))
     doc = hazard_document(snap, hs, gravity_m_s2, targets, status)
+    doc["structures"] = structure_forces(out_dir)
     _atomic_write_text(out_dir / HAZARD_JSON, json.dumps(doc, indent=2) + "\n")
+
+
+def structure_forces(out_dir: Path) -> dict[str, dict[str, Any]]:
+    """The force history of each rigid structure so far, summed up for ``hazard.json``.
+
+    Read from the run's ``contacts.csv`` (the history itself, one row per output interval):
+    per structure ``peak_force_N_per_m`` (largest single-step force magnitude) and its
+    ``peak_time_s`` (the end of the interval that held it), ``max_mean_force_N_per_m`` (largest
+    interval mean, magnitude) and ``history`` (the file). The closed sides are left out (their
+    forces are in ``contacts.csv`` and ``summary.json``).
+    """
+    from projects.results import CONTACTS_NAME, read_contacts
+    from solver.config import SIDES
+
+    out: dict[str, dict[str, Any]] = {}
+    for name, cols in read_contacts(out_dir).items():
+        if name in SIDES or not len(cols["time_s"]):
+            continue
+        peak = np.nan_to_num(cols["peak_force_N_per_m"])
+        mean = np.hypot(np.nan_to_num(cols["force_x_N_per_m"]), np.nan_to_num(cols["force_y_N_per_m"]))
+        i = int(np.argmax(peak))
+        out[name] = {"peak_force_N_per_m": float(peak[i]), "peak_time_s": float(cols["time_s"][i]),
+                     "max_mean_force_N_per_m": float(mean.max()), "history": CONTACTS_NAME}
+    return out
 
 
 class HazardOutput:

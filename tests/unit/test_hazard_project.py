@@ -88,3 +88,27 @@ def test_bad_values_name_key_value_and_what_is_allowed(sections, expected):
 def test_target_names_are_unique():
     found = problems(with_(targets=[{"name": "road", "x_m": 0.1}, {"name": "road", "x_m": 0.2}]))
     assert found == ['targets.1.name = "road": another target has this name; names must be unique']
+
+
+def test_hazard_json_sums_up_each_structures_force_history(tmp_path):
+    """hazard.json's ``structures``: peak and largest mean force of each structure, from contacts.csv
+    (the closed sides are left out)."""
+    from projects.hazard import structure_forces
+    from projects.results import CONTACT_COLUMNS, CONTACTS_NAME
+
+    rows = [",".join(CONTACT_COLUMNS)]
+    blank = ["" for _ in CONTACT_COLUMNS[4:]]
+
+    def row(t, name, fx, fy, peak):
+        values = [repr(t), name, repr(fx), repr(fy), "", ""] + [repr(peak)] + blank[3:]
+        return ",".join(values[: len(CONTACT_COLUMNS)])
+
+    rows += [row(0.1, "bottom", 0.0, -500.0, 600.0), row(0.1, "dam", 30.0, 40.0, 90.0),
+             row(0.2, "bottom", 0.0, -500.0, 650.0), row(0.2, "dam", 60.0, 80.0, 250.0),
+             row(0.3, "dam", 6.0, 8.0, 20.0)]
+    (tmp_path / CONTACTS_NAME).write_text("\n".join(rows) + "\n")
+    forces = structure_forces(tmp_path)
+    assert set(forces) == {"dam"}
+    assert forces["dam"]["peak_force_N_per_m"] == 250.0 and forces["dam"]["peak_time_s"] == 0.2
+    assert forces["dam"]["max_mean_force_N_per_m"] == pytest.approx(100.0)
+    assert structure_forces(tmp_path / "missing") == {}
