@@ -1039,9 +1039,10 @@ class StagesPanel(Panel):
         kind = self.doc.get(f"{base}.type") if base else None
         self.name.set_path(f"{base}.name" if base else None)
         self.kind.set_path(f"{base}.type" if base else None)
-        self.duration.set_path(f"{base}.duration_s" if base and kind != "k0" else None)
+        timed = kind in ("gravity", "dynamic")  # the stages that have a duration and damping
+        self.duration.set_path(f"{base}.duration_s" if base and timed else None)
         self.k0.set_path(f"{base}.k0" if base and kind == "k0" else None)
-        self.damping.set_path(f"{base}.damping.coefficient" if base and kind != "k0" else None)
+        self.damping.set_path(f"{base}.damping.coefficient" if base and timed else None)
         if base and kind == "gravity" and self.doc.get(f"{base}.damping") is None:
             self.damping.edit.setPlaceholderText("0.7 (default for gravity)")
         else:
@@ -1105,11 +1106,15 @@ class StagesPanel(Panel):
 
     def add_stage(self, kind: str) -> None:
         stage: dict[str, Any] = {"name": kind if kind != "k0" else "initial stress", "type": kind}
-        if kind != "k0":
+        if kind in ("gravity", "dynamic"):  # k0 and strength reduction take no duration
             stage["duration_s"] = 1.0
-        # initial-stress stages go first, dynamic ones last
+        # initial-stress stages go first, a strength reduction right after them, dynamic ones last
         stages = self._stages()
-        index = 0 if kind in ("k0", "gravity") else len(stages)
+        initial = 0
+        while initial < len(stages) and isinstance(stages[initial], dict) and \
+                stages[initial].get("type") in ("k0", "gravity"):
+            initial += 1
+        index = {"k0": 0, "gravity": 0, "strength-reduction": initial}.get(kind, len(stages))
         self.doc.edit(f"add {kind} stage", lambda d: d.setdefault("stages", []).insert(index, stage))
         self._current = index
         self._on_changed(frozenset({"stages"}))

@@ -284,6 +284,11 @@ def test_stages_boundaries_numerics_and_output_edit_the_model(window, tiny_file)
     assert [s["type"] for s in doc.get("stages")][:1] == ["gravity"]
     assert doc.problems and "only one k0 or gravity stage" in doc.problems[0].message
     window.stages_panel.remove_stage()
+    window.stages_panel.add_stage("strength-reduction")  # after the initial stress, no duration
+    assert [s["type"] for s in doc.get("stages")] == ["k0", "strength-reduction", "dynamic"]
+    assert "duration_s" not in doc.get("stages.1")
+    assert not any("duration_s" in p.path for p in doc.problems), doc.problems
+    window.stages_panel.remove_stage()
     window.stages_panel.select(1)
     window.stages_panel.damping.set_text("0.2")
     assert doc.get("stages.1.damping") == {"type": "local", "coefficient": 0.2}
