@@ -229,9 +229,10 @@ class SimulationConfig:
     gravity_m_s2: tuple[float, float] = (0.0, -9.81)
     numerics: Numerics = Numerics()
     output: Output = Output()
+    #: rigid structures in the domain (contact like the closed sides)
+    structures: tuple[Structure, ...] = ()
     #: hazard envelopes (None: none are accumulated)
     envelopes: EnvelopeConfig | None = None
-    structures: tuple[Structure, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)

@@ -117,6 +117,9 @@ def test_a_results_folder_without_hazard_files_says_so(window, make_results):
 
 
 def test_export_report_writes_the_html_report_and_opens_it(window, make_results, monkeypatch):
+    # in a whole-suite process the solver tests' modules (collected first) have loaded Taichi
+    # already; the fresh-interpreter check is tests/unit/test_architecture.py's
+    taichi_before = "taichi" in sys.modules
     path = make_results()
     write_hazard(path)
     window.open_results(path)
@@ -128,7 +131,7 @@ def test_export_report_writes_the_html_report_and_opens_it(window, make_results,
     text = html.read_text()
     assert ">Measures<" in text and "road" in text and "house" in text and "travel angle" in text
     assert 'src="data:image/png;base64,' in text
-    assert "taichi" not in sys.modules  # the report is written in the workbench process without Taichi
+    assert taichi_before or "taichi" not in sys.modules  # the report is written without Taichi
 
 
 def _fos_summary(path: Path) -> dict:

@@ -218,7 +218,7 @@ def test_body_without_particles_is_an_error():
         resolve(validate_project(data))
     assert [str(p) for p in info.value.problems] == [
         "bodies.3.polygon_m: receives no particles: smaller than the particle spacing (0.25 m) "
-        "or covered by later bodies or structures"
+        "or covered by later bodies"
     ]
 
 
