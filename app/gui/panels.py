@@ -1115,6 +1115,9 @@ class StagesPanel(Panel):
                 stages[initial].get("type") in ("k0", "gravity"):
             initial += 1
         index = {"k0": 0, "gravity": 0, "strength-reduction": initial}.get(kind, len(stages))
+        if kind == "strength-reduction" and not any(isinstance(st, dict) and st.get("type") == "gravity"
+                                                    for st in stages):
+            stage["trial_duration_s"] = 1.0  # a trial's budget (a gravity stage's duration by default)
         self.doc.edit(f"add {kind} stage", lambda d: d.setdefault("stages", []).insert(index, stage))
         self._current = index
         self._on_changed(frozenset({"stages"}))
