@@ -424,15 +424,10 @@ def read_calibration(path: str | os.PathLike[str]) -> CalibrationData:
     ------
     SweepFolderError
     """
+    from sweeps.sweep import read_table_and_json
+
     out = Path(path)
-    try:
-        with open(out / CSV_NAME, encoding="utf-8", newline="") as fh:
-            reader = csv.DictReader(fh)
-            rows = list(reader)
-            header = list(reader.fieldnames or [])
-        info = json.loads((out / JSON_NAME).read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise SweepFolderError(f"{out} is not a readable calibration folder: {exc}") from None
+    header, rows, info = read_table_and_json(out, CSV_NAME, JSON_NAME, "calibration")
     params = header[2:header.index("misfit")] if "misfit" in header else []
     return CalibrationData(out, params, rows, info)
 

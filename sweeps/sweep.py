@@ -360,6 +360,25 @@ def is_sweep_dir(path: str | os.PathLike[str]) -> bool:
     return p.is_dir() and ((p / CSV_NAME).is_file() or (p / "calibration.csv").is_file())
 
 
+def read_table_and_json(out: Path, csv_name: str, json_name: str, kind: str) -> tuple[list[str], list[dict], Any]:
+    """The header and rows of a folder's CSV table and its JSON file (sweep and calibration folders).
+
+    Raises
+    ------
+    SweepFolderError
+        One line naming the folder and what could not be read.
+    """
+    try:
+        with open(out / csv_name, encoding="utf-8", newline="") as fh:
+            reader = csv.DictReader(fh)
+            rows = list(reader)
+            header = list(reader.fieldnames or [])
+        info = json.loads((out / json_name).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise SweepFolderError(f"{out} is not a readable {kind} folder: {exc}") from None
+    return header, rows, info
+
+
 def read_sweep(path: str | os.PathLike[str]) -> SweepData:
     """Read a sweep folder (sweep.csv, sweep.json, progress.json).
 
@@ -368,14 +387,7 @@ def read_sweep(path: str | os.PathLike[str]) -> SweepData:
     SweepFolderError
     """
     out = Path(path)
-    try:
-        with open(out / CSV_NAME, encoding="utf-8", newline="") as fh:
-            reader = csv.DictReader(fh)
-            rows = list(reader)
-            header = list(reader.fieldnames or [])
-        spec = json.loads((out / SPEC_NAME).read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise SweepFolderError(f"{out} is not a readable sweep folder: {exc}") from None
+    header, rows, spec = read_table_and_json(out, CSV_NAME, SPEC_NAME, "sweep")
     try:
         progress = json.loads((out / PROGRESS_NAME).read_text(encoding="utf-8"))
     except (OSError, ValueError):
