@@ -162,9 +162,6 @@ class Engine:
         self.g_mom = ti.Vector.field(2, float, self.nodes)
         self.g_f = ti.Vector.field(2, float, self.nodes if self.separate_forces else (1, 1))
         self.g_v_old = ti.Vector.field(2, float, self.nodes if self.six_stage else (1, 1))
-        # mpm: the interpolated velocity before the contact law, against which the FLIP increment is
-        # taken, so that the particles receive what the contact did to the velocity at both stages
-        self.g_v_free = ti.Vector.field(2, float, self.nodes if scheme == "mpm" else (1, 1))
 
         # contacts: the four sides, then the structures. Per structure its contact kind and friction
         # coefficient, its edges (for pushing particles out) and bounding box; per grid node the
@@ -410,7 +407,8 @@ class Engine:
         elif ti.static(stage == "grid update"):
             self._grid_update_fused(dt, damping, damped)
         elif ti.static(stage == "mirror walls (old)"):
-            self._mirror_ghosts(True, True)
+            # mpm: the particles never receive this first correction (see _grid_velocity): not an impulse
+            self._mirror_ghosts(True, ti.static(self.scheme != "mpm"))
         elif ti.static(stage == "mirror walls"):
             self._mirror_ghosts(False, True)
         elif ti.static(stage == "contact tally"):
@@ -807,16 +805,18 @@ class Engine:
             I = lo + ti.Vector([k // width[1], k % width[1]])
             mass = self.g_mass[I]
             v = ti.Vector.zero(float, 2)
-            free = ti.Vector.zero(float, 2)
             if mass > 0.0:
                 # the contact law on the interpolated velocity too (Bardenhagen et al. 2000): the
-                # stress update sees the constrained velocity; the particles receive this impulse
-                # (APIC: they take the new grid velocity; FLIP: the increment is taken from ``free``)
-                free = self.g_mom[I] / mass
-                v = self._contact(I, free, mass, True)
+                # stress update sees the constrained velocity. APIC's particles take the new grid
+                # velocity, so they receive this correction (an impulse of the contact). FLIP's take
+                # the increment of the grid update alone, v_p += S (v_new - v_old), the contact's
+                # part being the second correction, as in Bardenhagen et al.'s adjusted
+                # accelerations: the first one is not theirs (not recorded). Taking it too (the
+                # increment against the velocity before this correction) hands each particle the
+                # contact's correction of the interpolated velocity, not of its own, every step: a
+                # block that should stick creeps 0.2-2 % (docs/validation.md, contact).
+                v = self._contact(I, self.g_mom[I] / mass, mass, ti.static(self.scheme != "mpm"))
             self.g_v_old[I] = v
-            if ti.static(self.scheme == "mpm"):
-                self.g_v_free[I] = free
 
     @ti.func
     def _stress_and_force(self, dt, g):
@@ -1005,7 +1005,7 @@ class Engine:
                     gv = self.g_mom[base + offset]  # the new grid velocity
                     new_v += weight * gv
                     if ti.static(self.scheme == "mpm"):
-                        dv += weight * (gv - self.g_v_free[base + offset])
+                        dv += weight * (gv - self.g_v_old[base + offset])
                     else:
                         dpos = (ti.cast(offset, float) - fx) * self.dx
                         new_C += 4.0 * self.inv_dx * self.inv_dx * weight * gv.outer_product(dpos)  # eq 17
