@@ -50,7 +50,7 @@ def block_length_cells(thickness_cells: int) -> int:
 
 
 def cell_size_for(youngs_pa: float) -> float:
-    return 0.5 if youngs_pa >= 1e7 else 0.1
+    return 2.0 if youngs_pa >= 1e7 else 0.1
 
 
 def analytic_distance(theta_deg: float, delta_deg: float, t: float) -> float:
@@ -111,38 +111,49 @@ class WallIncline:
             self.positions = base + [2 * dx, 0.0]
             size = (along, across)
             self.slope = np.array([1.0, 0.0])
-        elif side == "left":
+        elif side in ("left", "right"):
             self.positions = base[:, ::-1] + [0.0, (TRAVEL_CELLS + 4) * dx]
             size = (across, along)
             self.slope = np.array([0.0, -1.0])
+            if side == "right":
+                self.positions[:, 0] = across - self.positions[:, 0]
         else:
-            raise ValueError(f"side must be bottom or left, got {side!r}")
+            raise ValueError(f"side must be bottom, left or right, got {side!r}")
         normal_axis = 1 if side == "bottom" else 0
-        self.normal = np.eye(2)[normal_axis]
+        self.normal = np.eye(2)[normal_axis] * (-1.0 if side == "right" else 1.0)
         self.thickness_m = thickness_cells * dx
-        self.base_row = self.positions[:, normal_axis] < h
-        self.grid = Grid((0.0, 0.0), size, dx, left=Boundary("friction"), right=Boundary("open"),
-                         bottom=Boundary("friction"), top=Boundary("open"))
+        self.base_m = size[0] if side == "right" else 0.0  # the contact's line, along the normal
+        self.base_row = self.positions @ self.normal - self.normal @ [self.base_m, 0.0] < h
+        self.size = size
+        self.grid = Grid((0.0, 0.0), size, dx, **self._sides(0.0))
         self.np_float = np.float32 if precision == "f32" else np.float64
         self.engine = Engine(self.grid, (self.material,), len(self.positions), scheme, self.np_float,
                              damping=False, scatter=scatter)
 
+    def _sides(self, phi: float) -> dict:
+        """The contact side (and, for a side wall, the bottom) frictional; the others open."""
+        sides = dict(left=Boundary("open"), right=Boundary("open"), bottom=Boundary("friction", phi),
+                     top=Boundary("open"))
+        if self.side != "bottom":
+            sides[self.side] = Boundary("friction", phi)
+        return sides
+
     def gravity(self, theta_deg: float) -> tuple[float, float]:
+        """Gravity (m/s2) tilted so that the contact is an incline of ``theta_deg``."""
         th = math.radians(theta_deg)
         if self.side == "bottom":
             return (G * math.sin(th), -G * math.cos(th))
-        return (-G * math.cos(th), -G * math.sin(th))
+        across = -G * math.cos(th) if self.side == "left" else G * math.cos(th)
+        return (across, -G * math.sin(th))
 
     def run(self, theta_deg: float, delta_deg: float, settled: bool = True) -> Outcome:
         """One case; ``settled``: start from the equilibrium stress (:func:`slope_stress`), else stress free."""
         e = self.engine
-        phi = math.radians(delta_deg)
-        sides = dict(left=Boundary("friction", phi), right=Boundary("open"), bottom=Boundary("friction", phi),
-                     top=Boundary("open"))
-        e.set_boundaries(Grid(self.grid.origin_m, self.grid.size_m, self.dx, **sides))
+        e.set_boundaries(Grid(self.grid.origin_m, self.grid.size_m, self.dx, **self._sides(math.radians(delta_deg))))
         h = self.dx / PPC
         e.load_particles(self.positions, np.full(len(self.positions), h * h), np.zeros(len(self.positions), np.int32))
-        stress = slope_stress(self.positions, self.slope, self.normal, 0.0, self.thickness_m, theta_deg,
+        base = float(self.normal @ [self.base_m, 0.0])
+        stress = slope_stress(self.positions, self.slope, self.normal, base, self.thickness_m, theta_deg,
                               delta_deg) if settled else None
         return _advance(e, self.material, self.dx, self.gravity(theta_deg), theta_deg, delta_deg, self.slope,
                         self.base_row, stress)
