@@ -38,6 +38,8 @@ PPC = 2  # particles per cell along each axis
 MIN_LENGTH_CELLS = 40  # block length along the slope: at least this and 4 x its thickness
 TRAVEL_CELLS = 20.0  # the sliding cases run until the analytic travel is this many cells (plus margin)
 CFL = 0.5
+SETTLE_TRANSITS = 3.0  # settling on a fixed contact before the release: P-wave transits of the block
+SETTLE_DAMPING = 0.7  # Cundall's local damping while settling
 
 
 def block_length_cells(thickness_cells: int) -> int:
@@ -104,6 +106,7 @@ class WallIncline:
         self.material = Material("block", "linear-elastic", DENSITY, youngs_pa, POISSON)
         h = dx / PPC
         length = block_length_cells(thickness_cells)
+        self.length_m = length * dx
         base = _lattice(length * PPC, thickness_cells * PPC, h)
         along = (length + TRAVEL_CELLS + 6) * dx
         across = (thickness_cells + 4) * dx
@@ -128,7 +131,7 @@ class WallIncline:
         self.grid = Grid((0.0, 0.0), size, dx, **self._sides(0.0))
         self.np_float = np.float32 if precision == "f32" else np.float64
         self.engine = Engine(self.grid, (self.material,), len(self.positions), scheme, self.np_float,
-                             damping=False, scatter=scatter)
+                             damping=True, scatter=scatter)
 
     def _sides(self, phi: float) -> dict:
         """The contact side (and, for a side wall, the bottom) frictional; the others open."""
@@ -149,14 +152,20 @@ class WallIncline:
     def run(self, theta_deg: float, delta_deg: float, settled: bool = True) -> Outcome:
         """One case; ``settled``: start from the equilibrium stress (:func:`slope_stress`), else stress free."""
         e = self.engine
-        e.set_boundaries(Grid(self.grid.origin_m, self.grid.size_m, self.dx, **self._sides(math.radians(delta_deg))))
+
+        def contact(fixed: bool) -> None:
+            sides = self._sides(math.radians(delta_deg))
+            if fixed:
+                sides[self.side] = Boundary("fixed")
+            e.set_boundaries(Grid(self.grid.origin_m, self.grid.size_m, self.dx, **sides))
+
         h = self.dx / PPC
         e.load_particles(self.positions, np.full(len(self.positions), h * h), np.zeros(len(self.positions), np.int32))
         base = float(self.normal @ [self.base_m, 0.0])
         stress = slope_stress(self.positions, self.slope, self.normal, base, self.thickness_m, theta_deg,
                               delta_deg) if settled else None
         return _advance(e, self.material, self.dx, self.gravity(theta_deg), theta_deg, delta_deg, self.slope,
-                        self.base_row, stress)
+                        self.base_row, stress, contact, self.length_m)
 
 
 class RampIncline:
@@ -173,6 +182,7 @@ class RampIncline:
         self.material = Material("block", "linear-elastic", DENSITY, youngs_pa, POISSON)
         h = dx / PPC
         length = block_length_cells(thickness_cells)
+        self.length_m = length * dx
         run_along = (length + TRAVEL_CELLS + 4) * dx  # ramp length along the slope
         t_hat = np.array([math.cos(th), -math.sin(th)])  # down the slope
         n_hat = np.array([math.sin(th), math.cos(th)])  # outward normal of the ramp surface
@@ -207,17 +217,20 @@ class RampIncline:
                     bottom=Boundary("slip"), top=Boundary("open"))
         self.structure = Structure("ramp", self.polygon, contact)
         self.engine = Engine(grid, (self.material,), len(self.positions), self._scheme, self.np_float,
-                             damping=False, scatter=self._scatter, structures=(self.structure,))
+                             damping=True, scatter=self._scatter, structures=(self.structure,))
 
     def run(self, delta_deg: float, settled: bool = True) -> Outcome:
         e = self.engine
-        e.set_structure_contacts((Boundary("friction", math.radians(delta_deg)),))
+
+        def contact(fixed: bool) -> None:
+            e.set_structure_contacts((Boundary("fixed") if fixed else Boundary("friction", math.radians(delta_deg)),))
+
         h = self.dx / PPC
         e.load_particles(self.positions, np.full(len(self.positions), h * h), np.zeros(len(self.positions), np.int32))
         stress = slope_stress(self.positions, self.slope, self.normal, self.surface_offset, self.thickness_m,
                               self.theta, delta_deg) if settled else None
         return _advance(e, self.material, self.dx, (0.0, -G), self.theta, delta_deg, self.slope, self.base_row,
-                        stress)
+                        stress, contact, self.length_m)
 
 
 def slope_stress(positions_m: np.ndarray, slope, normal, base_m: float, thickness_m: float, theta_deg: float,
@@ -247,11 +260,20 @@ def slope_stress(positions_m: np.ndarray, slope, normal, base_m: float, thicknes
 
 
 def _advance(e, material: Material, dx: float, gravity, theta_deg: float, delta_deg: float, slope, base_row,
-             stress=None) -> Outcome:
+             stress, contact, length_m: float) -> Outcome:
+    """Settle the block on a fixed contact (``contact(True)``, local damping, SETTLE_TRANSITS transits of
+    a P wave along the block), then release it on the frictional contact (``contact(False)``) and run
+    it for :func:`run_time`; the slip is measured from the release."""
     if stress is not None:
         e.set_stress(stress)
-    t_end = run_time(theta_deg, delta_deg, dx)
     dt = CFL * dx / material.p_wave_speed_m_s
+    if SETTLE_TRANSITS > 0:
+        contact(True)
+        for _ in range(int(math.ceil(SETTLE_TRANSITS * length_m / material.p_wave_speed_m_s / dt))):
+            e.step(dt, gravity, SETTLE_DAMPING)
+        e.set_velocity(np.zeros((e.n, 2)))
+    contact(False)
+    t_end = run_time(theta_deg, delta_deg, dx)
     steps = int(math.ceil(t_end / dt))
     dt = t_end / steps
     x0 = e.x.to_numpy().astype(np.float64)

@@ -3,12 +3,27 @@ force on each contact, and structures that no particle enters (CPU, small scenes
 
 Inclines: a block at rest, in equilibrium (:func:`studies.contact_scenes.slope_stress`), on a
 frictional contact; sliding cases within 3 % of ``1/2 g (sin th - tan d cos th) t^2`` over at least
-20 cells of travel, sticking cases slip less than 0.1 % of the frictionless distance. The cases
-sample the matrix of benchmarks/contact_matrix.py (which runs all of it) so that every value of
-every axis occurs: schemes, f32/f64, thickness 1/5/20 cells, E 1e6/1e8 Pa, bottom/left wall and
-a ramp structure, inclines 10-40 degrees, friction 0-45 degrees. Where the matrix shows a case
-outside the tolerances (docs/validation.md, contact: classic mpm with stiff blocks, blocks close
-to the friction limit on a ramp) the sample avoids it; those are known limits, not covered here.
+20 cells of travel, sticking cases slip less than 0.1 % of the frictionless distance (the issue's
+tolerances). Walls are made inclines by tilting gravity (exact and cheap); the ramp is an inclined
+structure under vertical gravity, its normal no grid axis.
+
+The wall rows are a covering design of the matrix that benchmarks/contact_matrix.py runs in full
+(docs/validation.md, contact): every value of every axis (3 schemes, f32/f64, 1/5/20 cells thick,
+E = 1e6/1e8 Pa, bottom/left/right wall), and every pair of values of any two of those axes in some
+row (nine rows: scheme x thickness x side is a Latin square, precision and stiffness spread so
+that every pair of theirs occurs too); each row runs one sliding and one sticking case, and the
+rows together cover inclines 10-40 degrees and friction 0-45 degrees.
+
+Known limits (``KNOWN_LIMITS``). Classic mpm (FLIP) is outside the tolerances where the friction is
+high: an
+elastic block sliding under Coulomb friction is dynamically unstable (growing slip and opening
+waves, Martins et al. 1995, J. Vib. Acoust. 117:445; Yastrebov 2016, Tribol. Lett. 62:1), and FLIP,
+without numerical dissipation, lets them grow until the base bounces and the block slides with less
+than the friction the rigid-block formula assumes; the APIC schemes damp them. A thick soft block
+(20 cells, E = 1e6 Pa, strain under its weight about 4 %) within 5 degrees of the friction limit
+creeps: slip pulses start at its ends and ratchet it down the slope (1 % of the frictionless
+distance at 40 on 45 degrees; 30 on 45 holds). Those cases are strict xfails: they fail the suite
+if they ever meet the tolerances, so that this note is updated.
 """
 
 import math
@@ -26,37 +41,39 @@ from studies.contact_scenes import RampIncline, WallIncline
 SLIDE_TOL = 0.03
 STICK_TOL = 1e-3
 
-# (scheme, precision, thickness cells, E Pa, side) -> [(incline deg, friction deg), ...]
-WALL_CASES = [
-    ("apic-affine", "f32", 1, 1e8, "bottom", [(10, 0), (20, 30)]),
-    ("apic", "f64", 5, 1e6, "left", [(30, 20), (40, 45)]),
-    ("mpm", "f32", 5, 1e6, "bottom", [(30, 20), (20, 30)]),
-    ("apic-affine", "f64", 20, 1e6, "bottom", [(20, 10), (20, 45)]),
-    ("mpm", "f64", 1, 1e6, "left", [(20, 0), (10, 30)]),
-    ("apic", "f32", 20, 1e6, "left", [(40, 20)]),
-    ("apic-affine", "f32", 5, 1e8, "left", [(30, 10), (20, 45)]),
-    pytest.param("apic-affine", "f64", 20, 1e8, "bottom", [(40, 20)], marks=pytest.mark.slow),
+# (scheme, precision, thickness cells, E Pa, side, [(incline deg, friction deg), ...]): a sliding and a
+# sticking case each
+WALL_ROWS = [
+    ("mpm", "f32", 20, 1e8, "bottom", [(20, 10), (20, 30)]),
+    ("mpm", "f64", 1, 1e6, "left", [(10, 0), (30, 45)]),
+    ("mpm", "f32", 5, 1e8, "right", [(20, 10), (10, 20)]),
+    ("apic", "f64", 20, 1e6, "right", [(40, 30), (30, 45)]),
+    ("apic", "f32", 1, 1e8, "bottom", [(30, 20), (10, 20)]),
+    ("apic", "f64", 5, 1e8, "left", [(40, 30), (30, 45)]),
+    ("apic-affine", "f32", 20, 1e6, "left", [(30, 20), (20, 30)]),
+    ("apic-affine", "f64", 1, 1e8, "right", [(10, 0), (20, 30)]),
+    ("apic-affine", "f64", 5, 1e6, "bottom", [(40, 30), (40, 45)]),
+]
+
+_FLIP = pytest.mark.xfail(strict=True, reason="FLIP lets friction-excited slip waves grow (module note)")
+_PULSES = pytest.mark.xfail(strict=True, reason="thick soft block 5 deg from the friction limit: slip pulses from its "
+                                                "ends ratchet it down the slope (module note)")
+#: outside the tolerances (module note; measured in docs/validation.md, contact)
+KNOWN_LIMITS = [
+    pytest.param("mpm", "f32", 20, 1e8, "bottom", [(40, 30)], marks=_FLIP, id="mpm-stiff-thick-40-30"),  # +29 %
+    pytest.param("apic", "f64", 20, 1e6, "right", [(40, 45)], marks=_PULSES, id="apic-soft-thick-40-45"),  # 1.1 %
 ]
 
 
-#: Sticking on a structure: the issue's target is 0.1 %, NOT met (measured 0.2 % for a 5-cell E = 1e6 Pa
-#: block at 30 deg on 40 deg friction, f32): a structure has no mirror-image terms, so the first node
-#: row outside it misses part of its support and the particle row next to the surface shears by a
-#: few per cent of a cell, which this measure counts as slip. Stated in docs/validation.md.
-RAMP_STICK_TOL = 5e-3
-
-
-def _check(outcome, label, stick_tol=STICK_TOL):
+def _check(outcome, label):
     if outcome.slides:
         assert outcome.distance_m >= 20 * outcome.cell_m, label
         assert abs(outcome.error) < SLIDE_TOL, f"{label}: slid {outcome.distance_m:.4g} m, analytic {outcome.analytic_m:.4g} m"
     else:
-        assert outcome.error < stick_tol, f"{label}: slipped {outcome.distance_m:.3g} m of {outcome.frictionless_m:.3g} m"
+        assert outcome.error < STICK_TOL, f"{label}: slipped {outcome.distance_m:.3g} m of {outcome.frictionless_m:.3g} m"
 
 
-@pytest.mark.parametrize("scheme, precision, thickness, youngs, side, angles", WALL_CASES)
-def test_a_block_at_rest_on_a_frictional_wall_slides_or_sticks_as_coulomb_says(scheme, precision, thickness,
-                                                                               youngs, side, angles):
+def _wall_cases(scheme, precision, thickness, youngs, side, angles):
     runtime.acquire("cpu", precision)
     try:
         scene = WallIncline(scheme, precision, thickness, youngs, side)
@@ -66,10 +83,34 @@ def test_a_block_at_rest_on_a_frictional_wall_slides_or_sticks_as_coulomb_says(s
         runtime.release()
 
 
+def test_the_wall_rows_cover_every_pair_of_values():
+    axes = list(zip(*[row[:5] for row in WALL_ROWS]))
+    for a in range(5):
+        for b in range(a + 1, 5):
+            pairs = {(row[a], row[b]) for row in WALL_ROWS}
+            assert pairs == {(u, v) for u in set(axes[a]) for v in set(axes[b])}, (a, b)
+    assert set(axes[2]) == {1, 5, 20} and set(axes[3]) == {1e6, 1e8} and set(axes[4]) == {"bottom", "left", "right"}
+    angles = [pair for row in WALL_ROWS for pair in row[5]]
+    assert {t for t, _ in angles} == {10, 20, 30, 40} and {d for _, d in angles} >= {0, 10, 20, 30, 45}
+
+
+@pytest.mark.parametrize("scheme, precision, thickness, youngs, side, angles", WALL_ROWS)
+def test_a_block_at_rest_on_a_frictional_wall_slides_or_sticks_as_coulomb_says(scheme, precision, thickness,
+                                                                               youngs, side, angles):
+    _wall_cases(scheme, precision, thickness, youngs, side, angles)
+
+
+@pytest.mark.parametrize("scheme, precision, thickness, youngs, side, angles", KNOWN_LIMITS)
+def test_known_limits_stay_outside_the_tolerances(scheme, precision, thickness, youngs, side,
+                                                                  angles):
+    _wall_cases(scheme, precision, thickness, youngs, side, angles)
+
+
+# (scheme, precision, thickness cells, E Pa, ramp angle deg, [(friction deg, slides), ...])
 RAMP_CASES = [
     ("apic-affine", "f64", 5, 1e6, 30, [(20, True), (40, False)]),
-    ("mpm", "f32", 5, 1e6, 30, [(20, True), (40, False)]),
-    ("apic", "f64", 5, 1e8, 40, [(30, True), (0, True)]),
+    ("apic", "f32", 1, 1e8, 40, [(30, True), (45, False)]),
+    ("mpm", "f64", 20, 1e6, 20, [(10, True), (30, False)]),
 ]
 
 
@@ -82,8 +123,7 @@ def test_a_block_on_an_inclined_structure_slides_or_sticks_as_coulomb_says(schem
         for delta, slides in cases:
             outcome = scene.run(delta)
             assert outcome.slides == slides
-            _check(outcome, f"ramp {scheme} {precision} {thickness} cells E={youngs:g} th={theta} d={delta}",
-                   RAMP_STICK_TOL)
+            _check(outcome, f"ramp {scheme} {precision} {thickness} cells E={youngs:g} th={theta} d={delta}")
             # never inside the ramp
             x = scene.engine.x.to_numpy().astype(np.float64)
             assert signed_distance(x, scene.polygon).min() >= -1e-6 * scene.dx
