@@ -1,7 +1,7 @@
 """The full incline matrix of the contact law (docs/validation.md, contact).
 
 A block at rest on a frictional contact (:mod:`studies.contact_scenes`): every scheme, precision,
-thickness (cells), Young's modulus and contact (bottom wall, left wall, ramp structure) against
+thickness (cells), Young's modulus and contact (bottom, left and right wall, ramp structure) against
 inclines and friction angles. Sliding cases: error of the slip against the analytic distance;
 sticking cases: the slip as a fraction of the frictionless distance. Rows go to a CSV as they
 finish (a long run can be stopped and read), then a summary (max/mean per axis value) is printed.
@@ -10,7 +10,8 @@ Usage::
 
     PYTHONPATH=$PWD python -m benchmarks.contact_matrix --out contact-matrix.csv [--start free]
         [--schemes mpm,apic,apic-affine] [--precisions f32,f64] [--thickness 1,5,20]
-        [--youngs 1e6,1e8] [--contacts bottom,left,ramp] [--angles 10:0,20:10,...]
+        [--youngs 1e6,1e8] [--contacts bottom,left,right,ramp] [--angles 10:0,20:10,...]
+    PYTHONPATH=$PWD python -m benchmarks.contact_matrix --table a.csv b.csv   # the summary of saved rows
 """
 
 from __future__ import annotations
@@ -34,11 +35,23 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--precisions", default="f32,f64")
     ap.add_argument("--thickness", default="1,5,20")
     ap.add_argument("--youngs", default="1e6,1e8")
-    ap.add_argument("--contacts", default="bottom,left,ramp")
+    ap.add_argument("--contacts", default="bottom,left,right,ramp")
     ap.add_argument("--angles", default=ANGLES, help="incline:friction pairs in degrees")
     ap.add_argument("--start", choices=("settled", "free"), default="settled",
                     help="settled: equilibrium stress at t = 0; free: stress free (elastic waves)")
+    ap.add_argument("--table", nargs="+", type=Path, help="print the summary of saved CSVs and stop")
     args = ap.parse_args(argv)
+    if args.table:
+        rows = []
+        for path in args.table:
+            with open(path, newline="") as fh:
+                for r in csv.DictReader(fh):
+                    rows.append((r["contact"], r["scheme"], r["precision"], int(r["thickness_cells"]),
+                                 float(r["youngs_pa"]), float(r["incline_deg"]), float(r["friction_deg"]),
+                                 r["slides"] == "True", float(r["slip_m"]), float(r["analytic_m"]),
+                                 float(r["frictionless_m"]), float(r["error"]), int(r["steps"]), float(r["wall_s"])))
+        summarise(rows)
+        return 0
 
     from solver import runtime
 
@@ -80,20 +93,32 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def summarise(rows) -> None:
+    """Max and mean error per group: overall, per value of each axis, and a markdown table per
+    contact and scheme (sliding: |slip / analytic - 1|; sticking: slip / frictionless)."""
     import numpy as np
+
+    def stats(sel):
+        e = np.abs([r[11] for r in sel])
+        return f"{len(sel)}, max {100 * e.max():.2f} % / mean {100 * e.mean():.2f} %" if sel else "-"
 
     for slides, what in ((True, "sliding: |slip / analytic - 1|"), (False, "sticking: slip / frictionless")):
         sel = [r for r in rows if r[7] == slides]
         if not sel:
             continue
-        err = np.abs([r[11] for r in sel])
-        print(f"{what}: {len(sel)} cases, max {err.max():.4f}, mean {err.mean():.4f}")
+        print(f"{what}: {stats(sel)}")
         for k, name in ((0, "contact"), (1, "scheme"), (2, "precision"), (3, "thickness"), (4, "E")):
-            parts = []
-            for value in sorted({r[k] for r in sel}, key=str):
-                e = np.abs([r[11] for r in sel if r[k] == value])
-                parts.append(f"{value}: max {e.max():.4f} mean {e.mean():.4f}")
+            parts = [f"{value}: {stats([r for r in sel if r[k] == value])}" for value in sorted({r[k] for r in sel}, key=str)]
             print(f"  by {name}: " + "; ".join(parts))
+    print()
+    print("| contact | scheme | precision | sliding: cases, max / mean error | sticking: cases, max / mean slip |")
+    print("|---|---|---|---|---|")
+    for contact in sorted({r[0] for r in rows}):
+        for scheme in sorted({r[1] for r in rows}):
+            for precision in sorted({r[2] for r in rows}):
+                sel = [r for r in rows if r[:3] == (contact, scheme, precision)]
+                if sel:
+                    print(f"| {contact} | {scheme} | {precision} | {stats([r for r in sel if r[7]])} | "
+                          f"{stats([r for r in sel if not r[7]])} |")
 
 
 if __name__ == "__main__":
