@@ -165,7 +165,7 @@ class Engine:
 
         # contacts: the four sides, then the structures. Per structure its contact kind and friction
         # coefficient, its edges (for pushing particles out) and bounding box; per grid node the
-        # structure covering it (-1: none) and that structure's outward normal there
+        # structure whose contact node it is (-1: none) and that structure's outward normal there
         self.structures = tuple(structures)
         self.n_structures = len(self.structures)
         self.n_contacts = 4 + self.n_structures
@@ -438,7 +438,8 @@ class Engine:
         ``mass`` is added to ``contact_step``.
 
         Contact nodes of a closed side: the nodes on its line and beyond (ghost layers); normal the
-        side's inward axis. Of a structure: the nodes it covers; normal its outward normal there.
+        side's inward axis. Of a structure: the nodes whose cell reaches into it
+        (:func:`solver.structures.node_contacts`); normal its outward normal there.
         A node on a side and in a structure meets both, side first.
         """
         for side in ti.static(range(4)):
