@@ -35,7 +35,7 @@ from solver import runtime
 from solver.config import (Boundary, Grid, Material, Numerics, Output, Particles, SimulationConfig, Stage,
                            Structure)
 from solver.simulation import Simulation
-from solver.structures import signed_distance
+from solver.structures import node_contacts, signed_distance
 from studies.contact_scenes import RampIncline, WallIncline
 
 SLIDE_TOL = 0.03
@@ -104,6 +104,28 @@ def test_a_block_at_rest_on_a_frictional_wall_slides_or_sticks_as_coulomb_says(s
 def test_known_limits_stay_outside_the_tolerances(scheme, precision, thickness, youngs, side,
                                                                   angles):
     _wall_cases(scheme, precision, thickness, youngs, side, angles)
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 20.0, 45.0, 70.0])
+def test_structure_contact_nodes_are_those_whose_cell_reaches_into_it(angle_deg):
+    """A half-plane below a line through (0.5, 0.5) m at ``angle_deg``: a node is a contact node exactly
+    when its cell (one cell square) overlaps the half-plane, and its normal is the line's."""
+    h = 0.1
+    a = math.radians(angle_deg)
+    n = np.array([-math.sin(a), math.cos(a)])  # outward, up
+    t = np.array([math.cos(a), math.sin(a)])
+    c = np.array([0.5, 0.5])
+    polygon = [c - 20 * t, c + 20 * t, c + 20 * t - 20 * n, c - 20 * t - 20 * n]
+    xs = ys = np.arange(11) * h
+    index, normal = node_contacts([polygon], xs, ys, h)
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    d = (np.stack([X, Y], -1) - c) @ n
+    reach = 0.5 * h * (abs(n[0]) + abs(n[1]))
+    expected = d < reach - 1e-9
+    assert np.array_equal(index == 0, expected | (np.abs(d - reach) < 1e-9) & (index == 0))
+    assert np.allclose(normal[expected], n, atol=1e-6)
+    if angle_deg == 0.0:  # a surface on a node line: its nodes and those below, nothing above
+        assert np.array_equal(index == 0, Y <= 0.5 + 1e-9)
 
 
 # (scheme, precision, thickness cells, E Pa, ramp angle deg, [(friction deg, slides), ...])
