@@ -1,13 +1,17 @@
-"""Contact scenes shared by the contact tests and the full-matrix study (:mod:`studies.contact`).
+"""Contact scenes shared by the contact tests and the full matrix (benchmarks/contact_matrix.py).
 
-A block starts at rest on a frictional contact under gravity, with the stress of a block at rest
-on the slope (:func:`slope_stress`; or stress free), and is run with the engine directly (one engine serves every incline and friction angle of a scheme, precision,
-thickness and stiffness: gravity, the walls' friction and the particles are data, not compiled).
+A block starts at rest on a contact under gravity, with the stress of a block at rest on the
+slope (:func:`slope_stress`; or stress free), settles on the contact held fixed (local damping,
+SETTLE_TRANSITS P-wave transits of the block, so that its free ends are in equilibrium too), and is
+released on the frictional contact; the slip is measured from the release. The engine runs
+directly (one engine serves every incline and friction angle of a scheme, precision, thickness and
+stiffness: gravity, the walls' friction and the particles are data, not compiled).
 
 - :class:`WallIncline`: the contact is a closed side of the grid box. The incline is made by
-  rotating gravity, not the geometry: on the ``bottom`` wall gravity is
+  rotating gravity, not the geometry (exact and cheap): on the ``bottom`` wall gravity is
   ``g (sin th, -cos th)`` (the block slides towards +x); on the ``left`` wall
-  ``g (-cos th, -sin th)`` (it slides down the wall, towards -y).
+  ``g (-cos th, -sin th)``, on the ``right`` wall ``g (cos th, -sin th)`` (it slides down the wall,
+  towards -y).
 - :class:`RampIncline`: the contact is an inclined rigid structure (a ramp at angle ``th``) under
   vertical gravity; the block sits on it with its base parallel to the ramp surface.
 
@@ -15,11 +19,13 @@ Analytic distance along the slope after ``t`` seconds from rest (rigid block, Co
 ``mu = tan(delta)``): ``s = 1/2 g (sin th - mu cos th) t^2`` when ``tan(th) > mu`` (slides), 0
 otherwise (sticks). What is measured is the slip at the contact: the mean displacement along the
 slope of the particles of the block's lowest particle row (the row next to the contact), so that
-the elastic shear of a sticking block, which moves its upper part, is not counted as slip.
+the elastic shear of a sticking block, which moves its upper part, is not counted as slip. The
+run lasts until the analytic travel is 20 cells (5 % more); a sticking case runs as long as the
+frictionless block would take.
 
-The scale (cell size, density) is chosen so that a stiff block (E = 1e8 Pa) 20 cells thick needs a
-few thousand steps: ``dx = 0.5 m`` for E >= 1e7 Pa and ``0.1 m`` below, density 2000 kg/m3. The
-weight-to-stiffness ratio ``rho g H / E`` of a 20-cell block is then 2e-3 (stiff) and 4e-2 (soft).
+The scale (cell size, density) keeps the steps few: ``dx = 2 m`` for E >= 1e7 Pa and ``0.1 m``
+below, density 2000 kg/m3 (a few hundred to two thousand steps a case). The weight-to-stiffness
+ratio ``rho g H / E`` of a 20-cell block is then 8e-3 (stiff) and 4e-2 (soft).
 """
 
 from __future__ import annotations
