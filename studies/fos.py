@@ -52,10 +52,22 @@ COST_LIMIT = 8.0
 INFINITE_TOLERANCE = 0.03
 
 
-def infinite_slope(beta_deg: float, cohesion_pa: float, phi_deg: float, *, cell_m: float = 0.25,
-                   thickness_m: float = 1.0, length_m: float = 12.0, duration_s: float = 3.0,
-                   tolerance: float = 0.02) -> tuple[Any, float]:
-    """A project of a layer on a rough inclined base (gravity rotated) and its closed-form factor.
+def infinite_slope(beta_deg: float, cohesion_pa: float, phi_deg: float, *, cell_m: float = 0.125,
+                   thickness_m: float = 1.0, width_cells: int = 4, dilatancy_deg: float | None = None,
+                   youngs_modulus_pa: float = 20e6, tolerance: float = 0.01, precision: str = "f64",
+                   scheme: str = "apic-affine", duration_s: float = 1.0) -> tuple[Any, float]:
+    """A project of an infinite slope and its closed-form factor of safety.
+
+    A uniform layer ``thickness_m`` thick (normal to the base) on a rough (fixed) base, gravity
+    rotated by ``beta_deg`` (``g (sin b, -cos b)``) so that the base is the grid's bottom, and
+    periodic left and right sides ``width_cells`` cells apart: the layer repeats without end, no
+    strain along the slope. Drucker-Prager with ``dilatancy_deg`` (default ``phi_deg``: associated
+    flow, where the materials' plane-strain match reproduces Mohr-Coulomb's strength on the base,
+    docs/validation.md), rho = 2000 kg/m3, nu = 0.3. Stages: gravity 1 s, then the strength
+    reduction with its default criteria and a monitor at the surface (the default, the crest of
+    a slope, has no meaning on a uniform layer). The closed form:
+    ``F = c / (gamma z cos^2 b tan b) + tan(phi) / tan(b)`` with ``z = thickness / cos b`` the
+    vertical depth of the base.
 
     Returns
     -------
@@ -65,31 +77,38 @@ def infinite_slope(beta_deg: float, cohesion_pa: float, phi_deg: float, *, cell_
 
     g, rho = 9.81, 2000.0
     b = math.radians(beta_deg)
+    width = width_cells * cell_m
+    psi = phi_deg if dilatancy_deg is None else dilatancy_deg
     data = {
         "runout": {"schema_version": 1, "title": f"infinite slope beta {beta_deg:g} c {cohesion_pa:g} phi {phi_deg:g}"},
-        "domain": {"origin_m": [0.0, 0.0], "size_m": [length_m + 4 * cell_m, thickness_m + 4 * cell_m],
+        "domain": {"origin_m": [0.0, 0.0], "size_m": [width, thickness_m + 2 * cell_m],
                    "cell_size_m": cell_m, "gravity_m_s2": [g * math.sin(b), -g * math.cos(b)],
-                   "boundaries": {"left": "slip", "right": "open", "bottom": "fixed", "top": "open"}},
-        "materials": {"soil": {"model": "drucker-prager", "density_kg_m3": rho, "youngs_modulus_pa": 5e6,
+                   "boundaries": {"left": "periodic", "right": "periodic", "bottom": "fixed", "top": "open"}},
+        "materials": {"soil": {"model": "drucker-prager", "density_kg_m3": rho, "youngs_modulus_pa": youngs_modulus_pa,
                                "poisson_ratio": 0.3, "cohesion_pa": cohesion_pa, "friction_angle_deg": phi_deg,
-                               "dilatancy_angle_deg": phi_deg}},
+                               "dilatancy_angle_deg": psi}},
         "bodies": [{"name": "layer", "material": "soil",
-                    "polygon_m": [[0.0, 0.0], [length_m, 0.0], [length_m, thickness_m], [0.0, thickness_m]]}],
+                    "polygon_m": [[0.0, 0.0], [width, 0.0], [width, thickness_m], [0.0, thickness_m]]}],
         "particles": {"per_cell": 2},
-        "numerics": {"cfl": 0.5, "arch": "cpu"},
+        "numerics": {"cfl": 0.5, "arch": "cpu", "precision": precision, "scheme": scheme},
         "stages": [
-            {"name": "gravity", "type": "gravity", "duration_s": 1.0},
+            {"name": "gravity", "type": "gravity", "duration_s": duration_s},
             {"name": "strength reduction", "type": "strength-reduction", "tolerance": tolerance,
-             "trial_duration_s": duration_s, "limit_equilibrium": False,
-             "failure": {"criteria": ["displacement"], "monitor_point_m": [0.5 * length_m, thickness_m],
-                         "displacement_m": 0.1 * thickness_m}},
+             "limit_equilibrium": False, "failure": {"monitor_point_m": [0.5 * width, thickness_m]}},
         ],
         "output": {"interval_s": 1.0, "fields": ["displacement", "plastic_strain"]},
     }
+    return validate_project(data), infinite_slope_factor(beta_deg, cohesion_pa, phi_deg, rho * g, thickness_m)
+
+
+def infinite_slope_factor(beta_deg: float, cohesion_pa: float, phi_deg: float, unit_weight_n_m3: float,
+                          thickness_m: float) -> float:
+    """``F = c / (gamma z cos^2 b tan b) + tan(phi) / tan(b)``, ``z = thickness / cos b`` the
+    vertical depth of the slip plane (thickness normal to the slope, m; gamma in N/m3)."""
+    b = math.radians(beta_deg)
     z = thickness_m / math.cos(b)
-    exact = cohesion_pa / (rho * g * z * math.cos(b) ** 2 * math.tan(b)) + \
+    return cohesion_pa / (unit_weight_n_m3 * z * math.cos(b) ** 2 * math.tan(b)) + \
         math.tan(math.radians(phi_deg)) / math.tan(b)
-    return validate_project(data), exact
 
 
 def acads_1a(cell_m: float = 0.5) -> Any:
