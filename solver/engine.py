@@ -231,7 +231,7 @@ class Engine:
                      "contact_peak")
     #: Every field the host reads or writes (:meth:`state`, :meth:`load_state` and the set-up).
     HOST_FIELDS = PARTICLE_STATE + COUNTER_STATE + (
-        "contact_step", "diag", "speed_bound", "bc_kind", "bc_mu", "st_kind", "st_mu", "edge_a", "edge_b",
+        "contact_step", "speed_bound", "bc_kind", "bc_mu", "st_kind", "st_mu", "edge_a", "edge_b",
         "st_edges", "st_box", "node_struct", "node_normal")
 
     def set_boundaries(self, grid: Grid) -> None:

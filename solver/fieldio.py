@@ -66,7 +66,7 @@ class FieldIO:
         self.layout = tuple(layout)
         self._index = {entry[0]: k for k, entry in enumerate(layout)}
         self.entries = tuple((field, slot, offset, shape, element) for _n, field, slot, offset, shape, element in layout)
-        self.longest = max((math.prod(shape) for *_r, shape, _e in layout), default=1)
+        self._counts = [math.prod(shape) for *_r, shape, _e in layout]  # elements per field
         self.sizes = sizes
         self.shapes = {name: shape + element for name, _f, _s, _o, shape, element in layout}
         self.dtypes = {name: _TO_NUMPY[slot] for name, _f, slot, *_ in layout}
@@ -104,7 +104,8 @@ class FieldIO:
             # the loop over the fields is unrolled on purpose (one straight-line body), which
             # Taichi warns about beyond 32 iterations at the first launch
             warnings.filterwarnings("ignore", message=".*unrolling more than", category=SyntaxWarning)
-            self._copy(into_fields, mask, buf["f32"], buf["f64"], buf["i32"], buf["i8"])
+            extent = max((self._counts[k] for k in np.flatnonzero(mask)), default=0)  # the longest named field
+            self._copy(into_fields, extent, mask, buf["f32"], buf["f64"], buf["i32"], buf["i8"])
 
     def _buffers(self, names: Iterable[str]) -> dict[str, np.ndarray]:
         """Flat buffers, one per dtype, long enough for the named fields (at least one element:
@@ -128,16 +129,16 @@ class FieldIO:
             raise KeyError(f"unknown field {name!r}; known: {', '.join(self.fields)}") from None
 
     # ------------------------------------------------------------------ the kernel
-    # One parallel loop over the longest field's elements; element i of every field that has one
+    # One parallel loop over the elements of the longest field named; element i of every field that has one
     # is copied in the same iteration. The compiled kernel is one task with straight-line code:
     # Taichi's own copies (a struct-for per field) load about four times slower from the offline
     # cache per field, and a loop per field shape costs a task each. The same kernel serves both
     # directions and any subset of the fields (``mask``), so a process compiles it once.
     @ti.kernel
-    def _copy(self, into_fields: ti.i32, mask: ti.types.ndarray(dtype=ti.i32, ndim=1),
+    def _copy(self, into_fields: ti.i32, extent: ti.i32, mask: ti.types.ndarray(dtype=ti.i32, ndim=1),
               f32: ti.types.ndarray(dtype=ti.f32, ndim=1), f64: ti.types.ndarray(dtype=ti.f64, ndim=1),
               i32: ti.types.ndarray(dtype=ti.i32, ndim=1), i8: ti.types.ndarray(dtype=ti.i8, ndim=1)):
-        for i in range(self.longest):
+        for i in range(extent):
             for k in ti.static(range(len(self.entries))):
                 field, slot, offset, shape, element = ti.static(self.entries[k])
                 buf = ti.static((f32, f64, i32, i8)[_SLOTS.index(slot)])

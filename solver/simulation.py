@@ -221,6 +221,8 @@ class Simulation:
         self.cursor = _Cursor()
         #: ``time.perf_counter()`` at the end of this process's first step (None before it)
         self.first_step_at: float | None = None
+        #: this process's CPU time (user + system, all threads) at that moment, s
+        self.first_step_cpu_s: float | None = None
         self.fingerprint = fingerprint(config, particles)
         # contacts reported in frames: the closed sides, then the structures (engine order)
         self._contacts = [i for i, side in enumerate(SIDES) if config.grid.boundary(side).kind != "open"]
@@ -480,6 +482,7 @@ class Simulation:
                     e.step(h, (gravity[0], gravity[1]), damping)
                     if self.first_step_at is None:  # start-up ends here (kernels compiled or loaded)
                         self.first_step_at = time.perf_counter()
+                        self.first_step_cpu_s = time.process_time()
                     self.steps += 1
                     c.stage_steps += 1
                     self.time_s += h
