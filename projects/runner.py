@@ -452,6 +452,8 @@ def _run(
         if sim.first_step_at is not None and process_age_s() is not None:
             # process start to the end of its first step: what a run as a process costs to start
             extra["startup_s"] = process_age_s() - (time.perf_counter() - sim.first_step_at)
+            # the same span in CPU seconds of the process (less disturbed by other work on the machine)
+            extra["startup_cpu_s"] = sim.first_step_cpu_s
         if driver is not None:
             extra.update(driver.summary())
             if writer is not None:

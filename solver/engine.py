@@ -29,6 +29,7 @@ import numpy as np
 import taichi as ti
 
 from solver.config import SCATTERS, SIDES, Boundary, Grid, Material, Structure
+from solver.fieldio import FieldIO
 from solver.materials import MaterialTable
 from solver.structures import node_contacts, segments
 
@@ -216,20 +217,32 @@ class Engine:
         self.unstable = ti.field(ti.i32, ())
         self.diag = ti.field(float, 8)
 
+        # every field the host reads or writes, moved by one kernel (solver.fieldio: one kernel
+        # per field, as Taichi's own to_numpy / from_numpy are, costs start-up time in every process)
+        self._io = FieldIO({name: getattr(self, name) for name in self.HOST_FIELDS})
         self.set_boundaries(grid)
         if has:
             self._set_up_structures(edges)
-        self.speed_bound[None] = speed_bound_m_s
+        self._io.write({"speed_bound": speed_bound_m_s})
 
     # ------------------------------------------------------------------ set-up and state I/O
+    #: Every particle field of the solver state (a checkpoint holds these, the counters and the
+    #: split scatter's plan; the grid is rebuilt from the particles at every step).
+    PARTICLE_STATE = ("x", "x0", "v", "C", "s", "m", "rho", "eps_p", "mat", "active", "yielded", "band")
+    COUNTER_STATE = ("lost", "unstable", "cut", "cut_axis", "band_range", "band_count", "contact_impulse",
+                     "contact_peak")
+    #: Every field the host reads or writes (:meth:`state`, :meth:`load_state` and the set-up).
+    HOST_FIELDS = PARTICLE_STATE + COUNTER_STATE + (
+        "contact_step", "speed_bound", "bc_kind", "bc_mu", "st_kind", "st_mu", "edge_a", "edge_b",
+        "st_edges", "st_box", "node_struct", "node_normal")
+
     def set_boundaries(self, grid: Grid) -> None:
         """The kinds and friction of the four sides (data: no recompilation; whether the left and
         right sides are periodic is fixed at construction)."""
         if grid.periodic != self.periodic or grid.periodic_problem():
             raise ValueError(grid.periodic_problem() or "periodic sides are chosen when the engine is built")
         kinds, mus = _contact_codes([grid.boundary(side) for side in SIDES])
-        self.bc_kind.from_numpy(kinds)
-        self.bc_mu.from_numpy(mus.astype(self.np_float))
+        self._io.write({"bc_kind": kinds, "bc_mu": mus})
 
     def set_structure_contacts(self, contacts: tuple[Boundary, ...]) -> None:
         """The contact of each structure, in order (data: the geometry stays as constructed)."""
@@ -239,22 +252,23 @@ class Engine:
             raise ValueError("a structure's contact is fixed, slip or friction, not open or periodic")
         if self.n_structures:
             kinds, mus = _contact_codes(contacts)
-            self.st_kind.from_numpy(kinds)
-            self.st_mu.from_numpy(mus.astype(self.np_float))
+            self._io.write({"st_kind": kinds, "st_mu": mus})
 
     def _set_up_structures(self, edges) -> None:
         self.set_structure_contacts(tuple(st.contact for st in self.structures))
         f = self.np_float
-        self.edge_a.from_numpy(np.concatenate([a for a, _ in edges]).astype(f))
-        self.edge_b.from_numpy(np.concatenate([b for _, b in edges]).astype(f))
         counts = np.array([len(a) for a, _ in edges], np.int32)
-        self.st_edges.from_numpy(np.c_[np.cumsum(counts) - counts, counts].astype(np.int32))
-        self.st_box.from_numpy(np.array([[*a.min(axis=0), *a.max(axis=0)] for a, _ in edges]).astype(f))
         xs = self.origin[0] + (np.arange(self.nodes[0]) - PAD) * self.dx
         ys = self.origin[1] + (np.arange(self.nodes[1]) - PAD) * self.dx
         index, normal = node_contacts([st.polygon_m for st in self.structures], xs, ys, self.dx)
-        self.node_struct.from_numpy(index)
-        self.node_normal.from_numpy(normal.astype(f))
+        self._io.write({
+            "edge_a": np.concatenate([a for a, _ in edges]).astype(f),
+            "edge_b": np.concatenate([b for _, b in edges]).astype(f),
+            "st_edges": np.c_[np.cumsum(counts) - counts, counts].astype(np.int32),
+            "st_box": np.array([[*a.min(axis=0), *a.max(axis=0)] for a, _ in edges]).astype(f),
+            "node_struct": index,
+            "node_normal": normal.astype(f),
+        })
 
     @property
     def contact_names(self) -> tuple[str, ...]:
@@ -265,11 +279,9 @@ class Engine:
         """Impulse on each contact since the last read (N s/m, (n_contacts, 2)) and the largest
         force of one step in that time (|F|, Fx, Fy in N/m, (n_contacts, 3)); both start afresh.
         Impulse and force are what the material exerts on the contact."""
-        impulse = self.contact_impulse.to_numpy()
-        peak = self.contact_peak.to_numpy()
-        self.contact_impulse.fill(0.0)
-        self.contact_peak.fill(0.0)
-        return impulse, peak
+        got = self._io.read(("contact_impulse", "contact_peak"))
+        self._io.write({"contact_impulse": 0.0, "contact_peak": 0.0})
+        return got["contact_impulse"], got["contact_peak"]
 
     def load_particles(self, positions_m, volumes_m2, material_ids, velocities_m_s=None,
                        densities_kg_m3=None) -> None:
@@ -277,68 +289,47 @@ class Engine:
         f = self.np_float
         pos = np.asarray(positions_m, dtype=f).reshape(-1, 2)
         mat = np.asarray(material_ids, dtype=np.int32)
-        rho0 = self.materials.rho0.to_numpy()[mat] if densities_kg_m3 is None else np.asarray(densities_kg_m3)
+        rho0 = self.materials.host["rho0"][mat] if densities_kg_m3 is None else np.asarray(densities_kg_m3)
         vel = np.zeros_like(pos) if velocities_m_s is None else np.asarray(velocities_m_s, dtype=f)
-        self.x.from_numpy(pos)
-        self.x0.from_numpy(pos)
-        self.v.from_numpy(vel)
-        self.C.from_numpy(np.zeros((self.n, 2, 2), f))
-        self.s.from_numpy(np.zeros((self.n, 4), f))
-        self.m.from_numpy((np.asarray(volumes_m2, dtype=np.float64) * rho0).astype(f))
-        self.rho.from_numpy(rho0.astype(f))
-        self.eps_p.from_numpy(np.zeros(self.n, f))
-        self.mat.from_numpy(mat)
-        self.active.from_numpy(np.ones(self.n, np.int8))
-        self.yielded.from_numpy(np.zeros(self.n, np.int8))
-        self.lost[None] = 0
-        self.unstable[None] = 0
-        self.contact_step.fill(0.0)
-        self.contact_impulse.fill(0.0)
-        self.contact_peak.fill(0.0)
         ranges = np.zeros((self.n_bands, 16), np.int32)
         ranges[:, :2], ranges[:, 2:4] = _BIG, -_BIG
-        self.band_range.from_numpy(ranges)
-        self.band_count.fill(0)
-        # nothing counted yet: one band over the whole grid, so the first split scatter is one thread's
-        self.cut.from_numpy(np.array([-_BIG] * self.n_bands + [_BIG], np.int32))
-        self.cut_axis[None] = 0
-        self.band.fill(self.n_bands - 1)
+        self._io.write({
+            "x": pos, "x0": pos, "v": vel, "C": 0.0, "s": 0.0,
+            "m": (np.asarray(volumes_m2, dtype=np.float64) * rho0).astype(f),
+            "rho": rho0.astype(f), "eps_p": 0.0, "mat": mat, "active": 1, "yielded": 0,
+            "lost": 0, "unstable": 0, "contact_step": 0.0, "contact_impulse": 0.0, "contact_peak": 0.0,
+            "band_range": ranges, "band_count": 0,
+            # nothing counted yet: one band over the whole grid, so the first split scatter is one thread's
+            "cut": np.array([-_BIG] * self.n_bands + [_BIG], np.int32), "cut_axis": 0,
+            "band": self.n_bands - 1,
+        })
 
     def set_stress(self, stress: np.ndarray) -> None:
         """Overwrite the particle stresses, (N, 4) Pa."""
-        self.s.from_numpy(np.asarray(stress, dtype=self.np_float))
+        self._io.write({"s": np.asarray(stress, dtype=self.np_float)})
 
     def set_velocity(self, velocity: np.ndarray, affine: np.ndarray | None = None) -> None:
-        self.v.from_numpy(np.asarray(velocity, dtype=self.np_float))
-        self.C.from_numpy(np.zeros((self.n, 2, 2), self.np_float) if affine is None
-                          else np.asarray(affine, dtype=self.np_float))
+        self._io.write({"v": np.asarray(velocity, dtype=self.np_float),
+                        "C": 0.0 if affine is None else np.asarray(affine, dtype=self.np_float)})
 
     def reset_reference(self) -> None:
         """Measure displacements from the current positions from now on."""
-        self.x0.copy_from(self.x)
-
-    #: Every particle field of the solver state (a checkpoint holds these, the counters and the
-    #: split scatter's plan; the grid is rebuilt from the particles at every step).
-    PARTICLE_STATE = ("x", "x0", "v", "C", "s", "m", "rho", "eps_p", "mat", "active", "yielded", "band")
-    COUNTER_STATE = ("lost", "unstable", "cut", "cut_axis", "band_range", "band_count", "contact_impulse",
-                     "contact_peak")
+        self._io.write({"x0": self._io.read(("x",))["x"]})
 
     def state(self, names: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
-        """Copies of the named state fields (default: everything a checkpoint needs)."""
-        names = self.PARTICLE_STATE + self.COUNTER_STATE if names is None else names
-        return {name: getattr(self, name).to_numpy() for name in names}
+        """Copies of the named state fields (default: everything a checkpoint needs), as
+        ``field.to_numpy()`` gives them; any of :data:`HOST_FIELDS` may be named."""
+        return self._io.read(self.PARTICLE_STATE + self.COUNTER_STATE if names is None else names)
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         """Restore fields saved by :meth:`state` (same particle count, scheme and precision)."""
         for name, value in state.items():
             if name not in self.PARTICLE_STATE + self.COUNTER_STATE:
                 raise ValueError(f"unknown state field {name!r}")
-            field = getattr(self, name)
-            expected = tuple(field.shape) + tuple(getattr(field, "n", 0) and
-                                                  ((field.n, field.m) if field.m > 1 else (field.n,)) or ())
-            if tuple(value.shape) != expected:
-                raise ValueError(f"state field {name!r} has shape {value.shape}, the engine {expected}")
-            field.from_numpy(value)
+            expected = self._io.shapes[name]
+            if tuple(np.shape(value)) != expected:
+                raise ValueError(f"state field {name!r} has shape {np.shape(value)}, the engine {expected}")
+        self._io.write(state)
 
     # ------------------------------------------------------------------ the step recipes
     def step(self, dt: float, gravity: tuple[float, float], damping: float = 0.0) -> None:
@@ -1188,7 +1179,7 @@ class Engine:
 
     # ------------------------------------------------------------------ diagnostics
     @ti.kernel
-    def _diagnostics(self):
+    def _diagnostics(self, out: ti.types.ndarray(dtype=ti.f64, ndim=1)):
         for k in ti.static(range(8)):
             self.diag[k] = 0.0
         for p in range(self.n):
@@ -1202,15 +1193,20 @@ class Engine:
                 self.diag[4] += m
                 self.diag[5] += 1.0
                 self.diag[6] += ti.cast(self.yielded[p], float)
+        # after the sums: the totals and the counters to the host, in the same launch
+        for j in ti.static(range(8)):
+            out[j] = self.diag[j]
+        out[8] = self.lost[None]
+        out[9] = self.unstable[None]
 
     def diagnostics(self) -> dict[str, float]:
         """Kinetic energy (J/m), momentum (kg m/s per m), max speed, mass, counts."""
-        self._diagnostics()
-        d = self.diag.to_numpy().astype(np.float64)
+        d = np.empty(10, np.float64)
+        self._diagnostics(d)  # one launch: the sums and the counters straight into ``d``
         return {
             "kinetic_energy": float(d[0]), "momentum_x": float(d[1]), "momentum_y": float(d[2]),
             "max_speed": float(d[3]), "mass": float(d[4]), "active": int(round(d[5])),
-            "yielding": int(round(d[6])), "lost": int(self.lost[None]), "unstable": int(self.unstable[None]),
+            "yielding": int(round(d[6])), "lost": int(d[8]), "unstable": int(d[9]),
         }
 
 

@@ -46,6 +46,7 @@ import numpy as np
 import taichi as ti
 
 from solver.config import EnvelopeConfig, Grid
+from solver.fieldio import FieldIO
 
 _BIG = 1.0e30
 #: Updates whose time-series rows are kept on the device before they are copied to the host.
@@ -112,33 +113,32 @@ class Envelopes:
         self.speed_now = ti.field(float, ())
         self.rows = ti.field(float, (SERIES_CHUNK, self.series_width))
 
+        # every field the host reads or writes, moved by one kernel (see solver.fieldio)
+        self._io = FieldIO({name: getattr(self, name) for name in ("floor", "t_xy", "t_point", "rows") + self.FIELDS})
         floor = np.full(nx, self.origin_m[1])
         if config.ground_m is not None:
             g = np.asarray(config.ground_m, dtype=float)
             if g.shape != (nx,):
                 raise ValueError(f"ground_m must have {nx} values (one per raster column), got {g.shape}")
             floor = np.maximum(floor, g)
-        self.floor.from_numpy(floor.astype(engine.np_float))
+        self._floor = floor.astype(engine.np_float)
         xy = np.zeros((nt, 2))
         point = np.zeros(nt, np.int32)
         for k, t in enumerate(self.targets):
             xy[k] = (t.x_m, t.y_m if t.y_m is not None else 0.0)
             point[k] = t.y_m is not None
-        self.t_xy.from_numpy(xy.astype(engine.np_float))
-        self.t_point.from_numpy(point)
+        self._io.write({"floor": self._floor, "t_xy": xy.astype(engine.np_float), "t_point": point})
         self.reset()
 
     # ------------------------------------------------------------------ host side
     def reset(self) -> None:
         """Forget everything accumulated (before the release)."""
-        for f in (self.peak_height, self.max_speed, self.max_energy, self.max_pressure, self.t_max):
-            f.fill(0.0)
-        for f in (self.arrival, self.cell_arrival, self.t_arrival):
-            f.fill(-1.0)
-        self.front.from_numpy(np.array([-_BIG, _BIG], self.engine.np_float))
-        self.ground.copy_from(self.floor)
-        self.t_ground.fill(0.0)
-        self.t_hit.fill(0)
+        self._io.write({
+            "peak_height": 0.0, "max_speed": 0.0, "max_energy": 0.0, "max_pressure": 0.0, "t_max": 0.0,
+            "arrival": -1.0, "cell_arrival": -1.0, "t_arrival": -1.0,
+            "front": np.array([-_BIG, _BIG], self.engine.np_float), "ground": self._floor, "t_ground": 0.0,
+            "t_hit": 0,
+        })
         self.started = False
         self.release_time_s = 0.0
         self.time_s = 0.0
@@ -152,9 +152,7 @@ class Envelopes:
         """The release: take the ground surface and the initial particle state, then update once."""
         e = self.engine
         self._reference(e.x, e.m, e.rho, e.active)
-        x = e.x.to_numpy().astype(float)
-        vol = e.m.to_numpy().astype(float) / e.rho.to_numpy().astype(float)
-        self.initial = {"positions_m": x, "volumes_m2": vol, "active": e.active.to_numpy().astype(bool)}
+        self.initial = self._particles()
         self.started = True
         self.release_time_s = float(time_s)
         self.update(time_s)
@@ -185,7 +183,7 @@ class Envelopes:
 
     def _flush(self) -> None:
         if self._slot:
-            self._series.append(self.rows.to_numpy()[: self._slot].astype(float))
+            self._series.append(self._io.read(("rows",))["rows"][: self._slot].astype(float))
             self._slot = 0
 
     def series(self) -> np.ndarray:
@@ -219,53 +217,58 @@ class Envelopes:
             ``series_columns``; ``initial`` and ``current`` particle states (``positions_m``,
             ``volumes_m2``, ``active``); ``release_time_s``, ``time_s``, ``steps``, ``started``.
         """
-        e = self.engine
         nt = self.n_targets
+        host = self._io.read(("floor",) + self.FIELDS)  # one kernel launch for all of them
 
-        def col(f):
-            return f.to_numpy().astype(float)
+        def col(name):
+            return host[name].astype(float)
 
-        top = col(self.top)
+        top = col("top")
         empty = top <= -0.5 * _BIG
         surface = np.where(empty, np.nan, top)
-        arrival = col(self.arrival)
-        cell_arrival = col(self.cell_arrival)
-        front = col(self.front)
-        edge_hi = np.where(empty, np.nan, col(self.edge_hi))
-        edge_lo = np.where(empty, np.nan, col(self.edge_lo))
-        t_arr = col(self.t_arrival)[:nt]
-        x = e.x.to_numpy().astype(float)
-        vol = e.m.to_numpy().astype(float) / e.rho.to_numpy().astype(float)
+        arrival = col("arrival")
+        cell_arrival = col("cell_arrival")
+        front = col("front")
+        edge_hi = np.where(empty, np.nan, col("edge_hi"))
+        edge_lo = np.where(empty, np.nan, col("edge_lo"))
+        t_arr = col("t_arrival")[:nt]
         return {
             "origin_m": self.origin_m,
             "cell_size_m": self.cell_size_m,
             "shape": self.shape,
-            "floor_m": col(self.floor),
-            "ground_m": col(self.ground),
+            "floor_m": col("floor"),
+            "ground_m": col("ground"),
             "surface_m": surface,
             "edge_hi_m": edge_hi,
             "edge_lo_m": edge_lo,
-            "peak_height_m": col(self.peak_height),
+            "peak_height_m": col("peak_height"),
             "arrival_s": np.where(arrival < 0, np.nan, arrival),
-            "max_speed_m_s": col(self.max_speed),
-            "max_energy_J_m3": col(self.max_energy),
-            "max_pressure_pa": col(self.max_pressure),
+            "max_speed_m_s": col("max_speed"),
+            "max_energy_J_m3": col("max_energy"),
+            "max_pressure_pa": col("max_pressure"),
             "cell_arrival_s": np.where(cell_arrival < 0, np.nan, cell_arrival),
             "front_hi_m": float(front[0]) if front[0] > -0.5 * _BIG else float("nan"),
             "front_lo_m": float(front[1]) if front[1] < 0.5 * _BIG else float("nan"),
-            "target_ground_m": col(self.t_ground)[:nt],
-            "target_max": self.t_max.to_numpy().astype(float)[:nt],
+            "target_ground_m": col("t_ground")[:nt],
+            "target_max": col("t_max")[:nt],
             "target_arrival_s": np.where(t_arr < 0, np.nan, t_arr),
             "series": self.series(),
             "series_columns": self.series_columns(),
             "initial": {k: v.copy() for k, v in self.initial.items()},
-            "current": {"positions_m": x, "volumes_m2": vol, "active": e.active.to_numpy().astype(bool)},
+            "current": self._particles(),
             "release_time_s": self.release_time_s,
             "time_s": self.time_s,
             "steps": self.steps,
             "started": self.started,
             "every_steps": self.config.every_steps,
         }
+
+    def _particles(self) -> dict[str, np.ndarray]:
+        """The engine's particle state the envelopes record: positions (m), volumes (m2), active."""
+        got = self.engine.state(("x", "m", "rho", "active"))
+        return {"positions_m": got["x"].astype(float),
+                "volumes_m2": got["m"].astype(float) / got["rho"].astype(float),
+                "active": got["active"].astype(bool)}
 
     #: Device fields a checkpoint holds (with the host counters, the series and the initial state).
     FIELDS = ("ground", "top", "edge_hi", "edge_lo", "peak_height", "arrival", "front", "max_speed",
@@ -274,7 +277,7 @@ class Envelopes:
 
     def state(self) -> dict[str, np.ndarray]:
         """Everything needed to continue the envelopes after a restart (numpy arrays only)."""
-        out = {f"field_{name}": getattr(self, name).to_numpy() for name in self.FIELDS}
+        out = {f"field_{name}": value for name, value in self._io.read(self.FIELDS).items()}
         out["series"] = self.series()
         out["counters"] = np.array([float(self.started), self.release_time_s, self.time_s, float(self.steps),
                                     float(self._updated_at)])
@@ -284,12 +287,13 @@ class Envelopes:
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         """Restore what :meth:`state` saved (same raster, targets and particle count)."""
+        values = {}
         for name in self.FIELDS:
             value = np.asarray(state[f"field_{name}"])
-            field = getattr(self, name)
-            if tuple(value.shape) != tuple(field.to_numpy().shape):
-                raise ValueError(f"envelope field {name!r} has shape {value.shape}, expected {field.shape}")
-            field.from_numpy(value.astype(field.to_numpy().dtype))
+            if tuple(value.shape) != self._io.shapes[name]:
+                raise ValueError(f"envelope field {name!r} has shape {value.shape}, expected {self._io.shapes[name]}")
+            values[name] = value
+        self._io.write(values)
         series = np.asarray(state["series"], dtype=float)
         if series.ndim != 2 or series.shape[1] != self.series_width:
             raise ValueError(f"envelope series has shape {series.shape}, expected (n, {self.series_width})")

@@ -66,8 +66,58 @@ def _lean_source_positions() -> None:
     utils.ASTTransformerContext._runout_lean = True
 
 
+def _cached_sources() -> None:
+    """Read each kernel's and ``ti.func``'s source once per process, not at every use.
+
+    Taichi 1.7 inlines a ``ti.func`` at every call site, and for every call it reads the
+    function's source again (``inspect.getsourcelines``, which tokenises the whole file) and
+    re-wraps every line with ``textwrap.fill`` before parsing it (``_get_tree_and_ctx``). The
+    step kernel calls a few dozen functions, several of them many times (``ti.static`` loops).
+    This keeps the source lines of each function after the first read and parses them again
+    (``ast.parse``: the transformer writes into the tree, so each use gets a fresh one); what the
+    front end builds from them is unchanged. Applied to Taichi 1.7.x only, whose function this
+    replaces.
+    """
+    try:
+        from taichi.lang import kernel_impl
+    except ImportError:  # pragma: no cover - another Taichi layout: keep its own behaviour
+        return
+    if not ti.__version__[:2] == (1, 7) or getattr(kernel_impl, "_runout_cached_sources", False):
+        return
+    import ast
+    import textwrap
+
+    sources: dict[object, tuple[str, list[str], int, str]] = {}
+    context = kernel_impl.ASTTransformerContext
+
+    def get_tree_and_ctx(self, excluded_parameters=(), is_kernel=True, arg_features=None, args=None,
+                         ast_builder=None, is_real_function=False):
+        cached = sources.get(self.func)
+        if cached is None:
+            file = kernel_impl.getsourcefile(self.func)
+            src, start_lineno = kernel_impl.getsourcelines(self.func)
+            src = [textwrap.fill(line, tabsize=4, width=9999) for line in src]
+            cached = sources[self.func] = (file, src, start_lineno, textwrap.dedent("\n".join(src)))
+        file, src, start_lineno, text = cached
+        tree = ast.parse(text)
+        tree.body[0].decorator_list = []
+        global_vars = kernel_impl._get_global_vars(self.func)
+        if is_kernel or is_real_function:
+            for i in self.template_slot_locations:  # template parameters are globals of the body
+                global_vars[self.arguments[i].name] = args[i]
+        return tree, context(
+            excluded_parameters=excluded_parameters, is_kernel=is_kernel, func=self, arg_features=arg_features,
+            global_vars=global_vars, argument_data=args, src=src, start_lineno=start_lineno, file=file,
+            ast_builder=ast_builder, is_real_function=is_real_function,
+        )
+
+    kernel_impl._get_tree_and_ctx = get_tree_and_ctx
+    kernel_impl._runout_cached_sources = True
+
+
 def _init(**kwargs) -> None:
     _lean_source_positions()
+    _cached_sources()
     # ti.init prints "[Taichi] Starting on arch=..." to stdout; scripts read stdout, so log it instead
     with contextlib.redirect_stdout(io.StringIO()) as banner:
         ti.init(**kwargs)

@@ -64,6 +64,9 @@ log = logging.getLogger(__name__)
 
 #: Steps between guard / CFL / auto-stop checks (each check syncs with the device).
 CHECK_EVERY = 20
+#: Output fields of a frame read from the engine: (output key, engine field), in frame order.
+_FRAME_FIELDS = (("displacement", "x0"), ("velocity", "v"), ("stress", "s"), ("plastic_strain", "eps_p"),
+                 ("material", "mat"))
 #: Unbalanced-force ratio above which the initial state is reported as out of equilibrium.
 EQUILIBRIUM_WARN_RATIO = 0.05
 
@@ -221,6 +224,8 @@ class Simulation:
         self.cursor = _Cursor()
         #: ``time.perf_counter()`` at the end of this process's first step (None before it)
         self.first_step_at: float | None = None
+        #: this process's CPU time (user + system, all threads) at that moment, s
+        self.first_step_cpu_s: float | None = None
         self.fingerprint = fingerprint(config, particles)
         # contacts reported in frames: the closed sides, then the structures (engine order)
         self._contacts = [i for i, side in enumerate(SIDES) if config.grid.boundary(side).kind not in ("open", "periodic")]
@@ -261,20 +266,16 @@ class Simulation:
         if self.envelopes is not None:
             self.envelopes.sync(self.time_s)  # envelopes are never below a frame's values
         want = self.config.output.fields
-        e = self.engine
-        relative = e.x.to_numpy()
+        names = ["x", "active"] + [name for key, name in _FRAME_FIELDS if key in want]
+        got = self.engine.state(tuple(dict.fromkeys(names)))  # one kernel launch for all of them
+        relative = got["x"]
         fields: dict[str, np.ndarray] = {"positions": relative.astype(np.float64) + self.origin_m,
-                                         "active": e.active.to_numpy().astype(bool)}
+                                         "active": got["active"].astype(bool)}
         if "displacement" in want:
-            fields["displacement"] = relative - e.x0.to_numpy()
-        if "velocity" in want:
-            fields["velocity"] = e.v.to_numpy()
-        if "stress" in want:
-            fields["stress"] = e.s.to_numpy()
-        if "plastic_strain" in want:
-            fields["plastic_strain"] = e.eps_p.to_numpy()
-        if "material" in want:
-            fields["material_id"] = e.mat.to_numpy()
+            fields["displacement"] = relative - got["x0"]
+        for key, name in _FRAME_FIELDS:
+            if key in want and key != "displacement":
+                fields["material_id" if key == "material" else key] = got[name]
         for name, arr in fields.items():
             if arr.dtype.kind == "f" and not np.all(np.isfinite(arr[fields["active"]])):
                 raise InstabilityError(
@@ -396,7 +397,7 @@ class Simulation:
             mass = saved["m"].astype(np.float64)[active]
             v0 = saved["v"].astype(np.float64)
             e.step(dt, (g[0], g[1]), 0.0)
-            dv = (e.v.to_numpy().astype(np.float64) - v0)[active]
+            dv = (e.state(("v",))["v"].astype(np.float64) - v0)[active]
         finally:
             e.load_state(saved)
         accel = np.linalg.norm(dv, axis=1) / dt if dt > 0 else np.zeros(len(dv))
@@ -456,9 +457,9 @@ class Simulation:
                     self._materials = stage.materials
                     log.info("stage %r: material parameters changed", stage.name)
                 if stage.kind == "k0":
+                    now = e.state(("active", "x"))
                     e.set_stress(k0_stress(self.particles, self._materials, cfg.gravity_m_s2,
-                                           cfg.grid.cell_size_m, stage.k0, e.active.to_numpy().astype(bool),
-                                           e.x.to_numpy()))
+                                           cfg.grid.cell_size_m, stage.k0, now["active"].astype(bool), now["x"]))
                     self.equilibrium = self.equilibrium_check(stage, c.dt_s, float(e.diagnostics()["max_speed"]))
                     continue
                 if stage.kind == "dynamic" and self.envelopes is not None and not self.envelopes.started:
@@ -484,6 +485,7 @@ class Simulation:
                     e.step(h, (gravity[0], gravity[1]), damping)
                     if self.first_step_at is None:  # start-up ends here (kernels compiled or loaded)
                         self.first_step_at = time.perf_counter()
+                        self.first_step_cpu_s = time.process_time()
                     self.steps += 1
                     c.stage_steps += 1
                     self.time_s += h

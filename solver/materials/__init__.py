@@ -13,14 +13,17 @@ import numpy as np
 import taichi as ti
 
 from solver.config import Material
+from solver.fieldio import FieldIO
 from solver.materials import drucker_prager, linear_elastic
 
 MODEL_CODES = {"linear-elastic": 0, "drucker-prager": 1}
+#: Columns of the per-material table (one Taichi field each).
+MATERIAL_COLUMNS = ("model", "K", "G", "alpha", "kc", "alpha_psi", "t_cut", "rho0")
 
 
 def material_rows(materials: Sequence[Material]) -> dict[str, np.ndarray]:
     """The per-material parameter table as numpy columns (SI units)."""
-    rows: dict[str, list[float]] = {k: [] for k in ("model", "K", "G", "alpha", "kc", "alpha_psi", "t_cut", "rho0")}
+    rows: dict[str, list[float]] = {k: [] for k in MATERIAL_COLUMNS}
     for m in materials:
         alpha, kc, alpha_psi = drucker_prager.dp_constants(m.friction_angle_rad, m.dilatancy_angle_rad, m.cohesion_pa)
         if m.model == "drucker-prager":
@@ -55,13 +58,18 @@ class MaterialTable:
         self.alpha_psi = ti.field(float, n)
         self.t_cut = ti.field(float, n)
         self.rho0 = ti.field(float, n)
+        self._io = FieldIO({name: getattr(self, name) for name in MATERIAL_COLUMNS})
+        #: the table as loaded, numpy columns in the fields' dtypes
+        self.host: dict[str, np.ndarray] = {}
         self.load(materials)
 
     def load(self, materials: Sequence[Material]) -> None:
-        """Replace every row (a stage's material changes)."""
+        """Replace every row (a stage's material changes): one kernel launch for the whole table."""
         rows = material_rows(materials)
-        for name, column in rows.items():
-            getattr(self, name).from_numpy(column.astype(np.int32 if name == "model" else self.np_float))
+        self.host = {name: column.astype(np.int32 if name == "model" else self.np_float)
+                     for name, column in rows.items()}
+        if len(materials):
+            self._io.write(self.host)
 
     @ti.func
     def stress_update(self, mat, s, D, W, dt):
