@@ -378,13 +378,14 @@ class StrengthReduction:
             return
         # settle at full gravity and the file's strengths (a gravity stage ends while its ramp
         # is still loading, a k0 stress is not in equilibrium on a slope), then from rest
-        active = sim.engine.active.to_numpy().astype(bool)
-        mass = float(np.sum(sim.engine.m.to_numpy()[active]))
+        st = sim.engine.state(("active", "m", "x"))
+        active = st["active"].astype(bool)
+        mass = float(np.sum(st["m"][active]))
         if s.displacement_m is not None:
             d_lim = s.displacement_m
         else:
             _, up = _gravity_frame(cfg.gravity_m_s2)
-            heights = sim.engine.x.to_numpy()[active].astype(np.float64) @ up
+            heights = st["x"][active].astype(np.float64) @ up
             d_lim = max(DEFAULT_DISPLACEMENT_FRACTION * float(heights.max() - heights.min()), cfg.grid.cell_size_m)
         self.displacement_limit_m = d_lim
         e_ref = 0.5 * mass * (d_lim / s.trial_duration_s) ** 2
@@ -450,8 +451,7 @@ class StrengthReduction:
             if reason == "cancelled":
                 raise _Cancelled()
             d = sim.engine.diagnostics()
-            disp = np.linalg.norm(sim.engine.x.to_numpy().astype(np.float64)
-                                  - sim.engine.x0.to_numpy().astype(np.float64), axis=1)
+            disp = _displacements(sim.engine)
             ratio = d["kinetic_energy"] / max(peak[0], e_ref, 1e-300)
             if reason == "displacement":
                 verdict, criterion = "failed", "displacement"
@@ -515,8 +515,7 @@ class StrengthReduction:
             last = frame
             yield self._yield(frame)
         if last is not None:  # from the equilibrium (the reference a periodic crossing takes along)
-            moved = np.linalg.norm(sim.engine.x.to_numpy().astype(np.float64)
-                                   - sim.engine.x0.to_numpy().astype(np.float64), axis=1)
+            moved = _displacements(sim.engine)
             self.runout_max_displacement_m = float(moved[last.fields["active"]].max(initial=0.0))
 
     def _runout_materials(self, base, project_stage) -> tuple[sc.Material, ...]:
@@ -652,3 +651,9 @@ def strength_reduction(resolved: ResolvedRun) -> StrengthReduction | None:
     """The driver of a resolved run with a strength-reduction stage, or None."""
     settings = settings_of(resolved.project)
     return None if settings is None else StrengthReduction(resolved.project, resolved, settings)
+
+
+def _displacements(engine) -> np.ndarray:
+    """Each particle's displacement from its reference position (m), read in one launch."""
+    st = engine.state(("x", "x0"))
+    return np.linalg.norm(st["x"].astype(np.float64) - st["x0"].astype(np.float64), axis=1)
