@@ -54,8 +54,8 @@ SCHEMA_VERSION = 1
 # The solver's vocabularies are the file's: written once, in solver/config.py.
 MATERIAL_MODELS = sc.MATERIAL_MODELS
 BOUNDARY_TYPES = sc.BOUNDARY_KINDS
-#: Contact types of a structure (a side's, less "open").
-CONTACT_TYPES: tuple[str, ...] = tuple(k for k in sc.BOUNDARY_KINDS if k != "open")
+#: Contact types of a structure (a side's, less "open" and "periodic").
+CONTACT_TYPES: tuple[str, ...] = tuple(k for k in sc.BOUNDARY_KINDS if k not in ("open", "periodic"))
 SIDES = sc.SIDES
 SEEDINGS: tuple[str, ...] = ("lattice", "gauss")
 SCHEMES = sc.SCHEMES
@@ -407,14 +407,16 @@ _VERSION_MESSAGE = f"unsupported schema version; this Runout reads schema versio
 
 def _boundary_input(value: Any) -> Any:
     if isinstance(value, str):
-        if value in ("fixed", "slip", "open"):
+        if value in ("fixed", "slip", "open", "periodic"):
             return {"type": value}
-        raise _fail('must be "fixed", "slip", "open" or a table {type = "friction", friction_angle_deg = ...}')
+        raise _fail('must be "fixed", "slip", "open", "periodic" (left and right together) or a table '
+                    '{type = "friction", friction_angle_deg = ...}')
     return value
 
 
 class Boundary(_Model):
-    """One side of the grid: ``"fixed" | "slip" | "open"`` or ``{type = "friction", friction_angle_deg = ..}``."""
+    """One side of the grid: ``"fixed" | "slip" | "open" | "periodic"`` (left and right together) or
+    ``{type = "friction", friction_angle_deg = ..}``."""
 
     type: Annotated[Literal[BOUNDARY_TYPES], _choice(BOUNDARY_TYPES)]
     friction_angle_deg: OptAngleDeg = None
@@ -983,8 +985,37 @@ def _domain_rules(domain: Mapping[str, Any]) -> list[Problem]:
         path = f"domain.boundaries.{side}.friction_angle_deg"
         if kind == "friction" and "friction_angle_deg" not in boundary:
             problems.append(Problem(path, None, 'required for type "friction"'))
-        elif kind in ("fixed", "slip", "open") and "friction_angle_deg" in boundary:
+        elif kind in ("fixed", "slip", "open", "periodic") and "friction_angle_deg" in boundary:
             problems.append(Problem(path, boundary["friction_angle_deg"], 'only allowed with type "friction"'))
+    problems += _periodic_rules(domain, cell, size)
+    return problems
+
+
+def _periodic_rules(domain: Mapping[str, Any], cell: float | None, size) -> list[Problem]:
+    """``periodic``: left and right only, both or neither, and at least MIN_PERIODIC_CELLS cells across."""
+    kinds = {}
+    for side, boundary in _table(domain.get("boundaries")).items():
+        kind = boundary.get("type") if isinstance(boundary, Mapping) else boundary
+        kinds[side] = kind
+    problems = []
+    for side in ("bottom", "top"):
+        if kinds.get(side) == "periodic":
+            problems.append(Problem(f"domain.boundaries.{side}", "periodic",
+                                    "only the left and right sides can be periodic (both together); allowed here: "
+                                    "fixed, slip, open or friction"))
+    left, right = kinds.get("left", "slip"), kinds.get("right", "slip")
+    if left not in BOUNDARY_TYPES or right not in BOUNDARY_TYPES:
+        return problems  # a kind that is no kind at all has its own message
+    if (left == "periodic") != (right == "periodic"):
+        side, other = ("right", "left") if left == "periodic" else ("left", "right")
+        problems.append(Problem(f"domain.boundaries.{side}", kinds.get(side, "slip"),
+                                f'must be "periodic" too: the {other} side is periodic, and periodic sides come as a '
+                                "pair (both or neither)"))
+    elif left == "periodic" and size and cell and cell > 0.0:
+        cells = math.ceil(size[0] / cell - 1e-9)
+        if cells < sc.MIN_PERIODIC_CELLS:
+            problems.append(Problem("domain.size_m", list(size), f"periodic sides need at least "
+                                    f"{sc.MIN_PERIODIC_CELLS} cells across (cell_size_m {cell:g}), got {cells}"))
     return problems
 
 

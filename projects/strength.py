@@ -432,13 +432,14 @@ class StrengthReduction:
             sim.set_materials(reduced_materials(base, s.materials, factor))
             peak = [0.0]
             started_steps, started = sim.steps, time.perf_counter()
-            x_m = x_eq[idx]
 
             def check(elapsed: float, d: dict) -> str | None:
                 ke = d["kinetic_energy"]
                 peak[0] = max(peak[0], ke)
-                pos = sim.engine.x[idx]
-                if use_displacement and math.hypot(float(pos[0]) - x_m[0], float(pos[1]) - x_m[1]) > d_lim:
+                # from the reference position (the equilibrium's), which a particle crossing a
+                # periodic side takes along, so that the displacement goes on through the crossing
+                pos, ref = sim.engine.x[idx], sim.engine.x0[idx]
+                if use_displacement and math.hypot(float(pos[0] - ref[0]), float(pos[1] - ref[1])) > d_lim:
                     return "displacement"
                 if use_energy and elapsed >= s.min_settle_fraction * s.trial_duration_s and \
                         ke < s.kinetic_energy_ratio * max(peak[0], e_ref):
@@ -449,8 +450,8 @@ class StrengthReduction:
             if reason == "cancelled":
                 raise _Cancelled()
             d = sim.engine.diagnostics()
-            x_now = sim.engine.x.to_numpy().astype(np.float64)
-            disp = np.linalg.norm(x_now - x_eq, axis=1)
+            disp = np.linalg.norm(sim.engine.x.to_numpy().astype(np.float64)
+                                  - sim.engine.x0.to_numpy().astype(np.float64), axis=1)
             ratio = d["kinetic_energy"] / max(peak[0], e_ref, 1e-300)
             if reason == "displacement":
                 verdict, criterion = "failed", "displacement"
@@ -513,8 +514,9 @@ class StrengthReduction:
         for frame in sim.run(cancel=cancel, on_progress=on_progress):
             last = frame
             yield self._yield(frame)
-        if last is not None:
-            moved = np.linalg.norm(last.fields["positions"].astype(np.float64) - origin - x_eq, axis=1)
+        if last is not None:  # from the equilibrium (the reference a periodic crossing takes along)
+            moved = np.linalg.norm(sim.engine.x.to_numpy().astype(np.float64)
+                                   - sim.engine.x0.to_numpy().astype(np.float64), axis=1)
             self.runout_max_displacement_m = float(moved[last.fields["active"]].max(initial=0.0))
 
     def _runout_materials(self, base, project_stage) -> tuple[sc.Material, ...]:

@@ -22,7 +22,7 @@ Scheme = Literal["mpm", "apic", "apic-affine"]
 SCHEMES: tuple[str, ...] = ("mpm", "apic", "apic-affine")
 MaterialModel = Literal["linear-elastic", "drucker-prager"]
 MATERIAL_MODELS: tuple[str, ...] = ("linear-elastic", "drucker-prager")
-BoundaryKind = Literal["fixed", "slip", "friction", "open"]
+BoundaryKind = Literal["fixed", "slip", "friction", "open", "periodic"]
 Side = Literal["left", "right", "bottom", "top"]
 SIDES: tuple[str, ...] = ("left", "right", "bottom", "top")
 StageKind = Literal["k0", "gravity", "dynamic"]
@@ -33,7 +33,11 @@ GUARD_MODES: tuple[str, ...] = ("stop", "remove")
 PRECISIONS: tuple[str, ...] = ("f32", "f64")
 ARCHS: tuple[str, ...] = ("auto", "cpu", "gpu")
 STAGE_KINDS: tuple[str, ...] = ("k0", "gravity", "dynamic")
-BOUNDARY_KINDS: tuple[str, ...] = ("fixed", "slip", "open", "friction")
+BOUNDARY_KINDS: tuple[str, ...] = ("fixed", "slip", "open", "friction", "periodic")
+#: Sides that may be ``periodic`` (as a pair: both or neither).
+PERIODIC_SIDES: tuple[str, ...] = ("left", "right")
+#: The fewest cells across a periodic pair of sides (a particle's stencil must not reach its own image).
+MIN_PERIODIC_CELLS = 3
 #: How particle contributions reach shared grid nodes (solver/engine.py explains each).
 SCATTERS: tuple[str, ...] = ("auto", "atomic", "serial", "split")
 #: Fraction of the critical time step when a project gives neither ``time_step_s`` nor ``cfl``.
@@ -95,6 +99,9 @@ class Boundary:
     - ``friction``: as ``slip`` plus Coulomb friction: the tangential speed is reduced by
       ``tan(friction_angle) * |normal velocity removed|``, never reversed.
     - ``open``: no constraint; particles that leave the box are removed and counted as lost.
+    - ``periodic``: left and right only, and both together: the two sides are one line, the
+      material leaving through one re-enters through the other, and grid nodes on either side of
+      it are shared (an infinitely long model repeating every domain width; docs/solver.md).
     """
 
     kind: BoundaryKind = "slip"
@@ -122,6 +129,23 @@ class Grid:
 
     def boundary(self, side: str) -> Boundary:
         return getattr(self, side)
+
+    @property
+    def periodic(self) -> bool:
+        """Whether the left and right sides are a periodic pair."""
+        return self.left.kind == "periodic"
+
+    def periodic_problem(self) -> str | None:
+        """Why the sides' ``periodic`` kinds are inconsistent (None when they are fine)."""
+        for side in SIDES:
+            if self.boundary(side).kind == "periodic" and side not in PERIODIC_SIDES:
+                return f"the {side} side cannot be periodic; allowed: left and right together"
+        if (self.left.kind == "periodic") != (self.right.kind == "periodic"):
+            return (f"left is {self.left.kind} and right is {self.right.kind}: periodic sides come as a pair, "
+                    "both or neither")
+        if self.periodic and self.cells[0] < MIN_PERIODIC_CELLS:
+            return f"a periodic pair of sides needs at least {MIN_PERIODIC_CELLS} cells across, got {self.cells[0]}"
+        return None
 
 
 @dataclass(frozen=True)

@@ -50,8 +50,8 @@ PAD = 2
 SERIAL_SCATTER_MAX_THREADS = 4
 SPLIT_MIN_PARTICLES = 10_000
 CPU_GRAIN = 512  # loop iterations a Taichi 1.7 CPU thread takes at a time (measured; see _split_scatter)
-BOUNDARY_CODES = {"fixed": 0, "slip": 1, "friction": 2, "open": 3}
-FIXED, SLIP, FRICTION, OPEN = (BOUNDARY_CODES[k] for k in ("fixed", "slip", "friction", "open"))
+BOUNDARY_CODES = {"fixed": 0, "slip": 1, "friction": 2, "open": 3, "periodic": 4}
+FIXED, SLIP, FRICTION, OPEN, PERIODIC = (BOUNDARY_CODES[k] for k in ("fixed", "slip", "friction", "open", "periodic"))
 #: A particle found inside a structure after its move is put on the nearest point of the surface and
 #: this many cell sizes outside it (so that rounding never leaves it inside).
 PUSH_OUT_CELLS = 1e-3
@@ -139,6 +139,11 @@ class Engine:
         self.upper = (self.origin[0] + self.cells[0] * self.dx, self.origin[1] + self.cells[1] * self.dx)
         self.nodes = (self.cells[0] + 1 + 2 * PAD, self.cells[1] + 1 + 2 * PAD)
         self.remove_unstable = bool(remove_unstable)
+        problem = grid.periodic_problem()
+        if problem:
+            raise ValueError(problem)
+        #: left and right sides periodic (compiled in: the fold and copy stages, wrapping in G2P)
+        self.periodic = grid.periodic
         self.materials = MaterialTable(materials, np_float)
 
         n = max(1, self.n)
@@ -218,7 +223,10 @@ class Engine:
 
     # ------------------------------------------------------------------ set-up and state I/O
     def set_boundaries(self, grid: Grid) -> None:
-        """The kinds and friction of the four sides (data: no recompilation)."""
+        """The kinds and friction of the four sides (data: no recompilation; whether the left and
+        right sides are periodic is fixed at construction)."""
+        if grid.periodic != self.periodic or grid.periodic_problem():
+            raise ValueError(grid.periodic_problem() or "periodic sides are chosen when the engine is built")
         kinds, mus = _contact_codes([grid.boundary(side) for side in SIDES])
         self.bc_kind.from_numpy(kinds)
         self.bc_mu.from_numpy(mus.astype(self.np_float))
@@ -227,8 +235,8 @@ class Engine:
         """The contact of each structure, in order (data: the geometry stays as constructed)."""
         if len(contacts) != self.n_structures:
             raise ValueError(f"{self.n_structures} structure contacts expected, got {len(contacts)}")
-        if any(c.kind == "open" for c in contacts):
-            raise ValueError("a structure's contact is fixed, slip or friction, not open")
+        if any(c.kind in ("open", "periodic") for c in contacts):
+            raise ValueError("a structure's contact is fixed, slip or friction, not open or periodic")
         if self.n_structures:
             kinds, mus = _contact_codes(contacts)
             self.st_kind.from_numpy(kinds)
@@ -350,13 +358,21 @@ class Engine:
     def recipe(self) -> tuple[str, ...]:
         """The named stages of one step, in order (paper: six stages for mpm/apic, four for apic-affine;
         the contact law acts inside the grid stages, "contact tally" adds up the contact forces)."""
+        # periodic sides: the images of the nodes across the periodic line are folded into their
+        # canonical nodes after every scatter, and the canonical values copied back to them after
+        # the grid stages (docs/solver.md, periodic sides)
+        fold = ("periodic fold",) if self.periodic else ()
+        fold_force = ("periodic fold (force)",) if self.periodic else ()
+        copy_old = ("periodic copy (velocity)",) if self.periodic else ()
+        copy = ("periodic copy",) if self.periodic else ()
         if self.six_stage:
             stress = ("stress", "force") if self.serial else ("stress and force",)
-            return ("reset grid", "P2G momentum", "grid velocity", "mirror walls (old)", *stress, "mirror forces",
-                    "grid update", "mirror walls", "G2P", "contact tally")
+            return ("reset grid", "P2G momentum", *fold, "grid velocity", "mirror walls (old)", *copy_old, *stress,
+                    *fold_force, "mirror forces", "grid update", "mirror walls", *copy, "G2P", "contact tally")
         fused = ("stress", "P2G with force") if self.serial else ("P2G with stress and force",)
         walls = () if self.split else ("wall forces",)  # the split scatter sums the wall forces itself
-        return ("reset grid", *fused, *walls, "mirror forces", "grid update", "mirror walls", "G2P", "contact tally")
+        return ("reset grid", *fused, *walls, *fold, "mirror forces", "grid update", "mirror walls", *copy, "G2P",
+                "contact tally")
 
     @ti.kernel
     def _step(self, dt: float, gx: float, gy: float, damping: float, damped: ti.template()):
@@ -415,6 +431,80 @@ class Engine:
             self._contact_tally(dt)
         elif ti.static(stage == "G2P"):
             self._g2p(dt)
+        elif ti.static(stage == "periodic fold"):
+            self._periodic_fold(True, not self.six_stage and self.separate_forces and damped,
+                                not self.six_stage and not damped)
+        elif ti.static(stage == "periodic fold (force)"):
+            self._periodic_fold(False, True, False)
+        elif ti.static(stage == "periodic copy (velocity)"):
+            self._periodic_copy(True)
+        elif ti.static(stage == "periodic copy"):
+            self._periodic_copy(False)
+
+    # ------------------------------------------------------------------ periodic sides
+    # With periodic left and right sides node i and node i + cells are one physical node: nodes
+    # PAD .. PAD + cells - 1 are the canonical ones, the PAD ghost layers beyond the left side and
+    # the PAD + 1 beyond the right one (the right side's own line included) their images. The
+    # scatters add to whichever array node a particle's stencil covers; the fold then adds every
+    # image into its canonical node (a gather: each canonical node reads its images in a fixed
+    # order, so a run repeats bit for bit) and narrows the box of nodes the grid stages work on to
+    # the canonical columns, so that each physical node is updated, and meets a contact, once. The
+    # copy puts the canonical values back into the images for the stages that read the grid at
+    # the particles' stencils (stress update, G2P) and widens the box over every column, so that
+    # the next reset clears the images too.
+    @ti.func
+    def _periodic_fold(self, momentum: ti.template(), force: ti.template(), wall_force: ti.template()):
+        """Add the images into their canonical nodes: mass and momentum (``momentum``), the force
+        (``force``) and the fused schemes' wall force beyond the bottom and top (``wall_force``)."""
+        cells = ti.static(self.cells[0])
+        last = ti.static(self.nodes[0])
+        lo = self.lo[None]
+        hi = self.hi[None]
+        height = ti.max(hi[1] - lo[1], 0)
+        for k in range(cells * height):
+            i = PAD + k // height
+            j = lo[1] + k % height
+            for shift in ti.static((-cells, cells)):
+                image = i + shift
+                if 0 <= image < last:
+                    if ti.static(momentum):
+                        self.g_mass[i, j] += self.g_mass[image, j]
+                        self.g_mom[i, j] += self.g_mom[image, j]
+                    if ti.static(force):
+                        self.g_f[i, j] += self.g_f[image, j]
+        if ti.static(wall_force):
+            for i in range(PAD, PAD + cells):
+                for side in ti.static((2, 3)):
+                    for shift in ti.static((-cells, cells)):
+                        image = i + shift
+                        if 0 <= image < last:
+                            self.ghost_f[side, i] += self.ghost_f[side, image]
+        self.lo[None][0] = PAD
+        self.hi[None][0] = PAD + cells
+
+    @ti.func
+    def _periodic_copy(self, old: ti.template()):
+        """Copy the canonical nodes' velocities into their images: the interpolated one (and the
+        free one of ``mpm``) with ``old``, else the new one; then widen the box over every column."""
+        cells = ti.static(self.cells[0])
+        last = ti.static(self.nodes[0])
+        images = ti.static(self.nodes[0] - cells)  # PAD columns on the left, PAD + 1 on the right
+        lo = self.lo[None]
+        height = ti.max(self.hi[None][1] - lo[1], 0)
+        for k in range(images * height):
+            image = k // height
+            if image >= PAD:
+                image += cells
+            i = image + cells if image < PAD else image - cells
+            j = lo[1] + k % height
+            if ti.static(old):
+                self.g_v_old[image, j] = self.g_v_old[i, j]
+                if ti.static(self.scheme == "mpm"):
+                    self.g_v_free[image, j] = self.g_v_free[i, j]
+            else:
+                self.g_mom[image, j] = self.g_mom[i, j]
+        self.lo[None][0] = 0
+        self.hi[None][0] = last
 
     # ------------------------------------------------------------------ shared pieces
     @ti.func
@@ -448,7 +538,7 @@ class Engine:
             wall = ti.static(PAD if low else PAD + self.cells[axis])
             on_wall = (I[axis] <= wall) if ti.static(low) else (I[axis] >= wall)
             kind = self.bc_kind[side]
-            if on_wall and kind != OPEN:
+            if on_wall and self._closed(kind):
                 n = ti.Vector(ti.static(_INWARD[side]), float)
                 new = self._contact_law(v, n, kind, self.bc_mu[side])
                 if ti.static(record):
@@ -462,6 +552,11 @@ class Engine:
                     self._record(4 + s, mass * (new - v))
                 v = new
         return v
+
+    @ti.func
+    def _closed(self, kind):
+        """Whether a side of this kind is a contact (not open, not periodic)."""
+        return kind != OPEN and kind != PERIODIC
 
     @ti.func
     def _contact_law(self, v, n, kind, mu):
@@ -609,7 +704,7 @@ class Engine:
                 side, inward, ghost, mirror = self._wall_pairs(axis, k)
                 kind = self.bc_kind[side]
                 mass = self.g_mass[ghost]
-                if kind != OPEN and mass > 0.0 and self._in_box(ghost) and self._in_box(mirror):
+                if self._closed(kind) and mass > 0.0 and self._in_box(ghost) and self._in_box(mirror):
                     vm = self.g_v_old[mirror] if ti.static(old) else self.g_mom[mirror]
                     vg = self.g_v_old[ghost] if ti.static(old) else self.g_mom[ghost]
                     new = vg
@@ -632,7 +727,7 @@ class Engine:
             for k in range(2 * self.nodes[1 - axis]):
                 side, inward, ghost, mirror = self._wall_pairs(axis, k)
                 along = k % self.nodes[1 - axis]
-                if self.bc_kind[side] != OPEN and self._in_box(ghost) and self._in_box(mirror):
+                if self._closed(self.bc_kind[side]) and self._in_box(ghost) and self._in_box(mirror):
                     wall = (ghost + mirror) // 2
                     # the ghost's force, mirrored: across the wall always reversed; along it kept
                     # for a slip wall (symmetric image) and reversed where the wall holds the
@@ -675,8 +770,8 @@ class Engine:
         ghost_lo = ti.Vector([0, 0])
         ghost_hi = ti.Vector([0, 0])
         for d in ti.static(range(2)):
-            ghost_lo[d] = base[d] == PAD - 1 and self.bc_kind[2 * d] != 3
-            ghost_hi[d] = base[d] == PAD + self.cells[d] - 1 and self.bc_kind[2 * d + 1] != 3
+            ghost_lo[d] = base[d] == PAD - 1 and self._closed(self.bc_kind[2 * d])
+            ghost_hi[d] = base[d] == PAD + self.cells[d] - 1 and self._closed(self.bc_kind[2 * d + 1])
         if ghost_lo[0] or ghost_lo[1] or ghost_hi[0] or ghost_hi[1]:
             s = self.s[p]
             sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
@@ -1022,7 +1117,18 @@ class Engine:
                     self.unstable[None] += 1
                     if ti.static(self.remove_unstable):
                         keep = 0
-                for d in ti.static(range(2)):  # a particle the guard removed is not also counted lost
+                if ti.static(self.periodic):  # across the periodic line: in at the other side
+                    width = ti.static(self.upper[0] - self.origin[0])
+                    shift = 0.0 * width
+                    if x[0] < self.origin[0]:
+                        shift = width
+                    elif x[0] >= self.upper[0]:
+                        shift = -width
+                    if shift != 0.0:
+                        x[0] += shift
+                        self.x0[p][0] += shift  # displacements go on from where they were
+                # a particle the guard removed is not also counted lost
+                for d in ti.static(range(1 if self.periodic else 0, 2)):
                     if x[d] < self.origin[d]:
                         if self.bc_kind[2 * d] == OPEN:
                             keep = -1 if keep == 1 else keep

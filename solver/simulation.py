@@ -141,6 +141,9 @@ def validate(config: SimulationConfig, particles: Particles) -> None:
         outside = np.any((particles.positions_m < lo) | (particles.positions_m > hi), axis=1)
         if outside.any():
             problems.append(f"{int(outside.sum())} particles lie outside the grid box {lo.tolist()}..{hi.tolist()}")
+    periodic = config.grid.periodic_problem()
+    if periodic:
+        problems.append(periodic)
     nm = config.numerics
     if (nm.time_step_s is None) == (nm.cfl is None):
         problems.append("give exactly one of time_step_s and cfl")
@@ -162,8 +165,8 @@ def validate(config: SimulationConfig, particles: Particles) -> None:
     for st in config.structures:
         if len(st.polygon_m) < 3:
             problems.append(f"structure {st.name!r}: a polygon needs at least 3 points")
-        if st.contact.kind == "open":
-            problems.append(f"structure {st.name!r}: contact must be fixed, slip or friction, not open")
+        if st.contact.kind in ("open", "periodic"):
+            problems.append(f"structure {st.name!r}: contact must be fixed, slip or friction, not {st.contact.kind}")
         if names.count(st.name) > 1 or st.name in SIDES:
             problems.append(f"structure name {st.name!r} is used twice or is a side's name")
     if problems:
@@ -220,7 +223,7 @@ class Simulation:
         self.first_step_at: float | None = None
         self.fingerprint = fingerprint(config, particles)
         # contacts reported in frames: the closed sides, then the structures (engine order)
-        self._contacts = [i for i, side in enumerate(SIDES) if config.grid.boundary(side).kind != "open"]
+        self._contacts = [i for i, side in enumerate(SIDES) if config.grid.boundary(side).kind not in ("open", "periodic")]
         self._contacts += [4 + k for k in range(len(config.structures))]
         self._contacts_since_s = 0.0
 

@@ -40,6 +40,7 @@ BOUNDARY_STYLE = {
     "slip": ("#1a73e8", 4),
     "friction": ("#e37400", 4),
     "open": ("#9aa0a6", 1),
+    "periodic": ("#188038", 3),
 }
 PROBLEM_COLOR = "#d93025"
 

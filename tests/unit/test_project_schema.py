@@ -245,7 +245,7 @@ GOLDEN = [
     (
         "domain.boundaries.left",
         "slp",
-        'domain.boundaries.left = "slp": must be "fixed", "slip", "open" or a table '
+        'domain.boundaries.left = "slp": must be "fixed", "slip", "open", "periodic" (left and right together) or a table '
         '{type = "friction", friction_angle_deg = ...}',
     ),
     (
@@ -367,7 +367,7 @@ def test_several_problems_at_once_in_file_order():
     data["materials"]["bars"]["dilatancy_angle_deg"] = 30.0
     data["domain"]["boundaries"]["left"] = "sticky"
     assert problems_of(data) == [
-        'domain.boundaries.left = "sticky": must be "fixed", "slip", "open" or a table '
+        'domain.boundaries.left = "sticky": must be "fixed", "slip", "open", "periodic" (left and right together) or a table '
         '{type = "friction", friction_angle_deg = ...}',
         "materials.bars.poisson_ratio = 0.6: must be >= 0 and < 0.5",
         "materials.bars.dilatancy_angle_deg = 30.0: must not exceed friction_angle_deg (19.8)",
