@@ -484,8 +484,9 @@ class Engine:
 
     @ti.func
     def _periodic_copy(self, old: ti.template()):
-        """Copy the canonical nodes' velocities into their images: the interpolated one (and the
-        free one of ``mpm``) with ``old``, else the new one; then widen the box over every column."""
+        """Copy the canonical nodes' velocities into their images: the interpolated one (after the
+        contact's first correction, which FLIP's increment also uses) with ``old``, else the new
+        one; then widen the box over every column."""
         cells = ti.static(self.cells[0])
         last = ti.static(self.nodes[0])
         images = ti.static(self.nodes[0] - cells)  # PAD columns on the left, PAD + 1 on the right
@@ -499,8 +500,6 @@ class Engine:
             j = lo[1] + k % height
             if ti.static(old):
                 self.g_v_old[image, j] = self.g_v_old[i, j]
-                if ti.static(self.scheme == "mpm"):
-                    self.g_v_free[image, j] = self.g_v_free[i, j]
             else:
                 self.g_mom[image, j] = self.g_mom[i, j]
         self.lo[None][0] = 0
