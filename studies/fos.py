@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -66,7 +67,8 @@ INFINITE_CASES = [
 def infinite_slope(beta_deg: float, cohesion_pa: float, phi_deg: float, *, cell_m: float = 0.125,
                    thickness_m: float = 1.0, width_cells: int = 4, dilatancy_deg: float | None = None,
                    youngs_modulus_pa: float = 20e6, tolerance: float = 0.01, precision: str = "f64",
-                   scheme: str = "apic-affine", duration_s: float = 1.0) -> tuple[Any, float]:
+                   scheme: str = "apic-affine", duration_s: float = 1.0,
+                   mohr_coulomb_match: str | None = None) -> tuple[Any, float]:
     """A project of an infinite slope and its closed-form factor of safety.
 
     A uniform layer ``thickness_m`` thick (normal to the base) on a rough (fixed) base, gravity
@@ -97,7 +99,8 @@ def infinite_slope(beta_deg: float, cohesion_pa: float, phi_deg: float, *, cell_
                    "boundaries": {"left": "periodic", "right": "periodic", "bottom": "fixed", "top": "open"}},
         "materials": {"soil": {"model": "drucker-prager", "density_kg_m3": rho, "youngs_modulus_pa": youngs_modulus_pa,
                                "poisson_ratio": 0.3, "cohesion_pa": cohesion_pa, "friction_angle_deg": phi_deg,
-                               "dilatancy_angle_deg": psi}},
+                               "dilatancy_angle_deg": psi,
+                               **({} if mohr_coulomb_match is None else {"mohr_coulomb_match": mohr_coulomb_match})}},
         "bodies": [{"name": "layer", "material": "soil",
                     "polygon_m": [[0.0, 0.0], [width, 0.0], [width, thickness_m], [0.0, thickness_m]]}],
         "particles": {"per_cell": 2},
@@ -113,22 +116,56 @@ def infinite_slope(beta_deg: float, cohesion_pa: float, phi_deg: float, *, cell_
 
 
 def drucker_prager_infinite_slope_factor(beta_deg: float, cohesion_pa: float, phi_deg: float, dilatancy_deg: float,
-                                         unit_weight_n_m3: float, thickness_m: float) -> float:
+                                         unit_weight_n_m3: float, thickness_m: float,
+                                         match: str = "plane-strain-associated") -> float:
     """The factor of safety of the materials' Drucker-Prager cone (solver.materials.drucker_prager,
-    the plane-strain match for associated flow) in an infinite slope, by strength reduction.
+    matched to Mohr-Coulomb by ``match``) in an infinite slope, by strength reduction.
 
     At collapse the layer shears along the base with no strain along it or out of plane; the flow
     rule then fixes the stress (``s_xx = s_zz = -2 q alpha_psi``) and the shear stress on planes
     parallel to the base is ``tau = sqrt(1 - 12 alpha_psi^2) (k - 3 alpha sigma_n) / (1 - 12 alpha
-    alpha_psi)`` (compression negative). With ``psi = phi`` this is ``c + |sigma_n| tan(phi)``,
-    Mohr-Coulomb's strength (the closed form); with ``psi = 0`` it is ``(c + |sigma_n| tan phi) /
-    sqrt(1 + 4/3 tan^2 phi)``. F is the factor whose reduced strengths (``c / F``,
-    ``tan(phi) / F``, ``psi_F = min(psi, phi_F)``) just carry the base's shear stress
-    ``gamma t sin(b)`` under ``sigma_n = -gamma t cos(b)``.
+    alpha_psi)`` (compression negative). With ``psi = phi`` (any match) this is
+    ``c + |sigma_n| tan(phi)``, Mohr-Coulomb's strength (the closed form); with ``psi = 0`` the
+    associated match carries ``(c + |sigma_n| tan phi) / sqrt(1 + 4/3 tan^2 phi)``, the
+    ``"simple-shear"`` match ``c + |sigma_n| tan(phi)`` for every psi, the ``"plane-strain"``
+    match what non-associated Mohr-Coulomb carries (:func:`mohr_coulomb_infinite_slope_factor`).
+    F is the factor whose reduced strengths (``c / F``, ``tan(phi) / F``,
+    ``psi_F = min(psi, phi_F)``) just carry the base's shear stress ``gamma t sin(b)`` under
+    ``sigma_n = -gamma t cos(b)``.
     """
-    from scipy.optimize import brentq
-
     from solver.materials.drucker_prager import dp_constants
+
+    def strength(phi_f: float, psi_f: float, c_f: float, sigma_n: float) -> float:
+        alpha, k, alpha_psi = dp_constants(phi_f, psi_f, c_f, match)
+        return math.sqrt(1.0 - 12.0 * alpha_psi ** 2) * (k - 3.0 * alpha * sigma_n) / (1.0 - 12.0 * alpha * alpha_psi)
+
+    return _reduced_factor(strength, beta_deg, cohesion_pa, phi_deg, dilatancy_deg, unit_weight_n_m3, thickness_m)
+
+
+def mohr_coulomb_infinite_slope_factor(beta_deg: float, cohesion_pa: float, phi_deg: float, dilatancy_deg: float,
+                                       unit_weight_n_m3: float, thickness_m: float) -> float:
+    """The factor of safety of a Mohr-Coulomb material of dilatancy psi in an infinite slope, by
+    strength reduction.
+
+    The base is a velocity characteristic of the simple shear (no extension along it); for a
+    coaxial flow rule of dilatancy psi the stress on it is ``tau = c* + |sigma_n| tan(phi*)`` with
+    ``tan(phi*) = sin(phi) cos(psi) / (1 - sin(phi) sin(psi))`` and
+    ``c* = c cos(phi) cos(psi) / (1 - sin(phi) sin(psi))`` (Davis 1968; Drescher and Detournay
+    1993), below ``c + |sigma_n| tan(phi)`` unless psi = phi. The closed form
+    (:func:`infinite_slope_factor`) is this with psi = phi.
+    """
+    def strength(phi_f: float, psi_f: float, c_f: float, sigma_n: float) -> float:
+        den = 1.0 - math.sin(phi_f) * math.sin(psi_f)
+        return (c_f * math.cos(phi_f) - sigma_n * math.sin(phi_f)) * math.cos(psi_f) / den
+
+    return _reduced_factor(strength, beta_deg, cohesion_pa, phi_deg, dilatancy_deg, unit_weight_n_m3, thickness_m)
+
+
+def _reduced_factor(strength: Callable[[float, float, float, float], float], beta_deg: float, cohesion_pa: float,
+                    phi_deg: float, dilatancy_deg: float, unit_weight_n_m3: float, thickness_m: float) -> float:
+    """The factor F whose reduced strengths ``strength(phi_F, psi_F, c / F, sigma_n)`` (Pa) just
+    carry the base's shear stress of an infinite slope."""
+    from scipy.optimize import brentq
 
     b = math.radians(beta_deg)
     tau = unit_weight_n_m3 * thickness_m * math.sin(b)
@@ -137,9 +174,7 @@ def drucker_prager_infinite_slope_factor(beta_deg: float, cohesion_pa: float, ph
     def surplus(factor: float) -> float:
         phi_f = math.atan(math.tan(math.radians(phi_deg)) / factor)
         psi_f = min(math.radians(dilatancy_deg), phi_f)
-        alpha, k, alpha_psi = dp_constants(phi_f, psi_f, cohesion_pa / factor)
-        strength = math.sqrt(1.0 - 12.0 * alpha_psi ** 2) * (k - 3.0 * alpha * sigma_n) / (1.0 - 12.0 * alpha * alpha_psi)
-        return strength - tau
+        return strength(phi_f, psi_f, cohesion_pa / factor, sigma_n) - tau
 
     return float(brentq(surplus, 1e-3, 1e3, xtol=1e-10))
 
