@@ -65,6 +65,15 @@ def test_every_match_is_the_associated_one_when_psi_equals_phi(match, phi):
                                rtol=1e-13)
 
 
+@pytest.mark.parametrize("match", MATCHES)
+def test_every_match_keeps_mohr_coulombs_apex(match):
+    """The cone's apex ``k / (3 alpha)`` is Mohr-Coulomb's ``c cot(phi)`` for every psi."""
+    for phi in (10.0, 19.8, 35.0):
+        for psi in (0.0, phi / 2, phi):
+            alpha, k, _ = dp_constants(math.radians(phi), math.radians(psi), 5e3, match)
+            assert k / (3 * alpha) == pytest.approx(5e3 / math.tan(math.radians(phi)), rel=1e-12)
+
+
 def test_an_unknown_match_is_refused():
     with pytest.raises(ValueError, match="mohr_coulomb_match"):
         dp_constants(0.5, 0.0, 1e3, "triaxial")
