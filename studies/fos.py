@@ -336,7 +336,8 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet) -> StudyResult:
                    fmt(acads["error"]), fmt(acads["bishop"], 4), acads["trials"], fmt(acads["cost_equilibrium_runs"]),
                    acads["particles"]]])
     report.heading("Infinite slope")
-    report.table(["beta (deg)", "c (Pa)", "phi (deg)", "psi (deg)", "match", "cell (m)", "closed form", "Drucker-Prager",
+    report.table(["beta (deg)", "c (Pa)", "phi (deg)", "psi (deg)", "match", "cell (m)", "closed form",
+                  "Drucker-Prager",
                   "F (SRM)", "bracket", "error (closed form)", "error (Drucker-Prager)", "trials", "run"],
                  [[r["beta_deg"], r["cohesion_pa"], r["phi_deg"], r["dilatancy_deg"], r["match"], r["cell_size_m"],
                    fmt(r["exact"], 4), fmt(r["drucker_prager"], 4), fmt(r["fos"], 4),
