@@ -50,6 +50,8 @@ def solver_material(name: str, material: schema.Material) -> sc.Material:
         friction_angle_rad=math.radians(material.friction_angle_deg or 0.0) if plastic else 0.0,
         dilatancy_angle_rad=math.radians(material.dilatancy_angle_deg or 0.0) if plastic else 0.0,
         tensile_strength_pa=material.tensile_strength_pa if plastic else None,
+        mohr_coulomb_match=(material.mohr_coulomb_match or sc.DEFAULT_MOHR_COULOMB_MATCH) if plastic
+        else sc.DEFAULT_MOHR_COULOMB_MATCH,
     )
 
 

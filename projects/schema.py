@@ -53,6 +53,8 @@ SCHEMA_VERSION = 1
 
 # The solver's vocabularies are the file's: written once, in solver/config.py.
 MATERIAL_MODELS = sc.MATERIAL_MODELS
+#: How a Drucker-Prager material's cone is matched to its c, phi and psi (docs/solver.md).
+MOHR_COULOMB_MATCHES = sc.MOHR_COULOMB_MATCHES
 BOUNDARY_TYPES = sc.BOUNDARY_KINDS
 #: Contact types of a structure (a side's, less "open" and "periodic").
 CONTACT_TYPES: tuple[str, ...] = tuple(k for k in sc.BOUNDARY_KINDS if k not in ("open", "periodic"))
@@ -76,6 +78,7 @@ PLASTIC_KEYS: tuple[str, ...] = (
     "friction_angle_deg",
     "dilatancy_angle_deg",
     "tensile_strength_pa",
+    "mohr_coulomb_match",
 )
 #: Numerics keys of the time step: give one of them (none: cfl = DEFAULT_CFL).
 DEFAULT_CFL = sc.DEFAULT_CFL
@@ -457,6 +460,7 @@ class Material(_Model):
     friction_angle_deg: OptAngleDeg = None
     dilatancy_angle_deg: OptAngleDeg = None
     tensile_strength_pa: OptNonNegativePa = None
+    mohr_coulomb_match: Annotated[Literal[MOHR_COULOMB_MATCHES], _choice(MOHR_COULOMB_MATCHES)] | None = None
 
 
 class MaterialChange(_Model):

@@ -22,6 +22,9 @@ Scheme = Literal["mpm", "apic", "apic-affine"]
 SCHEMES: tuple[str, ...] = ("mpm", "apic", "apic-affine")
 MaterialModel = Literal["linear-elastic", "drucker-prager"]
 MATERIAL_MODELS: tuple[str, ...] = ("linear-elastic", "drucker-prager")
+#: How a Drucker-Prager cone is matched to Mohr-Coulomb's c and phi (solver/materials/drucker_prager.py).
+MOHR_COULOMB_MATCHES: tuple[str, ...] = ("plane-strain-associated", "plane-strain", "simple-shear")
+DEFAULT_MOHR_COULOMB_MATCH = "plane-strain-associated"
 BoundaryKind = Literal["fixed", "slip", "friction", "open", "periodic"]
 Side = Literal["left", "right", "bottom", "top"]
 SIDES: tuple[str, ...] = ("left", "right", "bottom", "top")
@@ -54,7 +57,9 @@ class Material:
     """Parameters of one material (one row of the per-material tables).
 
     ``tensile_strength_pa`` caps the mean stress (tension cut-off); ``None`` means the
-    Drucker-Prager apex is the only limit.
+    Drucker-Prager apex is the only limit. ``mohr_coulomb_match`` picks how the cone's constants
+    follow from c, phi and psi (one of ``MOHR_COULOMB_MATCHES``, see
+    ``solver.materials.drucker_prager.dp_constants``).
     """
 
     name: str
@@ -66,6 +71,7 @@ class Material:
     friction_angle_rad: float = 0.0
     dilatancy_angle_rad: float = 0.0
     tensile_strength_pa: float | None = None
+    mohr_coulomb_match: str = DEFAULT_MOHR_COULOMB_MATCH
 
     @property
     def bulk_modulus_pa(self) -> float:

@@ -414,7 +414,7 @@ class MaterialsPanel(Panel):
             table = d["materials"][name]
             table["model"] = model
             if model == "linear-elastic":
-                for key in PLASTIC_KEYS:
+                for key in (*PLASTIC_KEYS, "mohr_coulomb_match"):  # the match has no field of its own yet
                     table.pop(key, None)
                 for stage in d.get("stages", []):
                     change = stage.get("material_changes", {}).get(name)

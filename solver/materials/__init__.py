@@ -25,7 +25,9 @@ def material_rows(materials: Sequence[Material]) -> dict[str, np.ndarray]:
     """The per-material parameter table as numpy columns (SI units)."""
     rows: dict[str, list[float]] = {k: [] for k in MATERIAL_COLUMNS}
     for m in materials:
-        alpha, kc, alpha_psi = drucker_prager.dp_constants(m.friction_angle_rad, m.dilatancy_angle_rad, m.cohesion_pa)
+        alpha, kc, alpha_psi = drucker_prager.dp_constants(
+            m.friction_angle_rad, m.dilatancy_angle_rad, m.cohesion_pa, m.mohr_coulomb_match
+        )
         if m.model == "drucker-prager":
             apex = kc / (3.0 * alpha) if alpha > 0.0 else math.inf
             t_cut = apex if m.tensile_strength_pa is None else min(apex, m.tensile_strength_pa)

@@ -5,9 +5,32 @@ normal components, J2 the second invariant of the deviator):
 
     f = sqrt(J2) + alpha * I1 - k          g = sqrt(J2) + alpha_psi * I1
 
-matched to Mohr-Coulomb in plane strain (the paper, after Bui et al. 2008):
-``alpha = tan(phi) / sqrt(9 + 12 tan^2 phi)``, ``k = 3 c / sqrt(9 + 12 tan^2 phi)`` and
-``alpha_psi`` from the dilatancy angle psi in place of phi.
+matched to Mohr-Coulomb (c, phi, psi) in one of three ways, ``dp_constants``'s ``match``. In every
+one the potential's coefficient is ``alpha_psi = tan(psi) / sqrt(9 + 12 tan^2 psi)``: the cone then
+dilates at psi in plane strain (``sin psi = de_v / de_max-shear`` in the plane, and
+``tan psi = de_n / dgamma`` in simple shear; both give this one coefficient). The cone's own
+alpha, k are found from plastic flow in plane strain, where the flow rule fixes the out-of-plane
+stress (``s_zz = -2 alpha_psi sqrt(J2)``, zero out-of-plane plastic strain):
+
+- ``"plane-strain-associated"`` (the paper, after Bui et al. 2008; the default):
+  ``alpha = tan(phi) / sqrt(9 + 12 tan^2 phi)``, ``k = 3 c / sqrt(9 + 12 tan^2 phi)``. Exact for
+  psi = phi; with psi < phi the cone is weaker than Mohr-Coulomb in plane strain.
+- ``"plane-strain"``: the in-plane Mohr circle (centre ``p``, radius ``t``) at yield under the
+  cone's own flow rule, ``t = sqrt(1 - 3 a^2) (k - 3 alpha p) / (1 - 3 alpha a)`` (a = alpha_psi),
+  equals Mohr-Coulomb's ``t = c cos(phi) - p sin(phi)``:
+  ``alpha = sin(phi) / (3 sqrt(1 - 3 a^2) + 3 a sin(phi))``,
+  ``k = c cos(phi) (1 - 3 alpha a) / sqrt(1 - 3 a^2)``. Every plane-strain stress path of the cone
+  then fails where a Mohr-Coulomb material does; psi = 0 gives ``alpha = sin(phi) / 3``,
+  ``k = c cos(phi)`` (the Abaqus Theory Manual's plane-strain match for non-dilatant flow).
+- ``"simple-shear"``: in simple shear (no strain along the shear plane nor out of plane) the cone
+  carries ``tau = sqrt(1 - 12 a^2) (k - 3 alpha sigma_n) / (1 - 12 alpha a)`` on the shear plane;
+  equal to ``c - sigma_n tan(phi)``: ``alpha = tan(phi) / (3 sqrt(1 - 12 a^2) + 12 a tan(phi))``,
+  ``k = c (1 - 12 alpha a) / sqrt(1 - 12 a^2)`` (``= 3 alpha c / tan(phi)``). The direct-shear
+  reading of phi, and the limit-equilibrium infinite slope; psi = 0 gives ``alpha = tan(phi) / 3``,
+  ``k = c``, which in any other plane-strain path is Mohr-Coulomb with ``sin(phi') = tan(phi)``
+  (stronger than Mohr-Coulomb).
+
+All three coincide for psi = phi. docs/solver.md gives the derivation.
 
 Return from an elastic trial state with f > 0 (closed form, one step, exact for linear
 elasticity): ``dlam = f / (G + 9 K alpha alpha_psi)``; deviator scaled by
@@ -25,14 +48,49 @@ import math
 import taichi as ti
 
 
-def dp_constants(friction_angle_rad: float, dilatancy_angle_rad: float, cohesion_pa: float) -> tuple[float, float, float]:
-    """(alpha, k, alpha_psi) of the plane-strain Mohr-Coulomb match."""
+MATCHES: tuple[str, ...] = ("plane-strain-associated", "plane-strain", "simple-shear")
+
+
+def dp_constants(friction_angle_rad: float, dilatancy_angle_rad: float, cohesion_pa: float,
+                 match: str = "plane-strain-associated") -> tuple[float, float, float]:
+    """(alpha, k, alpha_psi) of the cone matched to Mohr-Coulomb (module docstring).
+
+    Parameters
+    ----------
+    friction_angle_rad, dilatancy_angle_rad : float
+        Mohr-Coulomb's phi and psi, rad (0 <= psi <= phi < pi/2).
+    cohesion_pa : float
+        Mohr-Coulomb's c, Pa.
+    match : str
+        One of ``MATCHES``.
+
+    Returns
+    -------
+    alpha : float
+        The cone's slope (dimensionless).
+    k : float
+        The cone's strength at I1 = 0, Pa.
+    alpha_psi : float
+        The potential's slope (dimensionless).
+    """
     tp = math.tan(friction_angle_rad)
     tq = math.tan(dilatancy_angle_rad)
-    alpha = tp / math.sqrt(9.0 + 12.0 * tp * tp)
-    k = 3.0 * cohesion_pa / math.sqrt(9.0 + 12.0 * tp * tp)
-    alpha_psi = tq / math.sqrt(9.0 + 12.0 * tq * tq)
-    return alpha, k, alpha_psi
+    a = tq / math.sqrt(9.0 + 12.0 * tq * tq)
+    if match == "plane-strain-associated":
+        alpha = tp / math.sqrt(9.0 + 12.0 * tp * tp)
+        k = 3.0 * cohesion_pa / math.sqrt(9.0 + 12.0 * tp * tp)
+    elif match == "plane-strain":
+        sp = math.sin(friction_angle_rad)
+        root = math.sqrt(1.0 - 3.0 * a * a)
+        alpha = sp / (3.0 * root + 3.0 * a * sp)
+        k = cohesion_pa * math.cos(friction_angle_rad) * (1.0 - 3.0 * alpha * a) / root
+    elif match == "simple-shear":
+        root = math.sqrt(1.0 - 12.0 * a * a)
+        alpha = tp / (3.0 * root + 12.0 * a * tp)
+        k = cohesion_pa * (1.0 - 12.0 * alpha * a) / root
+    else:
+        raise ValueError(f"mohr_coulomb_match {match!r}: must be one of {', '.join(MATCHES)}")
+    return alpha, k, a
 
 
 @ti.func

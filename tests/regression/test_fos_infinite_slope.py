@@ -19,12 +19,21 @@ where the cohesive part of F is larger by ``1.25 dx / t``. So the cohesive-frict
 cells over the thickness (bias about +2 %, measured +2.1 %), the cohesionless ones, where F does
 not depend on depth, 8. Measured errors (docs/validation.md): +2.1 %, +2.2 %, -0.3 %, +0.1 %;
 psi = 0 against the cone's own factor -0.3 %. About 55 s of CPU (each case compiles its kernels).
+
+The material's ``mohr_coulomb_match`` (solver.materials.drucker_prager): with psi = 0 the
+"simple-shear" match meets the closed form (measured -0.8 %), the "plane-strain" match the
+factor of a non-associated Mohr-Coulomb material (Davis 1968; measured -0.3 %).
 """
 
 import pytest
 
 from projects.runner import run_project
-from studies.fos import drucker_prager_infinite_slope_factor, infinite_slope, infinite_slope_factor
+from studies.fos import (
+    drucker_prager_infinite_slope_factor,
+    infinite_slope,
+    infinite_slope_factor,
+    mohr_coulomb_infinite_slope_factor,
+)
 
 pytestmark = pytest.mark.slow
 
@@ -73,3 +82,44 @@ def test_the_cone_with_associated_flow_carries_mohr_coulombs_strength_in_simple_
     exact = infinite_slope_factor(beta, cohesion, phi, gamma, 1.0)
     assert drucker_prager_infinite_slope_factor(beta, cohesion, phi, phi, gamma, 1.0) == pytest.approx(exact, rel=1e-9)
     assert drucker_prager_infinite_slope_factor(beta, cohesion, phi, 0.0, gamma, 1.0) < exact
+
+
+def test_with_psi_zero_each_match_meets_its_factor(tmp_path):
+    """psi = 0 (c = 0, beta 25, phi 35, 8 cells), one run per match: "simple-shear" carries
+    ``c + sigma_n tan(phi)`` on the base for any psi, so the closed form (1.502; measured 1.489,
+    -0.8 %); "plane-strain" carries what Mohr-Coulomb with psi = 0 carries on a velocity
+    characteristic, ``c cos(phi) + sigma_n sin(phi)`` (Davis 1968: F = 1.328; measured 1.324,
+    -0.3 %). Within 3 %."""
+    gamma = 2000.0 * 9.81
+    expected = {"simple-shear": infinite_slope_factor(25.0, 0.0, 35.0, gamma, 1.0),
+                "plane-strain": mohr_coulomb_infinite_slope_factor(25.0, 0.0, 35.0, 0.0, gamma, 1.0)}
+    assert expected["plane-strain"] == pytest.approx(1.3283, abs=1e-3)
+    for match, exact in expected.items():
+        assert drucker_prager_infinite_slope_factor(25.0, 0.0, 35.0, 0.0, gamma, 1.0, match) == pytest.approx(exact,
+                                                                                                            rel=1e-9)
+        project, _ = infinite_slope(25.0, 0.0, 35.0, cell_m=1.0 / 8, dilatancy_deg=0.0, duration_s=0.5,
+                                    mohr_coulomb_match=match)
+        result = run_project(project, tmp_path / match)
+        fos = result.summary["factor_of_safety"]
+        assert fos["value"] == pytest.approx(exact, rel=TOLERANCE), f"{match}: {fos['message']}"
+
+
+@pytest.mark.parametrize("beta, cohesion, phi", [(30.0, 6000.0, 20.0), (40.0, 10000.0, 30.0), (25.0, 0.0, 35.0),
+                                                 (20.0, 20000.0, 10.0), (45.0, 5000.0, 44.0)])
+@pytest.mark.parametrize("psi_share", [0.0, 0.5, 1.0])
+def test_the_cone_carries_in_simple_shear_what_its_match_says(beta, cohesion, phi, psi_share):
+    """The algebra of the matches in the infinite slope, psi = 0, phi / 2 and phi: "simple-shear"
+    gives the closed form, "plane-strain" non-associated Mohr-Coulomb's factor (Davis 1968), the
+    associated match less than that unless psi = phi; all three agree at psi = phi."""
+    gamma = 2000.0 * 9.81
+    psi = psi_share * phi
+    exact = infinite_slope_factor(beta, cohesion, phi, gamma, 1.0)
+    mc = mohr_coulomb_infinite_slope_factor(beta, cohesion, phi, psi, gamma, 1.0)
+    factors = {m: drucker_prager_infinite_slope_factor(beta, cohesion, phi, psi, gamma, 1.0, m)
+               for m in ("plane-strain-associated", "plane-strain", "simple-shear")}
+    assert factors["simple-shear"] == pytest.approx(exact, rel=1e-9)
+    assert factors["plane-strain"] == pytest.approx(mc, rel=1e-9)
+    assert factors["plane-strain-associated"] <= mc * (1 + 1e-9)
+    assert mc <= exact * (1 + 1e-9)
+    if psi_share == 1.0:
+        assert mc == pytest.approx(exact, rel=1e-9)

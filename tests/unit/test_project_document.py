@@ -328,7 +328,8 @@ def test_overrides_on_raw_data_do_not_modify_it():
         (
             "materials.sand.colour=red",
             "materials.sand.colour: unknown key; allowed: model, density_kg_m3, youngs_modulus_pa, "
-            "poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, tensile_strength_pa",
+            "poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, tensile_strength_pa, "
+            "mohr_coulomb_match",
         ),
         ("stages.1.material_changes.sand.model=x", "stages.1.material_changes.sand.model: unknown key; allowed: "
          "density_kg_m3, youngs_modulus_pa, poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, "

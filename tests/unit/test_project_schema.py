@@ -426,3 +426,31 @@ def test_direct_model_validation_runs_the_rules_too():
 )
 def test_format_value(value, text):
     assert format_value(value) == text
+
+
+def test_mohr_coulomb_match_is_one_of_the_matches_and_for_drucker_prager_only():
+    from projects.schema import validate_project
+
+    for match in ("plane-strain-associated", "plane-strain", "simple-shear"):
+        validate_project(changed("materials.bars.mohr_coulomb_match", match))
+    assert problems_of(changed("materials.bars.mohr_coulomb_match", "triaxial")) == [
+        'materials.bars.mohr_coulomb_match = "triaxial": must be one of "plane-strain-associated", '
+        '"plane-strain", "simple-shear"'
+    ]
+    data = changed("materials.bars.mohr_coulomb_match", "plane-strain")
+    data["materials"]["bars"] = {k: v for k, v in data["materials"]["bars"].items()
+                                 if k not in ("cohesion_pa", "friction_angle_deg", "dilatancy_angle_deg")}
+    data["materials"]["bars"]["model"] = "linear-elastic"
+    assert problems_of(data) == [
+        'materials.bars.mohr_coulomb_match = "plane-strain": only allowed with model "drucker-prager"'
+    ]
+
+
+def test_the_match_reaches_the_solver_material_and_defaults_to_the_associated_one():
+    from projects.build import solver_material
+    from projects.schema import validate_project
+
+    given = validate_project(changed("materials.bars.mohr_coulomb_match", "simple-shear"))
+    assert solver_material("bars", given.materials["bars"]).mohr_coulomb_match == "simple-shear"
+    assert solver_material("bars", validate_project(copy.deepcopy(BASE)).materials["bars"]).mohr_coulomb_match == \
+        "plane-strain-associated"

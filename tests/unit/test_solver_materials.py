@@ -39,12 +39,117 @@ def invariants(s):
     return 3 * p, np.sqrt(j2)
 
 
-def test_dp_constants_match_plane_strain_mohr_coulomb():
-    alpha, k, alpha_psi = dp_constants(math.radians(30), 0.0, 10e3)
-    t = math.tan(math.radians(30))
-    assert alpha == pytest.approx(t / math.sqrt(9 + 12 * t * t), rel=1e-14)
-    assert k == pytest.approx(3 * 10e3 / math.sqrt(9 + 12 * t * t), rel=1e-14)
-    assert alpha_psi == 0.0
+MATCHES = ("plane-strain-associated", "plane-strain", "simple-shear")
+
+
+@pytest.mark.parametrize("match, alpha_of, k_of", [
+    ("plane-strain-associated", lambda p: math.tan(p) / math.sqrt(9 + 12 * math.tan(p) ** 2),
+     lambda p, c: 3 * c / math.sqrt(9 + 12 * math.tan(p) ** 2)),
+    ("plane-strain", lambda p: math.sin(p) / 3, lambda p, c: c * math.cos(p)),  # Abaqus, non-dilatant flow
+    ("simple-shear", lambda p: math.tan(p) / 3, lambda p, c: c),
+])
+def test_dp_constants_with_psi_zero_are_the_closed_forms_of_each_match(match, alpha_of, k_of):
+    for phi in (0.0, 10.0, 19.8, 30.0, 45.0):
+        p = math.radians(phi)
+        alpha, k, alpha_psi = dp_constants(p, 0.0, 10e3, match)
+        assert alpha == pytest.approx(alpha_of(p), rel=1e-14, abs=1e-15)
+        assert k == pytest.approx(k_of(p, 10e3), rel=1e-14)
+        assert alpha_psi == 0.0
+
+
+@pytest.mark.parametrize("match", MATCHES[1:])
+@pytest.mark.parametrize("phi", [5.0, 19.8, 35.0, 50.0])
+def test_every_match_is_the_associated_one_when_psi_equals_phi(match, phi):
+    p = math.radians(phi)
+    np.testing.assert_allclose(dp_constants(p, p, 7e3, match), dp_constants(p, p, 7e3, "plane-strain-associated"),
+                               rtol=1e-13)
+
+
+@pytest.mark.parametrize("match", MATCHES)
+def test_every_match_keeps_mohr_coulombs_apex(match):
+    """The cone's apex ``k / (3 alpha)`` is Mohr-Coulomb's ``c cot(phi)`` for every psi."""
+    for phi in (10.0, 19.8, 35.0):
+        for psi in (0.0, phi / 2, phi):
+            alpha, k, _ = dp_constants(math.radians(phi), math.radians(psi), 5e3, match)
+            assert k / (3 * alpha) == pytest.approx(5e3 / math.tan(math.radians(phi)), rel=1e-12)
+
+
+def test_an_unknown_match_is_refused():
+    with pytest.raises(ValueError, match="mohr_coulomb_match"):
+        dp_constants(0.5, 0.0, 1e3, "triaxial")
+
+
+PSIS = (0.0, 10.0, 30.0)
+CONES = ((19.8, 0.0), (35.0, 10e3))  # (phi deg, c Pa)
+_DRIVERS: dict[str, MaterialPointDriver] = {}
+
+
+def _steady_flow(match, phi, c, L, steps=3000, dt=2e-7):
+    """Drive one point per psi in PSIS (a stiff cone, so the Jaumann spin is negligible: p / G ~ 1e-5)
+    with a constant velocity gradient from -100 kPa isotropic until the stress stops changing.
+    One driver per match holds every cone of CONES (a driver compiles its kernel once)."""
+    if match not in _DRIVERS:
+        mats = tuple(Material("dp", "drucker-prager", 2000.0, 1e10, NU, cohesion_pa=cc,
+                              friction_angle_rad=math.radians(ph), dilatancy_angle_rad=math.radians(psi),
+                              mohr_coulomb_match=match) for ph, cc in CONES for psi in PSIS)
+        _DRIVERS[match] = MaterialPointDriver(mats, len(PSIS))
+    drv = _DRIVERS[match]
+    ids = CONES.index((phi, c)) * len(PSIS) + np.arange(len(PSIS))
+    s0 = np.tile([-100e3, -100e3, 0.0, -100e3], (len(PSIS), 1))
+    out = drv.run(s0, L, dt, steps, material_ids=ids)["stress"]
+    again = drv.run(out, L, dt, 200, material_ids=ids)["stress"]
+    np.testing.assert_allclose(again, out, rtol=1e-6, atol=1e-3)  # steady plastic flow
+    return out
+
+
+@pytest.mark.parametrize("match", MATCHES)
+@pytest.mark.parametrize("phi, c", CONES)
+def test_in_plane_flow_meets_mohr_coulomb_in_plane_strain_where_the_match_says(match, phi, c):
+    """Plane-strain flow (no rotation) dilating at psi (``de_v = sin(psi) de_max-shear``, Mohr-Coulomb's
+    rate): at steady flow the in-plane Mohr circle (centre p, radius t) touches Mohr-Coulomb's line
+    ``t = c cos(phi) - p sin(phi)`` under "plane-strain" for every psi, under the others for psi = phi;
+    out of plane ``s_zz = -2 alpha_psi sqrt(J2)``."""
+    shear = 1.0
+    L = np.array([[[0.5 * (math.sin(math.radians(psi)) + 1.0) * shear, 0.0],
+                   [0.0, 0.5 * (math.sin(math.radians(psi)) - 1.0) * shear]] for psi in PSIS])
+    s = _steady_flow(match, phi, c, L)
+    p_in = 0.5 * (s[:, 0] + s[:, 1])
+    t = np.hypot(0.5 * (s[:, 0] - s[:, 1]), s[:, 2])
+    mc = c * math.cos(math.radians(phi)) - p_in * math.sin(math.radians(phi))
+    i1, q = invariants(s)
+    for n, psi in enumerate(PSIS):
+        _, _, a = dp_constants(math.radians(phi), math.radians(psi), c, match)
+        assert s[n, 3] - i1[n] / 3 == pytest.approx(-2 * a * q[n], rel=1e-6, abs=1e-3)
+        if match == "plane-strain" or psi == phi:
+            assert t[n] == pytest.approx(mc[n], rel=1e-6)
+        elif match == "plane-strain-associated":
+            assert t[n] < mc[n] * (1 - 1e-5)  # weaker than Mohr-Coulomb
+        else:
+            assert t[n] > mc[n] * (1 + 1e-5)  # stronger than Mohr-Coulomb
+
+
+@pytest.mark.parametrize("match", MATCHES)
+@pytest.mark.parametrize("phi, c", CONES)
+def test_simple_shear_meets_tan_phi_on_the_shear_plane_where_the_match_says(match, phi, c):
+    """Simple shear along x dilating at psi (``de_yy = tan(psi) dgamma``): at steady flow the shear
+    plane carries ``tau = c - sigma_yy tan(phi)`` under "simple-shear" for every psi, under the
+    others for psi = phi; under "plane-strain" what a coaxial Mohr-Coulomb material carries there,
+    ``(c cos(phi) - sigma_yy sin(phi)) cos(psi) / (1 - sin(phi) sin(psi))`` (Davis 1968)."""
+    gamma = 1.0
+    L = np.array([[[0.0, gamma], [0.0, math.tan(math.radians(psi)) * gamma]] for psi in PSIS])
+    s = _steady_flow(match, phi, c, L)
+    f = math.radians(phi)
+    for n, psi in enumerate(PSIS):
+        y = math.radians(psi)
+        tau, sigma_n = s[n, 2], s[n, 1]
+        lem = c - sigma_n * math.tan(f)
+        davis = (c * math.cos(f) - sigma_n * math.sin(f)) * math.cos(y) / (1 - math.sin(f) * math.sin(y))
+        if match == "simple-shear" or psi == phi:
+            assert tau == pytest.approx(lem, rel=1e-4)
+        if match == "plane-strain":
+            assert tau == pytest.approx(davis, rel=1e-4)
+        if match == "plane-strain-associated" and psi < phi:
+            assert tau < davis * (1 - 1e-5)
 
 
 def test_elastic_uniaxial_strain_and_shear_closed_form():

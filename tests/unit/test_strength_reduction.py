@@ -34,6 +34,24 @@ def test_reduction_divides_c_and_tan_phi_and_caps_dilatancy():
         math.atan(math.tan(math.radians(30.0)) / 4.0))
 
 
+@pytest.mark.parametrize("match", sc.MOHR_COULOMB_MATCHES)
+def test_each_trial_rebuilds_the_cone_with_the_materials_own_match(match):
+    """A trial's cone is the match's cone of the reduced c, phi, psi (here psi = 0)."""
+    from solver.materials import material_rows
+    from solver.materials.drucker_prager import dp_constants
+
+    soil = sc.Material("soil", "drucker-prager", 2000.0, 1e7, 0.3, cohesion_pa=10e3,
+                       friction_angle_rad=math.radians(30.0), mohr_coulomb_match=match)
+    for factor in (0.8, 1.4):
+        out = reduced_materials((soil,), (0,), factor)[0]
+        assert out.mohr_coulomb_match == match
+        rows = material_rows((out,))
+        phi_f = math.atan(math.tan(math.radians(30.0)) / factor)
+        alpha, k, _ = dp_constants(phi_f, 0.0, 10e3 / factor, match)
+        assert rows["alpha"][0] == pytest.approx(alpha, rel=1e-12)
+        assert rows["kc"][0] == pytest.approx(k, rel=1e-12)
+
+
 def _driver(first, tolerance=0.01, step=0.1, max_trials=40):
     settings = Settings(label="fos", stage_index=1, materials=(0,), tolerance=tolerance, first_trial=first,
                         bracket_step=step, max_trials=max_trials)
