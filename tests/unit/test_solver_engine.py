@@ -262,6 +262,22 @@ def test_scatter_auto_on_a_cpu_with_few_threads_is_serial_for_small_runs_and_spl
         Engine(Grid((0.0, 0.0), (1.0, 1.0), 0.1), MAT, 10, "apic", np.float64, scatter="split", bands=0)
 
 
+def test_the_recipe_is_the_scatters_own_business_and_a_checkpoint_of_another_scatter_loads():
+    """Every scatter runs the same named stages; the split scatter's plan (its ``STATE``) is in its
+    checkpoints, and another scatter's engine loads them without it."""
+    pos = _lattice(8, 8)
+    split = _wall_scene("apic", "split", len(pos), bands=2)
+    serial = _wall_scene("apic", "serial", len(pos))
+    assert split.recipe == serial.recipe
+    split.load_particles(pos, np.full(len(pos), 2.5e-4), np.zeros(len(pos), np.int32))
+    saved = split.state()
+    assert set(split.to_grid.STATE) <= set(saved) and not set(split.to_grid.STATE) & set(serial.state())
+    serial.load_state(saved)
+    np.testing.assert_array_equal(serial.state(("x",))["x"], pos)
+    with pytest.raises(ValueError, match="unknown state field 'nope'"):
+        serial.load_state({"nope": np.zeros(1)})
+
+
 @pytest.mark.parametrize("scheme", ["mpm", "apic-affine"])
 def test_a_blown_up_particle_stays_inside_the_grid_arrays_until_the_guard_acts(scheme):
     """NaN stress -> NaN grid velocity -> NaN positions: the engine must keep every stencil inside
