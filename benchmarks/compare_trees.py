@@ -90,8 +90,8 @@ def main(argv: list[str] | None = None) -> int:
         proc.stdin.close()
         proc.wait()
     n = workers["before"][1]["ready"]
-    print(f"| variant | before M/s (best) | after M/s (best) | after/before, wall (median of {args.rounds} paired rounds) "
-          f"| after/before, CPU time |")
+    print(f"| variant | before M/s (best) | after M/s (best) "
+          f"| after/before, wall (median of {args.rounds} paired rounds) | after/before, CPU time |")
     print("|---|---|---|---|---|")
     summary = {}
     for name in names:

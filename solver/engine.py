@@ -580,8 +580,8 @@ class Engine:
         The apic-affine P2G fuses the forces into the momentum; this part of its pass keeps the
         ghost nodes' force apart too (per side, along the wall), so that the mirror forces can pass
         the wall's reaction through the contact law. It reads the stress and density the
-        particle's update left. Only particles within a cell of a closed wall reach a ghost node; the others cost one test
-        each. A corner ghost (beyond two walls) keeps the fused form.
+        particle's update left. Only particles within a cell of a closed wall reach a ghost node;
+        the others cost one test each. A corner ghost (beyond two walls) keeps the fused form.
         """
         base, fx, w, dw = self._stencil(self.x[p])
         ghost_lo = ti.Vector([0, 0])
