@@ -53,9 +53,9 @@ import numpy as np
 import taichi as ti
 
 from solver import runtime
-from solver.engine import SCATTERS, Engine, resolve_scatter
 from solver.config import (
     OUTPUT_FIELDS,
+    SCATTERS,
     SCHEMES,
     Boundary,
     Grid,
@@ -66,11 +66,13 @@ from solver.config import (
     SimulationConfig,
     Stage,
 )
+from solver.engine import Engine
+from solver.scatter import resolve_scatter
 
 log = logging.getLogger(__name__)
 
 YARDSTICK = "yardstick"
-#: Profile variants: apic-affine with each scatter (solver.engine.SCATTERS) the engine would not
+#: Profile variants: apic-affine with each scatter (solver.config.SCATTERS) the engine would not
 #: pick itself, so that the profile shows them all in one run.
 SCATTER_VARIANTS = {f"apic-affine, {s} scatter": s for s in SCATTERS if s != "auto"}
 NOT_MEASURED_NO_GPU = "not measured: no GPU"

@@ -1,8 +1,8 @@
 """What a P2G scatter costs on this CPU: ``python benchmarks/scatter.py [--particles N] [--threads T]``.
 
-The measurement behind ``solver.engine.SCATTERS``. A bare quadratic B-spline scatter (mass and
-a two-component momentum to the 3 x 3 nodes of each particle, 27 adds per particle; particles on
-a lattice, 2 x 2 per cell) is timed in three forms, best of 5 rounds of 100 launches:
+The measurement behind the scatter strategies (``solver/scatter.py``). A bare quadratic B-spline
+scatter (mass and a two-component momentum to the 3 x 3 nodes of each particle, 27 adds per
+particle; particles on a lattice, 2 x 2 per cell) is timed in three forms, best of 5 rounds of 100 launches:
 
 - ``parallel atomic``: every particle in parallel, float atomic adds (what GPUs do);
 - ``serial plain``: one thread, plain adds (``ti.loop_config(serialize=True)``);

@@ -20,6 +20,12 @@ structures, applied in the grid stages; the mirror-image wall terms (``_mirror_f
 ``_mirror_ghosts``) pass their reaction through it; ``contact tally`` adds up the force on each
 contact; G2P puts particles that ended inside a structure back on its surface.
 
+The particle passes (P2G; stress and force for mpm and apic) are written per particle
+(``_update_particle``: the particle's own constitutive update; ``_add_particle``: its shares to
+the grid); how those shares reach shared grid nodes on a CPU (serial, split, atomic) is the
+scatter strategy's, chosen once at construction (``self.to_grid``, solver/scatter.py), which runs
+the pass loops and makes every add.
+
 Grid passes run only over the bounding box of the particles' stencils (built in the scatter), so
 empty parts of the domain cost nothing.
 """
@@ -28,29 +34,13 @@ empty parts of the domain cost nothing.
 import numpy as np
 import taichi as ti
 
-from solver.config import SCATTERS, SIDES, Boundary, Grid, Material, Structure
+from solver.config import SIDES, Boundary, Grid, Material, Structure
 from solver.fieldio import FieldIO
 from solver.materials import MaterialTable
+from solver.scatter import BIG, SCATTER_STATE, make_scatter
 from solver.structures import node_contacts, segments
 
 PAD = 2
-#: How particle contributions are added to shared grid nodes. ``atomic``: every particle in
-#: parallel with float atomic adds, the constitutive update fused into the same pass (GPUs and
-#: many-core CPUs). ``serial``: the constitutive update in a parallel pass, then one thread adds
-#: every particle's contributions with plain adds. ``split``: the grid is cut into one band of
-#: node lines per thread (across the longer side of the particles' box, at the quantiles of the
-#: particle positions of the last step); each thread updates and adds, with plain adds, the
-#: particles in its band, except those whose stencil crosses a cut, which one thread adds
-#: afterwards. Which particle goes where depends only on positions, never on timing, so runs repeat
-#: bit for bit. On the CPU a float atomic add is a compare-and-swap loop: on the development
-#: machine the atomic scatter costs about four times the plain one per particle
-#: (benchmarks/scatter.py), so with few threads plain adds win. ``auto``: on a CPU with at most
-#: SERIAL_SCATTER_MAX_THREADS threads split from SPLIT_MIN_PARTICLES particles on and serial below
-#: (the split recipe takes about 4 s longer to compile, which a small run does not earn back),
-#: atomic otherwise.
-SERIAL_SCATTER_MAX_THREADS = 4
-SPLIT_MIN_PARTICLES = 10_000
-CPU_GRAIN = 512  # loop iterations a Taichi 1.7 CPU thread takes at a time (measured; see _split_scatter)
 BOUNDARY_CODES = {"fixed": 0, "slip": 1, "friction": 2, "open": 3, "periodic": 4}
 FIXED, SLIP, FRICTION, OPEN, PERIODIC = (BOUNDARY_CODES[k] for k in ("fixed", "slip", "friction", "open", "periodic"))
 #: A particle found inside a structure after its move is put on the nearest point of the surface and
@@ -58,21 +48,6 @@ FIXED, SLIP, FRICTION, OPEN, PERIODIC = (BOUNDARY_CODES[k] for k in ("fixed", "s
 PUSH_OUT_CELLS = 1e-3
 #: Unit normal of each side (SIDES order), out of the wall into the domain.
 _INWARD = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
-_BIG = 1 << 30
-
-
-def resolve_scatter(scatter: str, n_particles: int) -> str:
-    """``atomic``, ``serial`` or ``split`` for the Taichi runtime in use and the particle count
-    (see :data:`SCATTERS`)."""
-    cfg = ti.lang.impl.current_cfg()
-    cpu = cfg.arch in (ti.x64, ti.arm64)
-    if scatter == "auto":
-        if not cpu or cfg.cpu_max_num_threads > SERIAL_SCATTER_MAX_THREADS:
-            return "atomic"
-        return "split" if n_particles >= SPLIT_MIN_PARTICLES else "serial"
-    if scatter in ("serial", "split") and not cpu:
-        raise ValueError(f"the {scatter} scatter runs on a CPU only; allowed on a GPU: auto, atomic")
-    return scatter
 
 
 @ti.func
@@ -103,7 +78,8 @@ class Engine:
 
     ``damping=False`` promises that no step will use local damping, which lets ``apic-affine``
     fuse the forces into the momentum and skip the grid force field (less memory).
-    ``scatter`` chooses how particles add to grid nodes (see :data:`SCATTERS`).
+    ``scatter`` chooses how particles add to grid nodes (``auto``, ``atomic``, ``serial``, ``split``;
+    see solver/scatter.py; ``bands``: the split scatter's band count).
     ``structures``: rigid polygons inside the domain, contacts like the closed sides.
 
     Contacts (see docs/solver.md): the closed sides (index 0-3 in :data:`SIDES` order) and the
@@ -118,18 +94,6 @@ class Engine:
                  structures: tuple[Structure, ...] = ()):
         if scheme not in ("mpm", "apic", "apic-affine"):
             raise ValueError(f"unknown scheme {scheme!r}; allowed: mpm, apic, apic-affine")
-        if scatter not in SCATTERS:
-            raise ValueError(f"unknown scatter {scatter!r}; allowed: {', '.join(SCATTERS)}")
-        self.scatter = resolve_scatter(scatter, n_particles)
-        self.serial = self.scatter == "serial"
-        self.split = self.scatter == "split"
-        self.plain = self.scatter != "atomic"  # plain adds: no two threads ever add to one node
-        # the split scatter's bands: one per thread (``bands`` overrides, e.g. to test more cuts);
-        # a particle's band code (band, or band + n_bands) is one signed byte
-        if bands is not None and not 1 <= bands <= 63:
-            raise ValueError(f"bands must be from 1 to 63, got {bands}")
-        threads = ti.lang.impl.current_cfg().cpu_max_num_threads
-        self.n_bands = (bands or min(threads, 63)) if self.split else 1
         self.scheme = scheme
         self.np_float = np_float
         self.n = int(n_particles)
@@ -139,6 +103,11 @@ class Engine:
         self.origin = (float(grid.origin_m[0]), float(grid.origin_m[1]))
         self.upper = (self.origin[0] + self.cells[0] * self.dx, self.origin[1] + self.cells[1] * self.dx)
         self.nodes = (self.cells[0] + 1 + 2 * PAD, self.cells[1] + 1 + 2 * PAD)
+        # how particle contributions reach the grid (solver/scatter.py), chosen once
+        self.to_grid = make_scatter(scatter, self.n, self.nodes, bands)
+        self.scatter = self.to_grid.name
+        # plain adds: no two threads ever add to one value, and the short wall loops run in one thread
+        self.plain = self.to_grid.plain
         self.remove_unstable = bool(remove_unstable)
         problem = grid.periodic_problem()
         if problem:
@@ -200,15 +169,6 @@ class Engine:
         # scatter, which works out every particle's stencil anyway, and cleared by the next reset
         self.lo = ti.Vector.field(2, ti.i32, ())
         self.hi = ti.Vector.field(2, ti.i32, ())
-        # split scatter: per band the stencil range (min and max base node) of its particles in the
-        # last scatter, 16 ints a row so that no two threads write one cache line; how many of its
-        # particles sat on each node line along either axis; the cuts between the bands along
-        # ``cut_axis``; and each particle's band (assigned in G2P from its new position)
-        self.band_range = ti.field(ti.i32, (self.n_bands, 16))
-        self.band_count = ti.field(ti.i32, (self.n_bands, 2, max(self.nodes)) if self.split else (1, 1, 1))
-        self.cut = ti.field(ti.i32, self.n_bands + 1)
-        self.cut_axis = ti.field(ti.i32, ())
-        self.band = ti.field(ti.i8, n if self.split else 1)
 
         self.bc_kind = ti.field(ti.i32, 4)
         self.bc_mu = ti.field(float, 4)
@@ -219,7 +179,8 @@ class Engine:
 
         # every field the host reads or writes, moved by one kernel (solver.fieldio: one kernel
         # per field, as Taichi's own to_numpy / from_numpy are, costs start-up time in every process)
-        self._io = FieldIO({name: getattr(self, name) for name in self.HOST_FIELDS})
+        self._io = FieldIO({**{name: getattr(self, name) for name in self.HOST_FIELDS},
+                            **self.to_grid.state_fields()})
         self.set_boundaries(grid)
         if has:
             self._set_up_structures(edges)
@@ -227,11 +188,12 @@ class Engine:
 
     # ------------------------------------------------------------------ set-up and state I/O
     #: Every particle field of the solver state (a checkpoint holds these, the counters and the
-    #: split scatter's plan; the grid is rebuilt from the particles at every step).
-    PARTICLE_STATE = ("x", "x0", "v", "C", "s", "m", "rho", "eps_p", "mat", "active", "yielded", "band")
-    COUNTER_STATE = ("lost", "unstable", "cut", "cut_axis", "band_range", "band_count", "contact_impulse",
-                     "contact_peak")
-    #: Every field the host reads or writes (:meth:`state`, :meth:`load_state` and the set-up).
+    #: scatter strategy's ``STATE``, e.g. the split scatter's plan; the grid is rebuilt from the
+    #: particles at every step).
+    PARTICLE_STATE = ("x", "x0", "v", "C", "s", "m", "rho", "eps_p", "mat", "active", "yielded")
+    COUNTER_STATE = ("lost", "unstable", "contact_impulse", "contact_peak")
+    #: Every field of the engine the host reads or writes (:meth:`state`, :meth:`load_state` and
+    #: the set-up); the scatter strategy's ``STATE`` fields are moved with them.
     HOST_FIELDS = PARTICLE_STATE + COUNTER_STATE + (
         "contact_step", "speed_bound", "bc_kind", "bc_mu", "st_kind", "st_mu", "edge_a", "edge_b",
         "st_edges", "st_box", "node_struct", "node_normal")
@@ -291,17 +253,12 @@ class Engine:
         mat = np.asarray(material_ids, dtype=np.int32)
         rho0 = self.materials.host["rho0"][mat] if densities_kg_m3 is None else np.asarray(densities_kg_m3)
         vel = np.zeros_like(pos) if velocities_m_s is None else np.asarray(velocities_m_s, dtype=f)
-        ranges = np.zeros((self.n_bands, 16), np.int32)
-        ranges[:, :2], ranges[:, 2:4] = _BIG, -_BIG
         self._io.write({
             "x": pos, "x0": pos, "v": vel, "C": 0.0, "s": 0.0,
             "m": (np.asarray(volumes_m2, dtype=np.float64) * rho0).astype(f),
             "rho": rho0.astype(f), "eps_p": 0.0, "mat": mat, "active": 1, "yielded": 0,
             "lost": 0, "unstable": 0, "contact_step": 0.0, "contact_impulse": 0.0, "contact_peak": 0.0,
-            "band_range": ranges, "band_count": 0,
-            # nothing counted yet: one band over the whole grid, so the first split scatter is one thread's
-            "cut": np.array([-_BIG] * self.n_bands + [_BIG], np.int32), "cut_axis": 0,
-            "band": self.n_bands - 1,
+            **self.to_grid.start_state(),  # the strategy forgets what earlier steps taught it
         })
 
     def set_stress(self, stress: np.ndarray) -> None:
@@ -319,17 +276,27 @@ class Engine:
     def state(self, names: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
         """Copies of the named state fields (default: everything a checkpoint needs), as
         ``field.to_numpy()`` gives them; any of :data:`HOST_FIELDS` may be named."""
-        return self._io.read(self.PARTICLE_STATE + self.COUNTER_STATE if names is None else names)
+        return self._io.read(self.PARTICLE_STATE + self.COUNTER_STATE + self.to_grid.STATE
+                             if names is None else names)
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
-        """Restore fields saved by :meth:`state` (same particle count, scheme and precision)."""
+        """Restore fields saved by :meth:`state` (same particle count, scheme and precision).
+
+        The fields of another scatter strategy's ``STATE`` (a checkpoint of a run with another
+        scatter) are skipped: they order sums, they hold no physics.
+        """
+        allowed = self.PARTICLE_STATE + self.COUNTER_STATE + self.to_grid.STATE
+        kept = {}
         for name, value in state.items():
-            if name not in self.PARTICLE_STATE + self.COUNTER_STATE:
+            if name in SCATTER_STATE and name not in self.to_grid.STATE:
+                continue
+            if name not in allowed:
                 raise ValueError(f"unknown state field {name!r}")
             expected = self._io.shapes[name]
             if tuple(np.shape(value)) != expected:
                 raise ValueError(f"state field {name!r} has shape {np.shape(value)}, the engine {expected}")
-        self._io.write(state)
+            kept[name] = value
+        self._io.write(kept)
 
     # ------------------------------------------------------------------ the step recipes
     def step(self, dt: float, gravity: tuple[float, float], damping: float = 0.0) -> None:
@@ -348,7 +315,8 @@ class Engine:
     @property
     def recipe(self) -> tuple[str, ...]:
         """The named stages of one step, in order (paper: six stages for mpm/apic, four for apic-affine;
-        the contact law acts inside the grid stages, "contact tally" adds up the contact forces)."""
+        the contact law acts inside the grid stages, "contact tally" adds up the contact forces).
+        The particle passes (P2G, stress and force) run as the scatter strategy drives them."""
         # periodic sides: the images of the nodes across the periodic line are folded into their
         # canonical nodes after every scatter, and the canonical values copied back to them after
         # the grid stages (docs/solver.md, periodic sides)
@@ -357,13 +325,11 @@ class Engine:
         copy_old = ("periodic copy (velocity)",) if self.periodic else ()
         copy = ("periodic copy",) if self.periodic else ()
         if self.six_stage:
-            stress = ("stress", "force") if self.serial else ("stress and force",)
-            return ("reset grid", "P2G momentum", *fold, "grid velocity", "mirror walls (old)", *copy_old, *stress,
-                    *fold_force, "mirror forces", "grid update", "mirror walls", *copy, "G2P", "contact tally")
-        fused = ("stress", "P2G with force") if self.serial else ("P2G with stress and force",)
-        walls = () if self.split else ("wall forces",)  # the split scatter sums the wall forces itself
-        return ("reset grid", *fused, *walls, *fold, "mirror forces", "grid update", "mirror walls", *copy, "G2P",
-                "contact tally")
+            return ("reset grid", "P2G momentum", *fold, "grid velocity", "mirror walls (old)", *copy_old,
+                    "stress and force", *fold_force, "mirror forces", "grid update", "mirror walls", *copy, "G2P",
+                    "contact tally")
+        return ("reset grid", "P2G with stress and force", *fold, "mirror forces", "grid update", "mirror walls",
+                *copy, "G2P", "contact tally")
 
     @ti.kernel
     def _step(self, dt: float, gx: float, gy: float, damping: float, damped: ti.template()):
@@ -382,46 +348,30 @@ class Engine:
     def _run_stage(self, stage: ti.template(), dt, g, damping, damped: ti.template()):
         if ti.static(stage == "reset grid"):
             self._reset_grid()
-        elif ti.static(stage == "P2G momentum" and self.split):
-            self._split_scatter("momentum", dt, g, False)
         elif ti.static(stage == "P2G momentum"):
-            self._p2g_momentum()
+            self.to_grid.particles(self, "momentum", dt, g, False)
         elif ti.static(stage == "grid velocity"):
             self._grid_velocity()
-        elif ti.static(stage == "stress and force" and self.split):
-            self._split_scatter("force", dt, g, False)
         elif ti.static(stage == "stress and force"):
-            self._stress_and_force(dt, g)
-        elif ti.static(stage == "stress" and self.six_stage):
-            self._stress_from_grid(dt)
-        elif ti.static(stage == "force"):
-            self._force(g)
-        elif ti.static(stage == "stress"):
-            self._stress_from_affine(dt)
-        elif ti.static(stage == "P2G with force"):
-            self._p2g_with_force(dt, g, not damped)
+            self.to_grid.particles(self, "force", dt, g, False)
+        elif ti.static(stage == "P2G with stress and force"):
+            # undamped, the forces go into the momentum (and the ghost nodes' force into ghost_f)
+            self.to_grid.particles(self, "affine", dt, g, not damped)
         elif ti.static(stage == "grid update" and self.six_stage):
             self._grid_update(dt, damping)
-        elif ti.static(stage == "P2G with stress and force" and self.split):
-            self._split_scatter("affine", dt, g, not damped)
-        elif ti.static(stage == "P2G with stress and force"):
-            self._p2g_fused(dt, g, not damped)
-        elif ti.static(stage == "wall forces"):
-            if ti.static(not damped):
-                self._ghost_forces(g)
-        elif ti.static(stage == "mirror forces"):
-            self._mirror_forces(dt, not self.six_stage and not damped)
         elif ti.static(stage == "grid update"):
             self._grid_update_fused(dt, damping, damped)
+        elif ti.static(stage == "mirror forces"):
+            self._mirror_forces(dt, not self.six_stage and not damped)
         elif ti.static(stage == "mirror walls (old)"):
             # mpm: the particles never receive this first correction (see _grid_velocity): not an impulse
             self._mirror_ghosts(True, ti.static(self.scheme != "mpm"))
         elif ti.static(stage == "mirror walls"):
             self._mirror_ghosts(False, True)
-        elif ti.static(stage == "contact tally"):
-            self._contact_tally(dt)
         elif ti.static(stage == "G2P"):
             self._g2p(dt)
+        elif ti.static(stage == "contact tally"):
+            self._contact_tally(dt)
         elif ti.static(stage == "periodic fold"):
             self._periodic_fold(True, not self.six_stage and self.separate_forces and damped,
                                 not self.six_stage and not damped)
@@ -620,32 +570,8 @@ class Engine:
             self.g_mom[I] = ti.Vector.zero(float, 2)
             if ti.static(self.separate_forces):
                 self.g_f[I] = ti.Vector.zero(float, 2)
-        self.lo[None] = ti.Vector([_BIG, _BIG])  # empty: the scatter widens it
-        self.hi[None] = ti.Vector([-_BIG, -_BIG])
-
-    @ti.func
-    def _widen_box(self, base):
-        """Take particle stencil ``base .. base + 2`` into the box of written nodes."""
-        lo = self.lo[None]
-        hi = self.hi[None]
-        if ti.static(self.serial):
-            self.lo[None] = ti.min(lo, base)
-            self.hi[None] = ti.max(hi, base + 3)
-        else:
-            # read before writing: an atomic on one shared value from every particle serialises
-            # the threads, and once the box is known few particles widen it
-            if base[0] < lo[0] or base[1] < lo[1]:
-                ti.atomic_min(self.lo[None], base)
-            if base[0] + 3 > hi[0] or base[1] + 3 > hi[1]:
-                ti.atomic_max(self.hi[None], base + 3)
-
-    @ti.func
-    def _add(self, field: ti.template(), I, value):
-        """Add to a grid node: plainly in the serial scatter, atomically in the parallel one."""
-        if ti.static(self.plain):
-            field[I] = field[I] + value
-        else:
-            field[I] += value
+        self.lo[None] = ti.Vector([BIG, BIG])  # empty: the scatter widens it
+        self.hi[None] = ti.Vector([-BIG, -BIG])
 
     # ------------------------------------------------------------------ walls as mirror planes
     # A closed wall sits on a node line. The ghost node one cell beyond it is reached only by
@@ -737,24 +663,14 @@ class Engine:
                     self.ghost_f[side, along] = ti.Vector.zero(float, 2)  # ready for the next step
 
     @ti.func
-    def _ghost_forces(self, g):
-        # The force part of the fused momentum at the ghost nodes beyond closed walls, per side and
-        # along the wall, so that the wall's reaction (and the friction on it) is worked out from
-        # momentum and force apart, as in the six-stage schemes. Runs after P2G, which left the
-        # stresses and densities it used (the split scatter does this particle by particle itself).
-        # With the serial scatter this pass is serial too, so that its sums, like the scatter's, come
-        # in one fixed order and a run repeats bit for bit.
-        ti.loop_config(serialize=self.plain)
-        for p in range(self.n):
-            if self.active[p]:
-                self._ghost_particle(p, g)
-
-    @ti.func
     def _ghost_particle(self, p, g):
         """Add particle p's force at ghost nodes beyond closed walls to ``ghost_f``.
 
-        Only particles within a cell of a closed wall reach a ghost node; the others cost one test
-        each. A corner ghost (beyond two walls) keeps the fused form.
+        The apic-affine P2G fuses the forces into the momentum; this part of its pass keeps the
+        ghost nodes' force apart too (per side, along the wall), so that the mirror forces can pass
+        the wall's reaction through the contact law. It reads the stress and density the
+        particle's update left. Only particles within a cell of a closed wall reach a ghost node;
+        the others cost one test each. A corner ghost (beyond two walls) keeps the fused form.
         """
         base, fx, w, dw = self._stencil(self.x[p])
         ghost_lo = ti.Vector([0, 0])
@@ -794,33 +710,49 @@ class Engine:
                     else:
                         self.ghost_f[y_side, I[0]] += force
 
+    # ------------------------------------------------------------------ particle passes
+    # P2G and the force scatter visit every active particle: an update that writes the particle's
+    # own fields (its constitutive update), then the adds of its shares to the grid. The scatter
+    # strategy (``self.to_grid``, solver/scatter.py) runs the loops and makes the adds.
+    @ti.func
+    def _update_particle(self, kind: ti.template(), p, dt):
+        """The update of particle p in a pass of ``kind`` (see :meth:`_add_particle`); its volume."""
+        vol = 0.0 * dt
+        if ti.static(kind == "affine"):
+            vol = self._stress_point(p, self.C[p], dt)  # eqs 29-30: D = sym(C), W = skew(C)
+        elif ti.static(kind == "force"):
+            vol = self._stress_from_grid_point(p, dt)
+        return vol
+
+    @staticmethod
+    def pass_parts(kind: str, fuse_force: bool) -> tuple[str, ...]:
+        """The adds of a particle pass of ``kind`` in parts, in order (the serial and atomic scatters
+        run each part as a loop of its own, the split scatter does them particle by particle).
+        The apic-affine P2G with the forces fused into the momentum also sums the force at the ghost
+        nodes beyond closed walls apart (``wall forces``, for the mirror forces)."""
+        return ("shares", "wall forces") if kind == "affine" and fuse_force else ("shares",)
+
+    @ti.func
+    def _add_particle(self, kind: ti.template(), part: ti.template(), p, vol, dt, g, fuse_force: ti.template()):
+        """Particle p's adds to the grid, one part of them (see :meth:`pass_parts`). ``affine``
+        (apic-affine P2G): mass, APIC momentum and force, the force fused into the momentum with
+        ``fuse_force``; ``momentum`` (mpm, apic P2G): mass and momentum; ``force`` (mpm, apic):
+        internal and body force. ``vol``: the particle's volume after its update (m2 per m)."""
+        if ti.static(part == "wall forces"):
+            self._ghost_particle(p, g)
+        elif ti.static(kind == "affine"):
+            self._scatter_particle(p, vol, dt, g, fuse_force)
+        elif ti.static(kind == "momentum"):
+            self._momentum_particle(p)
+        else:
+            self._force_particle(p, vol, g)
+
     # ------------------------------------------------------------------ four-stage (apic-affine)
-    @ti.func
-    def _p2g_fused(self, dt, g, fuse_force: ti.template()):
-        for p in range(self.n):
-            if self.active[p]:
-                vol = self._stress_point(p, self.C[p], dt)  # eqs 29-30: D = sym(C), W = skew(C)
-                self._scatter_particle(p, vol, dt, g, fuse_force)
-
-    @ti.func
-    def _stress_from_affine(self, dt):
-        for p in range(self.n):
-            if self.active[p]:
-                self._stress_point(p, self.C[p], dt)
-
-    @ti.func
-    def _p2g_with_force(self, dt, g, fuse_force: ti.template()):
-        ti.loop_config(serialize=True)
-        for p in range(self.n):
-            if self.active[p]:
-                self._scatter_particle(p, self.m[p] / self.rho[p], dt, g, fuse_force)
-
     @ti.func
     def _scatter_particle(self, p, vol, dt, g, fuse_force: ti.template()):
         """Mass, APIC momentum and (fused or apart) internal and body force of particle p."""
         base, fx, w, dw = self._stencil(self.x[p])
-        if ti.static(not self.split):  # the split scatter takes its box from the bands' ranges
-            self._widen_box(base)
+        self.to_grid.cover(self, base)
         s = self.s[p]
         sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
         m = self.m[p]
@@ -833,12 +765,12 @@ class Engine:
             grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
             force = -vol * (sig @ grad) + weight * m * g
             I = base + offset
-            self._add(self.g_mass, I, weight * m)
+            self.to_grid.add(self.g_mass, I, weight * m)
             if ti.static(fuse_force):
-                self._add(self.g_mom, I, weight * (mv + mC @ dpos) + dt * force)
+                self.to_grid.add(self.g_mom, I, weight * (mv + mC @ dpos) + dt * force)
             else:
-                self._add(self.g_mom, I, weight * (mv + mC @ dpos))
-                self._add(self.g_f, I, force)
+                self.to_grid.add(self.g_mom, I, weight * (mv + mC @ dpos))
+                self.to_grid.add(self.g_f, I, force)
 
     @ti.func
     def _grid_update_fused(self, dt, damping, damped: ti.template()):
@@ -857,18 +789,10 @@ class Engine:
 
     # ------------------------------------------------------------------ six-stage (mpm, apic)
     @ti.func
-    def _p2g_momentum(self):
-        ti.loop_config(serialize=self.serial)  # the serial scatter: one thread, plain adds
-        for p in range(self.n):
-            if self.active[p]:
-                self._momentum_particle(p, True)
-
-    @ti.func
-    def _momentum_particle(self, p, widen: ti.template()):
+    def _momentum_particle(self, p):
         """Mass and momentum (FLIP or APIC) of particle p to its nodes."""
         base, fx, w, dw = self._stencil(self.x[p])
-        if ti.static(widen):
-            self._widen_box(base)
+        self.to_grid.cover(self, base)
         m = self.m[p]
         mv = m * self.v[p]
         mC = m * self.C[p]
@@ -876,12 +800,12 @@ class Engine:
             offset = ti.Vector([i, j])
             weight = w[i][0] * w[j][1]
             I = base + offset
-            self._add(self.g_mass, I, weight * m)
+            self.to_grid.add(self.g_mass, I, weight * m)
             if ti.static(self.scheme == "apic"):
                 dpos = (ti.cast(offset, float) - fx) * self.dx
-                self._add(self.g_mom, I, weight * (mv + mC @ dpos))
+                self.to_grid.add(self.g_mom, I, weight * (mv + mC @ dpos))
             else:
-                self._add(self.g_mom, I, weight * mv)
+                self.to_grid.add(self.g_mom, I, weight * mv)
 
     @ti.func
     def _grid_velocity(self):
@@ -905,26 +829,6 @@ class Engine:
             self.g_v_old[I] = v
 
     @ti.func
-    def _stress_and_force(self, dt, g):
-        for p in range(self.n):
-            if self.active[p]:
-                vol = self._stress_from_grid_point(p, dt)
-                self._force_particle(p, vol, g)
-
-    @ti.func
-    def _stress_from_grid(self, dt):
-        for p in range(self.n):
-            if self.active[p]:
-                self._stress_from_grid_point(p, dt)
-
-    @ti.func
-    def _force(self, g):
-        ti.loop_config(serialize=True)
-        for p in range(self.n):
-            if self.active[p]:
-                self._force_particle(p, self.m[p] / self.rho[p], g)
-
-    @ti.func
     def _stress_from_grid_point(self, p, dt):
         """Velocity gradient from the grid velocities, then the constitutive update; the volume."""
         base, fx, w, dw = self._stencil(self.x[p])
@@ -943,7 +847,7 @@ class Engine:
         for i, j in ti.static(ti.ndrange(3, 3)):
             weight = w[i][0] * w[j][1]
             grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
-            self._add(self.g_f, base + ti.Vector([i, j]), -vol * (sig @ grad) + weight * m * g)
+            self.to_grid.add(self.g_f, base + ti.Vector([i, j]), -vol * (sig @ grad) + weight * m * g)
 
     @ti.func
     def _grid_update(self, dt, damping):
@@ -958,122 +862,6 @@ class Engine:
                 self.g_mom[I] = self._contact(I, v + dt * f / mass, mass, True)
             else:
                 self.g_mom[I] = ti.Vector.zero(float, 2)
-
-    # ------------------------------------------------------------------ the split scatter
-    @ti.func
-    def _split_scatter(self, kind: ti.template(), dt, g, fuse_force: ti.template()):
-        """A scatter in ``self.n_bands`` threads with plain adds (see :data:`SCATTERS`).
-
-        ``kind``: ``affine`` (stress from C, then mass, momentum and force: apic-affine),
-        ``momentum`` (mass and momentum: mpm, apic) or ``force`` (stress from the grid, then the
-        force; the positions, and so the bands, are those of the momentum pass). Each particle's
-        band was assigned in the last G2P (``band``: b, or b + n_bands where its stencil crosses a
-        cut and a single thread adds it afterwards).
-        """
-        T = ti.static(self.n_bands)
-        # One band per thread: Taichi 1.7 hands a CPU thread 512 consecutive iterations of a loop at
-        # a time (whatever loop_config's block_dim says) and runs a loop of up to 512 in one thread,
-        # so the band loop runs CPU_GRAIN iterations per band and the first of each does the work.
-        for t in range(T * CPU_GRAIN):
-            if t % CPU_GRAIN != 0:
-                continue
-            k = t // CPU_GRAIN
-            lo = ti.Vector([_BIG, _BIG])
-            hi = ti.Vector([-_BIG, -_BIG])
-            for p in range(self.n):  # a byte per particle tells each thread which are its own
-                b = ti.cast(self.band[p], ti.i32)
-                if self.active[p] and (b == k or b == k + T):
-                    vol = 0.0 * dt
-                    if ti.static(kind == "affine"):
-                        vol = self._stress_point(p, self.C[p], dt)  # eqs 29-30
-                    elif ti.static(kind == "force"):
-                        vol = self._stress_from_grid_point(p, dt)
-                    if ti.static(kind != "force"):
-                        base, fx, w, dw = self._stencil(self.x[p])
-                        lo = ti.min(lo, base)
-                        hi = ti.max(hi, base)
-                        for d in ti.static(range(2)):  # positions along both axes, for the next plan
-                            self.band_count[k, d, base[d]] = self.band_count[k, d, base[d]] + 1
-                    if b == k:
-                        self._split_particle(kind, p, vol, dt, g, fuse_force)
-            if ti.static(kind != "force"):
-                for d in ti.static(range(2)):
-                    self.band_range[k, d] = lo[d]
-                    self.band_range[k, 2 + d] = hi[d]
-        if ti.static(kind != "force"):
-            ti.loop_config(serialize=True)
-            for _ in range(1):  # the box of written nodes, and the bands of the next step
-                lo = ti.Vector([_BIG, _BIG])
-                hi = ti.Vector([-_BIG, -_BIG])
-                for k in range(T):
-                    for d in ti.static(range(2)):
-                        lo[d] = ti.min(lo[d], self.band_range[k, d])
-                        hi[d] = ti.max(hi[d], self.band_range[k, 2 + d] + 3)
-                self.lo[None] = lo
-                self.hi[None] = hi
-                self._plan_bands(hi - lo)
-        ti.loop_config(serialize=True)  # the particles whose stencil crosses a cut, in index order
-        for p in range(self.n):
-            if self.active[p] and self.band[p] >= T:
-                self._split_particle(kind, p, self.m[p] / self.rho[p], dt, g, fuse_force)
-
-    @ti.func
-    def _band_of(self, xp):
-        """The split scatter's band code of a particle at ``xp`` (see ``_split_scatter``)."""
-        base, fx, w, dw = self._stencil(xp)
-        u = base[0] if self.cut_axis[None] == 0 else base[1]
-        b = 0
-        for k in range(1, self.n_bands):
-            if u >= self.cut[k]:
-                b = k
-        if u + 3 > self.cut[b + 1]:  # the stencil crosses the cut above
-            b += self.n_bands
-        return ti.cast(b, ti.i8)
-
-    @ti.func
-    def _split_particle(self, kind: ti.template(), p, vol, dt, g, fuse_force: ti.template()):
-        if ti.static(kind == "affine"):
-            self._scatter_particle(p, vol, dt, g, fuse_force)
-            if ti.static(fuse_force):
-                self._ghost_particle(p, g)
-        elif ti.static(kind == "momentum"):
-            self._momentum_particle(p, False)
-        else:
-            self._force_particle(p, vol, g)
-
-    @ti.func
-    def _plan_bands(self, extent):
-        """Cut the grid into one band of node lines per thread, with equal particle counts.
-
-        The bands run across the longer side of the box (``extent``, in nodes; the cuts are then
-        short and few particles straddle them) and the cuts sit at the quantiles of the particles'
-        stencil positions counted in this scatter. Whatever those counts, the bands never share a
-        node: they only decide how many particles are left to the serial remainder.
-        """
-        axis = 0 if extent[0] >= extent[1] else 1
-        self.cut_axis[None] = axis
-        lines = self.nodes[0] if axis == 0 else self.nodes[1]
-        total = 0
-        for u in range(lines):
-            for k in range(self.n_bands):
-                total += self.band_count[k, axis, u]
-        self.cut[0] = -_BIG
-        self.cut[self.n_bands] = _BIG
-        j = 1
-        below = 0  # particles on node lines below u
-        for u in range(lines):
-            while j < self.n_bands and below * self.n_bands >= j * total:
-                self.cut[j] = u
-                j += 1
-            for k in range(self.n_bands):
-                below += self.band_count[k, axis, u]
-        while j < self.n_bands:
-            self.cut[j] = lines
-            j += 1
-        for k in range(self.n_bands):  # counted afresh by the next scatter
-            for d in ti.static(range(2)):
-                for u in range(self.nodes[d]):
-                    self.band_count[k, d, u] = 0
 
     # ------------------------------------------------------------------ G2P (all schemes)
     @ti.func
@@ -1138,8 +926,8 @@ class Engine:
                     self.lost[None] += 1
                 elif keep == 0:
                     self.active[p] = ti.cast(0, ti.i8)
-                elif ti.static(self.split):
-                    self.band[p] = self._band_of(x)
+                else:
+                    self.to_grid.moved(self, p, x)
 
     @ti.func
     def _push_out(self, x, v, mass):

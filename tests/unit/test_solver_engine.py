@@ -191,11 +191,12 @@ def test_every_scatter_gives_the_same_steps(scheme):
         eng = _wall_scene(scheme, scatter, len(pos), bands=3 if scatter == "split" else None)
         states[scatter] = _run(eng, pos, vel)
         if scatter == "split":
-            assert np.all(np.diff(eng.cut.to_numpy()) >= 0)  # bands never overlap
-            assert eng.cut_axis[None] == 1  # across the heap's longer side
+            plan = eng.to_grid
+            assert np.all(np.diff(plan.cut.to_numpy()) >= 0)  # bands never overlap
+            assert plan.cut_axis[None] == 1  # across the heap's longer side
             # the particles on the two node lines below each cut are left to the serial
             # remainder: 2 cuts x 2 lines of the heap's 16 cells
-            assert (eng.band.to_numpy() >= 3).mean() < 0.35
+            assert (plan.band.to_numpy() >= 3).mean() < 0.35
     _assert_same_steps(states["atomic"], states["serial"])
     _assert_same_steps(states["atomic"], states["split"])
 
@@ -225,7 +226,7 @@ def test_the_split_scatter_is_right_and_fast_in_any_particle_order():
     eng = _wall_scene("apic-affine", "split", len(pos), bands=2)
     for perm in (np.arange(len(pos))[::-1], np.random.default_rng(1).permutation(len(pos))):
         state = _run(eng, pos[perm], vel[perm])
-        counts = np.bincount(eng.band.to_numpy(), minlength=4)
+        counts = np.bincount(eng.to_grid.band.to_numpy(), minlength=4)
         assert counts[2:].sum() / len(pos) < 0.2  # one cut: 2 node lines of 16 cells, about 12 %
         assert abs(counts[0] + counts[2] - (counts[1] + counts[3])) < 0.1 * len(pos)  # balanced
         _assert_same_steps({k: v[perm] for k, v in reference.items()}, state)
@@ -247,7 +248,8 @@ def test_the_plain_add_scatters_repeat_a_run_bit_for_bit(scheme, scatter):
 
 
 def test_scatter_auto_on_a_cpu_with_few_threads_is_serial_for_small_runs_and_split_for_large_ones():
-    from solver.engine import SERIAL_SCATTER_MAX_THREADS, SPLIT_MIN_PARTICLES, Engine, resolve_scatter
+    from solver.engine import Engine
+    from solver.scatter import SERIAL_SCATTER_MAX_THREADS, SPLIT_MIN_PARTICLES, resolve_scatter
     import taichi as ti
 
     few = ti.lang.impl.current_cfg().cpu_max_num_threads <= SERIAL_SCATTER_MAX_THREADS
@@ -258,6 +260,22 @@ def test_scatter_auto_on_a_cpu_with_few_threads_is_serial_for_small_runs_and_spl
         make_engine(scatter="fast")
     with pytest.raises(ValueError, match="bands must be from 1 to 63, got 0"):
         Engine(Grid((0.0, 0.0), (1.0, 1.0), 0.1), MAT, 10, "apic", np.float64, scatter="split", bands=0)
+
+
+def test_the_recipe_is_the_scatters_own_business_and_a_checkpoint_of_another_scatter_loads():
+    """Every scatter runs the same named stages; the split scatter's plan (its ``STATE``) is in its
+    checkpoints, and another scatter's engine loads them without it."""
+    pos = _lattice(8, 8)
+    split = _wall_scene("apic", "split", len(pos), bands=2)
+    serial = _wall_scene("apic", "serial", len(pos))
+    assert split.recipe == serial.recipe
+    split.load_particles(pos, np.full(len(pos), 2.5e-4), np.zeros(len(pos), np.int32))
+    saved = split.state()
+    assert set(split.to_grid.STATE) <= set(saved) and not set(split.to_grid.STATE) & set(serial.state())
+    serial.load_state(saved)
+    np.testing.assert_array_equal(serial.state(("x",))["x"], pos)
+    with pytest.raises(ValueError, match="unknown state field 'nope'"):
+        serial.load_state({"nope": np.zeros(1)})
 
 
 @pytest.mark.parametrize("scheme", ["mpm", "apic-affine"])
