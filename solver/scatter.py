@@ -142,7 +142,8 @@ class Atomic(Scatter):
         for p in range(engine.n):
             if engine.active[p]:
                 vol = engine._update_particle(kind, p, dt)
-                engine._add_particle(kind, engine.pass_parts(kind, fuse_force)[0], p, vol, dt, g, fuse_force)
+                for part in ti.static(engine.pass_parts(kind, fuse_force)[:1]):
+                    engine._add_particle(kind, part, p, vol, dt, g, fuse_force)
         for part in ti.static(engine.pass_parts(kind, fuse_force)[1:]):
             for p in range(engine.n):
                 if engine.active[p]:
