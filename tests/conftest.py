@@ -116,7 +116,8 @@ def tiny_project() -> Path:
 # stale QOffscreenSurface), so the cause is the VTK widgets' deletion, not the solver thread.
 # Tests therefore shut their windows down (runs stopped, plotters finalised: the fixtures check
 # both) and keep them here instead of deleting them; the process then ends without destroying
-# them (os._exit), after pytest has written its report and stopped Xvfb. Without os._exit five
+# them (os._exit), after pytest has written its report and stopped Xvfb. Under pytest-xdist
+# (scripts/test.sh) a worker has sent its results in pytest_sessionfinish before this runs. Without os._exit five
 # GUI-suite runs ended cleanly, too few to rule out the one-in-four failure of that deletion.
 KEPT_WIDGETS: list = []
 _SESSION: dict = {}
