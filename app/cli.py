@@ -386,7 +386,7 @@ def run(
     non-empty folder is refused; a folder another run is writing into is refused.
     """
     from projects.results import ResultsError
-    from projects.runner import StopRequest, default_results_dir, resume_run, run_project
+    from projects.runner import StopRequest, default_results_dir, resumable, resume_run, run_project
     from projects.schema import ProjectError
 
     if (project is None) == (resume is None):
@@ -404,6 +404,8 @@ def run(
         try:
             if project is None:
                 model = None
+                # a folder that cannot be resumed is a one-line error before any progress bar
+                checkpoint = resumable(resume)
             elif events is None:
                 model = load_or_exit(project, overrides)
             else:
@@ -427,7 +429,8 @@ def run(
                 on_frame = None if events is None else events.frame
                 if resume is not None:
                     result = resume_run(resume, arch=arch.value if arch is not None else None,
-                                        cancel=stop, on_progress=on_progress, on_frame=on_frame)
+                                        cancel=stop, on_progress=on_progress, on_frame=on_frame,
+                                        checkpoint=checkpoint)
                 else:
                     result = run_project(
                         model,

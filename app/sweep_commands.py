@@ -81,6 +81,39 @@ def _check_engine(workers: int | None, threads: int | None, gpus: float | None, 
             _cli().fail(f"cannot reach the Ray cluster at {address}: {exc}")
 
 
+def _run_on_ray(spec_path: Path, kind: str, out_dir: Path | None, what: str, check, run,  # noqa: ANN001
+                address: str | None, workers: int | None, threads: int | None, gpus: float | None):  # noqa: ANN202
+    """The common body of ``sweep`` and ``calibrate``: options and ``spec_path`` checked (``check``
+    names every problem of the spec before Ray starts), then ``run(spec, folder, ...)`` under a
+    progress bar over ``what``, with Ctrl-C and SIGTERM stopping it. Problems are one-line
+    errors. Returns (result, stop request)."""
+    from projects.runner import StopRequest
+    from projects.schema import ProjectError
+
+    _check_engine(workers, threads, gpus, address)
+    spec = _load_spec(spec_path, kind)
+    try:
+        check(spec)
+    except ProjectError as exc:
+        _cli().fail(f"{spec_path}: {exc}")
+    folder = out_dir or spec_path.with_name(f"{spec_path.stem}.{kind}")
+    stop = StopRequest()
+    with _cli().stop_on_signals(stop), _Bar(what) as bar:
+        try:
+            result = run(spec, folder, workers=workers, address=address, threads_per_run=threads, gpus_per_run=gpus,
+                         cancel=stop, on_progress=lambda p: bar.update(p.done, p.total, p.failed, p.eta_s))
+        except ProjectError as exc:
+            _cli().fail(f"{spec_path}: {exc}")
+        except ConnectionError as exc:
+            _cli().fail(f"cannot reach the Ray cluster at {address}: {exc}")
+    return result, stop
+
+
+def _stopped_exit(stop) -> typer.Exit:  # noqa: ANN001
+    """The exit of a stopped sweep or calibration (the signal's code)."""
+    return typer.Exit(_cli().EXIT_SIGTERM if stop.reason == "SIGTERM" else _cli().EXIT_SIGINT)
+
+
 def register(cli: typer.Typer) -> None:
     """Add ``sweep`` and ``calibrate`` to the command line ``cli`` (``report`` dispatches to
     :func:`sweep_report` for a sweep folder)."""
@@ -96,36 +129,18 @@ def register(cli: typer.Typer) -> None:
         gpus: Annotated[float | None, _GPUS] = None,
     ) -> None:
         """Run a parameter sweep or Monte Carlo analysis on Ray: sweep.csv, statistics, report.html."""
-        from projects.runner import StopRequest
-        from projects.schema import ProjectError
         from sweeps.sweep import plan_sweep, run_sweep
 
-        _check_engine(workers, threads, gpus, address)
-        spec = _load_spec(spec_path, "sweep")
-        try:
-            plan_sweep(spec)  # every problem before Ray starts
-        except ProjectError as exc:
-            _cli().fail(f"{spec_path}: {exc}")
-        folder = out_dir or spec_path.with_name(spec_path.stem + ".sweep")
-        stop = StopRequest()
-        with _cli().stop_on_signals(stop), _Bar("runs") as bar:
-            try:
-                result = run_sweep(spec, folder, workers=workers, address=address, threads_per_run=threads,
-                                   gpus_per_run=gpus, cancel=stop,
-                                   on_progress=lambda p: bar.update(p.done, p.total, p.failed, p.eta_s))
-            except ProjectError as exc:
-                _cli().fail(f"{spec_path}: {exc}")
-            except ConnectionError as exc:
-                _cli().fail(f"cannot reach the Ray cluster at {address}: {exc}")
+        result, stop = _run_on_ray(spec_path, "sweep", out_dir, "runs", plan_sweep, run_sweep,
+                                   address, workers, threads, gpus)
         if result.stopped:
-            _cli().err.print(f"stopped: {sum(r.status != 'pending' for r in result.records)} of {len(result.records)} runs "
-                      f"done (run the same command again to go on) -> {result.out_dir}", markup=False)
-            raise typer.Exit(_cli().EXIT_SIGTERM if stop.reason == "SIGTERM" else _cli().EXIT_SIGINT)
+            _cli().err.print(f"stopped: {sum(r.status != 'pending' for r in result.records)} of {len(result.records)} "
+                             f"runs done (run the same command again to go on) -> {result.out_dir}", markup=False)
+            raise _stopped_exit(stop)
         n = len(result.records)
         _cli().out.print(f"{result.count('completed')} of {n} runs completed, {n - result.count('completed')} not "
-                  f"({sum(r.reused for r in result.records)} reused) in {result.wall_time_s:.1f} s "
-                  f"-> {result.out_dir}/sweep.csv, report.html", markup=False)
-
+                         f"({sum(r.reused for r in result.records)} reused) in {result.wall_time_s:.1f} s "
+                         f"-> {result.out_dir}/sweep.csv, report.html", markup=False)
 
     @cli.command()
     def calibrate(
@@ -138,32 +153,15 @@ def register(cli: typer.Typer) -> None:
         gpus: Annotated[float | None, _GPUS] = None,
     ) -> None:
         """Find the parameters that best reproduce an observation (optuna), runs on Ray; report.html."""
-        from projects.runner import StopRequest
-        from projects.schema import ProjectError
         from sweeps.calibrate import check_calibration, run_calibration
 
-        _check_engine(workers, threads, gpus, address)
-        spec = _load_spec(spec_path, "calibration")
-        try:
-            check_calibration(spec)  # every problem before Ray starts
-        except ProjectError as exc:
-            _cli().fail(f"{spec_path}: {exc}")
-        folder = out_dir or spec_path.with_name(spec_path.stem + ".calibration")
-        stop = StopRequest()
-        with _cli().stop_on_signals(stop), _Bar("trials") as bar:
-            try:
-                result = run_calibration(spec, folder, workers=workers, address=address, threads_per_run=threads,
-                                         gpus_per_run=gpus, cancel=stop,
-                                         on_progress=lambda p: bar.update(p.done, p.total, p.failed, p.eta_s))
-            except ProjectError as exc:
-                _cli().fail(f"{spec_path}: {exc}")
-            except ConnectionError as exc:
-                _cli().fail(f"cannot reach the Ray cluster at {address}: {exc}")
+        result, stop = _run_on_ray(spec_path, "calibration", out_dir, "trials", check_calibration, run_calibration,
+                                   address, workers, threads, gpus)
         for line in result.summary_lines():
             _cli().out.print(line, markup=False)
         _cli().out.print(f"-> {result.out_dir}/calibration.csv, report.html", markup=False)
         if result.stopped:
-            raise typer.Exit(_cli().EXIT_SIGTERM if stop.reason == "SIGTERM" else _cli().EXIT_SIGINT)
+            raise _stopped_exit(stop)
 
 
 def sweep_report(folder: Path, output: Path | None = None) -> None:

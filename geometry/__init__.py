@@ -1,15 +1,16 @@
 """Runout geometry: 2D body polygons, gmsh quad meshes, particle seeding, slope templates
 and outline importers.
 
-Depends on numpy only at import time; gmsh (:mod:`geometry.gmsh_bodies`) and meshio
-(:func:`geometry.importers.outline_from_mesh`) are imported when first used. Never imports
+Depends on numpy only at import time; gmsh (:mod:`geometry.gmsh_bodies`), meshio
+(:func:`geometry.importers.outline_from_mesh`) and ezdxf (:func:`geometry.importers.outline_from_dxf`)
+are imported when first used. Never imports
 ``solver``, ``projects``, ``app``, Qt or pyvista.
 
 Overlap rule: bodies are painted in list order, so where bodies overlap the later body in
 the list owns the overlap.
 """
 
-from geometry.importers import outline_from_csv, outline_from_mesh
+from geometry.importers import outline_from_csv, outline_from_dxf, outline_from_mesh, read_outline
 from geometry.polygons import is_simple, owner_of_points, points_in_polygon, polygon_area, self_intersections
 from geometry.seeding import Seeds, seed_gauss, seed_lattice
 from geometry.templates import SlopeLayer, slope_domain, slope_profile
@@ -19,10 +20,12 @@ __all__ = [
     "SlopeLayer",
     "is_simple",
     "outline_from_csv",
+    "outline_from_dxf",
     "outline_from_mesh",
     "owner_of_points",
     "points_in_polygon",
     "polygon_area",
+    "read_outline",
     "seed_gauss",
     "seed_lattice",
     "self_intersections",

@@ -1,4 +1,4 @@
-"""Body outlines from files: a CSV of points (survey profile or closed outline) or a mesh.
+"""Body outlines from files: a CSV of points or a DXF drawing (survey profile or closed outline), or a mesh.
 
 CSV format
 ----------
@@ -10,6 +10,13 @@ lines starting with ``#`` are skipped. The points are either
 * an open surface profile: x strictly increasing or strictly decreasing. It is closed into
   a body by vertical sides down to a horizontal base at ``base_y_m`` (default: the lowest
   point of the profile).
+
+DXF format
+----------
+The polyline with the most vertices (LWPOLYLINE or POLYLINE, drawing units taken as metres), or,
+without polylines, the LINE entities chained end to end; its points then follow the CSV rules
+(a closed polyline is an outline, an open one a surface profile). Read with ezdxf, imported when
+first used.
 
 Mesh format
 -----------
@@ -105,7 +112,11 @@ def outline_from_csv(path: str | os.PathLike, base_y_m: float | None = None) -> 
             points.append((x, y))
     if not header_seen:
         raise ValueError(f"{name}: no header row 'x_m,y_m' (or 'x,y') found")
-    pts = np.array(points, dtype=np.float64).reshape(-1, 2)
+    return _outline_from_points(name, np.array(points, dtype=np.float64).reshape(-1, 2), base_y_m)
+
+
+def _outline_from_points(name: str, pts: np.ndarray, base_y_m: float | None) -> np.ndarray:
+    """The outline of (K, 2) points read from the file ``name`` (m), by the rules of the CSV format."""
     if len(np.unique(pts, axis=0)) < 3:
         raise ValueError(f"{name}: needs at least 3 distinct points, got {len(np.unique(pts, axis=0))}")
 
@@ -147,6 +158,130 @@ def _close_profile(name: str, pts: np.ndarray, base_y_m: float | None) -> np.nda
     # A profile end on the base leaves a repeated corner, a flat stretch on the base a spike.
     extent = float(np.ptp(pts, axis=0).max())
     return remove_spikes(np.concatenate([pts, corners]), 1e-12 * extent)
+
+
+def _chain_lines(segments: list[tuple[tuple[float, float], tuple[float, float]]],
+                 tol: float) -> list[tuple[float, float]]:
+    """LINE entities joined end to end, starting from a free end (an open profile) if there is one."""
+    if not segments:
+        return []
+    remaining = list(segments)
+    ends = [p for seg in remaining for p in seg]
+
+    def count(p: tuple[float, float]) -> int:
+        return sum(1 for q in ends if abs(q[0] - p[0]) <= tol and abs(q[1] - p[1]) <= tol)
+
+    start = next((p for p in ends if count(p) == 1), remaining[0][0])
+    chain = [start]
+    while remaining:
+        last = chain[-1]
+        for i, (a, b) in enumerate(remaining):
+            if abs(a[0] - last[0]) <= tol and abs(a[1] - last[1]) <= tol:
+                chain.append(b)
+                break
+            if abs(b[0] - last[0]) <= tol and abs(b[1] - last[1]) <= tol:
+                chain.append(a)
+                break
+        else:
+            break  # the rest is not connected to this chain
+        remaining.pop(i)
+    return chain
+
+
+def dxf_points(path: str | os.PathLike) -> np.ndarray:
+    """The points of the profile or outline in a DXF drawing, (K, 2) in drawing units.
+
+    The polyline with the most vertices (LWPOLYLINE or POLYLINE; a closed one repeats its first
+    point at the end), or, without polylines, the LINE entities chained end to end.
+
+    Raises
+    ------
+    ValueError
+        The file is not a readable DXF, or holds no polyline and no lines.
+    """
+    import ezdxf
+
+    name = os.fspath(path)
+    try:
+        doc = ezdxf.readfile(name)
+    except (OSError, ezdxf.DXFError) as err:
+        raise ValueError(f"{name}: not a readable DXF drawing ({err})") from None
+    msp = doc.modelspace()
+    polylines: list[list[tuple[float, float]]] = []
+    for entity in msp.query("LWPOLYLINE"):
+        pts = [(float(x), float(y)) for x, y in entity.get_points("xy")]
+        if entity.closed and pts:
+            pts.append(pts[0])
+        polylines.append(pts)
+    for entity in msp.query("POLYLINE"):
+        pts = [(float(v.dxf.location.x), float(v.dxf.location.y)) for v in entity.vertices]
+        if entity.is_closed and pts:
+            pts.append(pts[0])
+        polylines.append(pts)
+    if polylines:
+        return np.array(max(polylines, key=len), dtype=float)
+    segments = [((float(e.dxf.start.x), float(e.dxf.start.y)), (float(e.dxf.end.x), float(e.dxf.end.y)))
+                for e in msp.query("LINE")]
+    if not segments:
+        raise ValueError(f"{name}: no polyline or line in the drawing's model space")
+    extent = max(max(abs(c) for seg in segments for p in seg for c in p), 1.0)
+    return np.array(_chain_lines(segments, 1e-9 * extent), dtype=float)
+
+
+def outline_from_dxf(path: str | os.PathLike, base_y_m: float | None = None) -> np.ndarray:
+    """Read a body outline from a DXF drawing (ezdxf, imported on first use).
+
+    The points (:func:`dxf_points`, drawing units taken as metres) follow exactly the rules of
+    a CSV of points (:func:`outline_from_csv`): a closed polyline is an outline, an open one a
+    surface profile closed down to a horizontal base at ``base_y_m`` (m; default its lowest point).
+
+    Returns
+    -------
+    numpy.ndarray, shape (K, 2), float64, m
+        A simple polygon, counter-clockwise, without a repeated closing vertex.
+
+    Raises
+    ------
+    ValueError
+        With the file name and what is wrong (one line).
+    """
+    return _outline_from_points(os.fspath(path), dxf_points(path), base_y_m)
+
+
+#: Suffixes :func:`read_outline` reads as meshes (meshio).
+MESH_SUFFIXES = (".msh", ".vtk", ".vtu", ".xdmf", ".xmf", ".med", ".inp")
+
+
+def read_outline(path: str | os.PathLike, base_y_m: float | None = None) -> np.ndarray:
+    """A body outline from a CSV or DXF profile or outline, or a 2D mesh, by the file's suffix.
+
+    Parameters
+    ----------
+    path : path-like
+    base_y_m : float, optional, m
+        For an open surface profile (CSV or DXF): the height of the horizontal base it is
+        closed down to (default: its lowest point).
+
+    Returns
+    -------
+    numpy.ndarray
+        (K, 2) float, m: a simple polygon, counter-clockwise.
+
+    Raises
+    ------
+    ValueError
+        With the file name and what is wrong (one line).
+    """
+    name = os.fspath(path)
+    suffix = os.path.splitext(name)[1].lower()
+    if suffix == ".csv":
+        return outline_from_csv(path, base_y_m)
+    if suffix == ".dxf":
+        return outline_from_dxf(path, base_y_m)
+    if suffix in MESH_SUFFIXES:
+        return outline_from_mesh(path)
+    raise ValueError(f"{name}: unknown kind of file {suffix or '(no suffix)'!r}; "
+                     "import a .csv or .dxf profile or a mesh (.msh, .vtk, .vtu, .xdmf)")
 
 
 def outline_from_mesh(path: str | os.PathLike) -> np.ndarray:

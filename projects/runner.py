@@ -32,7 +32,7 @@ from solver.config import InstabilityError, SolverError
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from projects.build import ResolvedRun
     from projects.schema import Project
-    from solver.config import Frame
+    from solver.config import Checkpoint, Frame
     from solver.simulation import Progress
 
 logger = logging.getLogger(__name__)
@@ -256,6 +256,25 @@ def run_project(
         sim.close()
 
 
+def resumable(results_dir: str | os.PathLike[str]) -> Checkpoint:
+    """The checkpoint of a run that ``resume_run`` can continue (cheap: no solver is built).
+
+    Raises
+    ------
+    projects.results.ResultsError
+        Not a results folder with its project.toml, no readable checkpoint, or a complete run.
+    """
+    from projects.results import PROJECT_NAME, read_checkpoint
+
+    out_path = Path(results_dir).expanduser().absolute()
+    if not is_results_dir(out_path) or not (out_path / PROJECT_NAME).is_file():
+        raise ResultsError(f"{out_path} is not a results folder with its project.toml")
+    checkpoint = read_checkpoint(out_path)
+    if checkpoint.run["cursor"]["phase"] == "done":
+        raise ResultsError(f"the run in {out_path} is complete: nothing to resume")
+    return checkpoint
+
+
 def resume_run(
     results_dir: str | os.PathLike[str],
     *,
@@ -263,12 +282,16 @@ def resume_run(
     cancel: Callable[[], bool] | None = None,
     on_frame: Callable[[Frame], None] | None = None,
     on_progress: Callable[[Progress], None] | None = None,
+    checkpoint: Checkpoint | None = None,
 ) -> RunResult:
     """Continue a killed, stopped or failed run from the last checkpoint in its results folder.
 
     The run is rebuilt from the folder's ``project.toml`` (the project as it ran), its state
     restored from ``checkpoint.npz``; the frames written after that checkpoint are written
     again. The frames are those of an uninterrupted run (bit for bit with the serial scatter).
+
+    ``checkpoint`` is the folder's checkpoint as :func:`resumable` returned it (read from the
+    folder when not given).
 
     Raises
     ------
@@ -278,15 +301,12 @@ def resume_run(
         The folder's ``project.toml`` is not a valid project.
     """
     from projects.document import dumps_project, load_project
-    from projects.results import PROJECT_NAME, read_checkpoint
+    from projects.results import PROJECT_NAME
 
-    out_path = Path(results_dir).expanduser().absolute()
-    if not is_results_dir(out_path) or not (out_path / PROJECT_NAME).is_file():
-        raise ResultsError(f"{out_path} is not a results folder with its project.toml")
-    checkpoint = read_checkpoint(out_path)
-    if checkpoint.run["cursor"]["phase"] == "done":
-        raise ResultsError(f"the run in {out_path} is complete: nothing to resume")
     started = time.perf_counter()
+    out_path = Path(results_dir).expanduser().absolute()
+    if checkpoint is None:
+        checkpoint = resumable(out_path)
     resolved = check_project(load_project(out_path / PROJECT_NAME), arch=arch, force=True)
     sim = _simulation(resolved)
     try:

@@ -13,6 +13,14 @@ REPO = Path(__file__).resolve().parents[1]
 EXAMPLES = REPO / "projects" / "examples"
 TINY_PROJECT = EXAMPLES / "tiny_column.toml"
 
+# Taichi's offline kernel cache (~/.cache/taichi) is capped at 100 MB by default and trimmed by a
+# quarter (least recently used first) whenever a process ends above the cap. One pass of the suite
+# compiles more than that (a kernel is cached per particle count and grid size), so the suite
+# evicted kernels it compiled minutes before and compiled them again (measured: one engine set
+# costs about 5.5 s of CPU cold against 1.6 s from the cache). A larger cap for the test processes
+# and the runs they start (they inherit the environment); an explicit setting is kept.
+os.environ.setdefault("TI_OFFLINE_CACHE_MAX_SIZE_OF_FILES", str(1024 ** 3))
+
 # headless VTK without the "bad X server connection" warning (see app.render)
 if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
@@ -108,7 +116,8 @@ def tiny_project() -> Path:
 # stale QOffscreenSurface), so the cause is the VTK widgets' deletion, not the solver thread.
 # Tests therefore shut their windows down (runs stopped, plotters finalised: the fixtures check
 # both) and keep them here instead of deleting them; the process then ends without destroying
-# them (os._exit), after pytest has written its report and stopped Xvfb. Without os._exit five
+# them (os._exit), after pytest has written its report and stopped Xvfb. Under pytest-xdist
+# (scripts/test.sh) a worker has sent its results in pytest_sessionfinish before this runs. Without os._exit five
 # GUI-suite runs ended cleanly, too few to rule out the one-in-four failure of that deletion.
 KEPT_WIDGETS: list = []
 _SESSION: dict = {}

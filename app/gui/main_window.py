@@ -732,7 +732,7 @@ class MainWindow(QMainWindow):
         to hold it when it does not (keeping its cell size, a margin of a tenth of the body)."""
         import numpy as np
 
-        from app.gui.imports import read_outline
+        from geometry.importers import read_outline
 
         try:
             outline = read_outline(path, base_y_m)

@@ -14,8 +14,11 @@ from projects.results import CHECKPOINT_NAME, Results
 from projects.runner import run_project
 from tests.conftest import REPO, TINY_PROJECT
 
-SETS = ["numerics.advanced.scatter=serial", "stages.1.duration_s=4.0", "output.interval_s=0.05",
+# 1 s of collapse (5,000 steps): the run is killed after its second checkpoint (t = 0.1 s), seconds
+# before its end even on a loaded machine; frames every 0.05 s
+SETS = ["numerics.advanced.scatter=serial", "stages.1.duration_s=1.0", "output.interval_s=0.05",
         "output.checkpoint_interval_s=0.1"]
+FRAMES = 21  # t = 0 (the k0 stage's end) and every 0.05 s of the 1 s collapse
 
 
 def _cli(*args: str) -> list[str]:
@@ -46,7 +49,7 @@ def test_resume_after_sigkill_gives_the_frames_of_the_uninterrupted_run(tmp_path
     child.wait(timeout=30)
     interrupted = Results(killed)
     assert interrupted.status in ("interrupted", "running")
-    assert 0 < len(interrupted) < 81
+    assert 0 < len(interrupted) < FRAMES
 
     done = subprocess.run(_cli("run", "--resume", str(killed), "--quiet"), cwd=REPO, env=env,
                           capture_output=True, text=True, timeout=600)
@@ -56,8 +59,14 @@ def test_resume_after_sigkill_gives_the_frames_of_the_uninterrupted_run(tmp_path
     result = run_project(load_project(TINY_PROJECT, SETS), reference)
     assert result.ok
 
+    # the run is complete now: resuming it again is a one-line error, with no progress bar before it
+    again = subprocess.run(_cli("run", "--resume", str(killed)), cwd=REPO, env=env, capture_output=True,
+                           text=True, timeout=120)
+    assert again.returncode != 0 and again.stderr.strip().splitlines() == [
+        f"error: the run in {killed} is complete: nothing to resume"], again.stderr
+
     a, b = Results(killed), Results(reference)
-    assert a.status == "completed" and len(a) == len(b) == 81
+    assert a.status == "completed" and len(a) == len(b) == FRAMES
     for column in ("time_s", "step", "kinetic_energy_J_per_m", "momentum_x", "momentum_y", "max_speed_m_s"):
         np.testing.assert_array_equal(a.series[column], b.series[column], err_msg=column)
     for i in range(len(b)):

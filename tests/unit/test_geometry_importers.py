@@ -119,3 +119,61 @@ def test_bad_meshes_raise_value_error(tmp_path):
         outline_from_mesh(unknown)
     with pytest.raises(FileNotFoundError):
         outline_from_mesh(tmp_path / "missing.vtu")
+
+
+# -- DXF drawings (geometry.importers.outline_from_dxf; the workbench's import calls read_outline) --
+
+def _dxf(tmp_path, add, name="slope.dxf"):
+    import ezdxf
+
+    drawing = ezdxf.new()
+    add(drawing.modelspace())
+    path = tmp_path / name
+    drawing.saveas(path)
+    return path
+
+
+def test_dxf_open_polyline_is_a_profile_closed_down_like_a_csv(tmp_path):
+    from geometry.importers import outline_from_dxf, read_outline
+
+    def add(msp):
+        msp.add_lwpolyline([(0, 10), (5, 10), (15, 2), (20, 2)])
+        msp.add_line((0, 0), (1, 1))  # clutter: the polyline with the most vertices is the profile
+
+    path = _dxf(tmp_path, add)
+    csv = outline_from_csv(_write(tmp_path, "x_m,y_m\n0,10\n5,10\n15,2\n20,2\n"), base_y_m=-1.0)
+    for poly in (outline_from_dxf(path, base_y_m=-1.0), read_outline(path, base_y_m=-1.0)):
+        np.testing.assert_array_equal(poly, csv)
+        assert polygon_area(poly) == pytest.approx(20 * 3 + 5 * 8 + 40)
+
+
+def test_dxf_closed_polyline_and_chained_lines_are_outlines(tmp_path):
+    from geometry.importers import outline_from_dxf
+
+    closed = _dxf(tmp_path, lambda msp: msp.add_lwpolyline([(0, 0), (2, 0), (2, 1), (0, 1)], close=True),
+                  "closed.dxf")
+    poly = outline_from_dxf(closed, base_y_m=-5.0)  # a closed outline ignores the base
+    assert len(poly) == 4 and polygon_area(poly) == pytest.approx(2.0) and signed_area(poly) > 0
+
+    def lines(msp):  # an open profile drawn as LINE entities, out of order and reversed
+        for a, b in (((5, 10), (15, 2)), ((20, 2), (15, 2)), ((0, 10), (5, 10))):
+            msp.add_line(a, b)
+
+    poly = outline_from_dxf(_dxf(tmp_path, lines, "lines.dxf"))
+    assert polygon_area(poly) == pytest.approx(5 * 8 + 40)
+
+
+def test_dxf_problems_are_one_line_errors_naming_the_file(tmp_path):
+    from geometry.importers import outline_from_dxf, read_outline
+
+    bad = _write(tmp_path, "not a drawing\n", "bad.dxf")
+    with pytest.raises(ValueError, match=r"bad\.dxf: not a readable DXF drawing"):
+        outline_from_dxf(bad)
+    empty = _dxf(tmp_path, lambda msp: msp.add_circle((0, 0), 1.0), "empty.dxf")
+    with pytest.raises(ValueError, match=r"empty\.dxf: no polyline or line"):
+        outline_from_dxf(empty)
+    zigzag = _dxf(tmp_path, lambda msp: msp.add_lwpolyline([(0, 1), (2, 3), (1, 2)]), "zigzag.dxf")
+    with pytest.raises(ValueError, match=r"zigzag\.dxf: an open surface profile needs x strictly"):
+        outline_from_dxf(zigzag)
+    with pytest.raises(ValueError, match=r"unknown kind of file '\.txt'"):
+        read_outline(tmp_path / "profile.txt")

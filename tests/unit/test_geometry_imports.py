@@ -19,7 +19,7 @@ def test_importing_geometry_loads_no_heavy_or_forbidden_module():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     loaded = set(ast.literal_eval(out.stdout.strip()))
     assert "numpy" in loaded
-    assert not loaded & (FORBIDDEN | {"gmsh", "meshio"})
+    assert not loaded & (FORBIDDEN | {"gmsh", "meshio", "ezdxf"})
 
 
 def test_module_level_imports_are_numpy_stdlib_or_geometry():

@@ -17,6 +17,7 @@ MAT = (Material("e", "linear-elastic", 1000.0, 1e6, 0.3),)
 def _runtime():
     runtime.acquire("cpu", "f64")
     yield
+    _WALL_ENGINES.clear()
     runtime.release()
 
 
@@ -148,16 +149,26 @@ def test_one_launch_step_equals_the_stage_by_stage_recipe(scheme):
         np.testing.assert_allclose(a.state((name,))[name], b.state((name,))[name], rtol=1e-12, atol=1e-15)
 
 
+_WALL_ENGINES = {}
+
+
 def _wall_scene(scheme, scatter, n, dtype=np.float64, bands=None):
-    """An engine for a Drucker-Prager heap in a box with friction walls (particles not loaded)."""
+    """An engine for a Drucker-Prager heap in a box with friction walls (particles not loaded).
+
+    Engines are shared by the tests of this module (each new engine compiles its kernels again);
+    every use loads its particles, which resets the whole particle state and the split plan."""
     from solver.engine import Engine
 
+    key = (scheme, scatter, n, np.dtype(dtype).name, bands)
+    if key in _WALL_ENGINES:
+        return _WALL_ENGINES[key]
     grid = Grid((0.0, 0.0), (1.0, 1.0), 0.05, left=Boundary("friction", math.radians(15.0)),
                 right=Boundary("friction", math.radians(20.0)), bottom=Boundary("friction", math.radians(25.0)),
                 top=Boundary("open"))
     dp = (Material("dp", "drucker-prager", 2000.0, 5e6, 0.3, cohesion_pa=1e3, friction_angle_rad=math.radians(30.0)),)
     eng = Engine(grid, dp, n, scheme, dtype, scatter=scatter, bands=bands)
     assert eng.scatter == scatter
+    _WALL_ENGINES[key] = eng
     return eng
 
 
