@@ -32,7 +32,7 @@ empty parts of the domain cost nothing.
 
 
 import numpy as np
-import taichi as ti
+from solver.runtime import ti
 
 from solver.config import SIDES, Boundary, Grid, Material, Structure
 from solver.fieldio import FieldIO

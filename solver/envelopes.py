@@ -43,7 +43,7 @@ never below the values of any output frame (each frame is an update).
 import math
 
 import numpy as np
-import taichi as ti
+from solver.runtime import ti
 
 from solver.config import EnvelopeConfig, Grid
 from solver.fieldio import FieldIO

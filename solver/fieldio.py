@@ -18,7 +18,7 @@ import warnings
 from collections.abc import Iterable, Mapping
 
 import numpy as np
-import taichi as ti
+from solver.runtime import ti
 
 _TO_NUMPY = {"f32": np.float32, "f64": np.float64, "i32": np.int32, "i8": np.int8}
 #: buffer slots of the kernel, one per dtype

@@ -10,11 +10,56 @@ close a simulation in the same thread.
 from __future__ import annotations
 
 import contextlib
+import inspect
 import io
+import linecache
 import logging
 import threading
 
-import taichi as ti
+
+def _source_line_frameinfo(frame, context=1):
+    """``inspect.getframeinfo`` for the one use Taichi 1.7 makes of it: the source line of a frame.
+
+    Every ``@ti.kernel`` asks, as it is decorated, whether it is defined in a class body; Taichi
+    answers by reading the current source line of the enclosing frame with
+    ``inspect.getframeinfo``, which resolves the frame's module by scanning every module loaded
+    (``inspect.getmodule``) each time. ``import taichi`` decorates about 150 of its own kernels
+    that way: 35-60 ms of every process's start-up. This reads the same line from ``linecache``.
+    """
+    code = frame.f_code
+    line = linecache.getline(code.co_filename, frame.f_lineno)
+    return inspect.Traceback(code.co_filename, frame.f_lineno, code.co_name, [line] if line else None, 0)
+
+
+def _import_taichi():
+    """Import Taichi with the cheap source-line lookup while it decorates its own kernels, and keep
+    that lookup for the kernels Runout decorates (Taichi 1.7.x's ``_inside_class``, same answer)."""
+    slow = inspect.getframeinfo
+    inspect.getframeinfo = _source_line_frameinfo
+    try:
+        import taichi
+    finally:
+        inspect.getframeinfo = slow
+    if taichi.__version__[:2] == (1, 7):
+        from taichi.lang import kernel_impl
+
+        patterns = kernel_impl._KERNEL_CLASS_STACKFRAME_STMT_RES
+
+        def inside_class(level_of_class_stackframe):
+            try:
+                frame = kernel_impl.sys._getframe(level_of_class_stackframe)
+            except ValueError:
+                return False
+            first = linecache.getline(frame.f_code.co_filename, frame.f_lineno).strip()
+            return any(pattern.match(first) for pattern in patterns)
+
+        kernel_impl._inside_class = inside_class
+    return taichi
+
+
+# Solver modules import Taichi from here (``from solver.runtime import ti``), so the first import
+# in a process takes the cheap path above.
+ti = _import_taichi()
 
 log = logging.getLogger(__name__)
 
@@ -73,9 +118,10 @@ def _cached_sources() -> None:
     function's source again (``inspect.getsourcelines``, which tokenises the whole file) and
     re-wraps every line with ``textwrap.fill`` before parsing it (``_get_tree_and_ctx``). The
     step kernel calls a few dozen functions, several of them many times (``ti.static`` loops).
-    This keeps the source lines of each function after the first read and parses them again
-    (``ast.parse``: the transformer writes into the tree, so each use gets a fresh one); what the
-    front end builds from them is unchanged. Applied to Taichi 1.7.x only, whose function this
+    This keeps the source lines of each function after the first read, and its parsed tree: a
+    kernel's is parsed again at each instantiation (the transformer rewrites a kernel's argument
+    list), an inlined function's serves every call site. What the front end builds from them is
+    unchanged (the same IR: the offline cache finds the same kernels, and frames are bit for bit). Applied to Taichi 1.7.x only, whose function this
     replaces.
     """
     try:
@@ -87,7 +133,7 @@ def _cached_sources() -> None:
     import ast
     import textwrap
 
-    sources: dict[object, tuple[str, list[str], int, str]] = {}
+    sources: dict[object, tuple[str, list[str], int, str, ast.Module]] = {}
     context = kernel_impl.ASTTransformerContext
 
     def get_tree_and_ctx(self, excluded_parameters=(), is_kernel=True, arg_features=None, args=None,
@@ -97,9 +143,15 @@ def _cached_sources() -> None:
             file = kernel_impl.getsourcefile(self.func)
             src, start_lineno = kernel_impl.getsourcelines(self.func)
             src = [textwrap.fill(line, tabsize=4, width=9999) for line in src]
-            cached = sources[self.func] = (file, src, start_lineno, textwrap.dedent("\n".join(src)))
-        file, src, start_lineno, text = cached
-        tree = ast.parse(text)
+            text = textwrap.dedent("\n".join(src))
+            cached = sources[self.func] = (file, src, start_lineno, text, ast.parse(text))
+        file, src, start_lineno, text, inlined_tree = cached
+        if is_kernel or is_real_function:
+            tree = ast.parse(text)  # a kernel's transform rewrites its arguments: a fresh tree each time
+        else:
+            # An inlined ti.func's transform only annotates the nodes it visits (``node.ptr``,
+            # written before it is read), so one tree serves every call site.
+            tree = inlined_tree
         tree.body[0].decorator_list = []
         global_vars = kernel_impl._get_global_vars(self.func)
         if is_kernel or is_real_function:

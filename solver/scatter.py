@@ -26,7 +26,7 @@ take the engine as a template argument and call back into its per-particle physi
 
 
 import numpy as np
-import taichi as ti
+from solver.runtime import ti
 
 from solver.config import SCATTERS
 

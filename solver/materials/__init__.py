@@ -10,7 +10,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-import taichi as ti
+from solver.runtime import ti
 
 from solver.config import Material
 from solver.fieldio import FieldIO

@@ -45,7 +45,7 @@ plastic strain increment, ``(s_trial - s_new) / (2 G)``.
 
 import math
 
-import taichi as ti
+from solver.runtime import ti
 
 
 MATCHES: tuple[str, ...] = ("plane-strain-associated", "plane-strain", "simple-shear")

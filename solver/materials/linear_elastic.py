@@ -9,7 +9,7 @@ out-of-plane stress changes only through the volumetric term: dsigma_zz = lambda
 The in-plane spin does not rotate sigma_zz.
 """
 
-import taichi as ti
+from solver.runtime import ti
 
 
 @ti.func
