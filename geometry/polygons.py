@@ -284,8 +284,8 @@ def distinct_vertex_count(polygon_m: np.ndarray) -> int:
     -------
     int
     """
-    p = as_polygon(polygon_m)
-    return len(np.unique(p, axis=0)) if len(p) else 0
+    # a set of rows, not np.unique(axis=0): that costs 20 ms at its first call in a process
+    return len({(float(x), float(y)) for x, y in as_polygon(polygon_m)})
 
 
 def is_simple(polygon_m: np.ndarray) -> bool:
