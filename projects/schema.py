@@ -55,6 +55,7 @@ SCHEMA_VERSION = 1
 MATERIAL_MODELS = sc.MATERIAL_MODELS
 #: How a Drucker-Prager material's cone is matched to its c, phi and psi (docs/solver.md).
 MOHR_COULOMB_MATCHES = sc.MOHR_COULOMB_MATCHES
+DEFAULT_MOHR_COULOMB_MATCH = sc.DEFAULT_MOHR_COULOMB_MATCH
 BOUNDARY_TYPES = sc.BOUNDARY_KINDS
 #: Contact types of a structure (a side's, less "open" and "periodic").
 CONTACT_TYPES: tuple[str, ...] = tuple(k for k in sc.BOUNDARY_KINDS if k not in ("open", "periodic"))

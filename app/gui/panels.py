@@ -53,7 +53,9 @@ from app.gui.settings import MaterialLibrary
 from projects.schema import (
     ARCHS,
     BOUNDARY_TYPES,
+    DEFAULT_MOHR_COULOMB_MATCH,
     MATERIAL_MODELS,
+    MOHR_COULOMB_MATCHES,
     OUTPUT_FIELDS,
     PRECISIONS,
     PRESETS,
@@ -274,6 +276,13 @@ class MaterialsPanel(Panel):
             self.fields[key] = field
             form.addRow(label, field)
             self.watch(field)
+        # which Drucker-Prager cone stands for the Mohr-Coulomb c and phi (docs/solver.md)
+        self.match = ChoiceField(doc, None, "Mohr-Coulomb match", MOHR_COULOMB_MATCHES,
+                                 default=DEFAULT_MOHR_COULOMB_MATCH)
+        self.match.setToolTip("plane-strain-associated: the paper's fit (default); plane-strain: Mohr-Coulomb's "
+                              "plane-strain strength under the material's own flow rule; simple-shear: the "
+                              "strength on a shear plane (infinite slopes, psi = 0)")
+        form.addRow("Mohr-Coulomb match", self.match)
         self.layout_.addWidget(box)
         self.used_by = QLabel("")
         self.used_by.setWordWrap(True)
@@ -312,6 +321,7 @@ class MaterialsPanel(Panel):
             if not enabled:
                 field.edit.setText("")
                 field.edit.setPlaceholderText("—" if base else "")
+        self.match.set_path(f"{base}.mohr_coulomb_match" if plastic else None)
         if name is not None:
             users = [b.get("name", "?") for b in self.doc.get("bodies", []) if b.get("material") == name]
             self.used_by.setText("Used by: " + (", ".join(users) if users else "no body"))
@@ -414,7 +424,7 @@ class MaterialsPanel(Panel):
             table = d["materials"][name]
             table["model"] = model
             if model == "linear-elastic":
-                for key in (*PLASTIC_KEYS, "mohr_coulomb_match"):  # the match has no field of its own yet
+                for key in (*PLASTIC_KEYS, "mohr_coulomb_match"):
                     table.pop(key, None)
                 for stage in d.get("stages", []):
                     change = stage.get("material_changes", {}).get(name)

@@ -73,6 +73,22 @@ def test_edit_a_material_and_undo_it(window, tiny_file):
     assert window.doc.get("materials.sand.friction_angle_deg") == 25.0
 
 
+def test_choose_the_mohr_coulomb_match_and_undo_it(window, tiny_file):
+    window.open_project(tiny_file)
+    panel = window.materials_panel
+    assert panel.match.isEnabled() and panel.match.combo.currentText() == "plane-strain-associated"  # the default
+    panel.match.choose("simple-shear")
+    assert window.doc.get("materials.sand.mohr_coulomb_match") == "simple-shear"
+    assert window.doc.project.materials["sand"].mohr_coulomb_match == "simple-shear"
+    window.actions_["undo"].trigger()
+    assert window.doc.get("materials.sand.mohr_coulomb_match") is None
+    assert panel.match.combo.currentText() == "plane-strain-associated"
+    panel.match.choose("plane-strain")
+    panel.set_model("linear-elastic")  # no cone: the key goes and the field is disabled
+    assert window.doc.get("materials.sand.mohr_coulomb_match") is None
+    assert not panel.match.isEnabled()
+
+
 def test_values_are_checked_as_you_type(window, tiny_file, qtbot):
     window.open_project(tiny_file)
     window.panels.setCurrentWidget(window.materials_panel)
