@@ -301,7 +301,12 @@ class ResolvedRun:
     def spacing_m(self) -> float:
         """Side of the square one particle stands for (m): what views size points with."""
         if self.particles is not None and len(self.particles):
-            return float(np.sqrt(np.median(np.asarray(self.particles.volumes_m2, dtype=float))))
+            volumes = np.asarray(self.particles.volumes_m2, dtype=float)
+            # the median, without np.median (its NaN check imports numpy.ma: 10-20 ms of a run's start)
+            half = len(volumes) // 2
+            part = np.partition(volumes, [half - 1, half] if len(volumes) % 2 == 0 else [half])
+            median = part[half] if len(volumes) % 2 else 0.5 * (part[half - 1] + part[half])
+            return float(np.sqrt(median))
         return self.project.domain.cell_size_m / self.project.particles.per_cell
 
     @property
