@@ -107,3 +107,23 @@ def test_counter_clockwise_and_spike_removal():
     assert is_simple(cleaned)
     assert polygon_area(cleaned) == pytest.approx(2.0)
     assert len(cleaned) == 4
+
+
+@pytest.mark.parametrize("edges", [3, 12, 64, 200])
+def test_candidate_pairs_are_the_same_with_and_without_the_r_tree(edges, monkeypatch):
+    """Few edges take every pair, many take shapely's R-tree: both find the same overlapping boxes
+    (touching boxes included), also for boxes that only touch."""
+    from geometry import polygons
+
+    rng = np.random.default_rng(edges)
+    # a closed chain on a 0.1 m lattice: neighbours share a vertex, other boxes touch exactly
+    start = np.round(rng.uniform(0, 10, (edges, 2)), 1)
+    end = np.roll(start, -1, axis=0)
+    found = {}
+    for limit in (0, 10**6):  # R-tree always / never
+        monkeypatch.setattr(polygons, "ALL_PAIRS_UP_TO", limit)
+        i, j = polygons._candidate_pairs(start, end, 0.0)
+        assert np.all(i < j)
+        found[limit] = sorted(zip(i.tolist(), j.tolist()))
+    assert found[0] == found[10**6]
+    assert len(found[0]) > 0
