@@ -114,7 +114,7 @@ class Engine:
             raise ValueError(problem)
         #: left and right sides periodic (compiled in: the fold and copy stages, wrapping in G2P)
         self.periodic = grid.periodic
-        self.materials = MaterialTable(materials, np_float)
+        self.materials = MaterialTable(materials, np_float, shared_io=True)  # moved by self._io
 
         n = max(1, self.n)
         self.x = ti.Vector.field(2, float, n)
@@ -179,8 +179,11 @@ class Engine:
 
         # every field the host reads or writes, moved by one kernel (solver.fieldio: one kernel
         # per field, as Taichi's own to_numpy / from_numpy are, costs start-up time in every process)
-        self._io = FieldIO({**{name: getattr(self, name) for name in self.HOST_FIELDS},
-                            **self.to_grid.state_fields()})
+        io_fields = {**{name: getattr(self, name) for name in self.HOST_FIELDS}, **self.to_grid.state_fields()}
+        clash = set(io_fields) & set(self.materials.columns)
+        assert not clash, f"engine and material fields share names: {sorted(clash)}"
+        self._io = FieldIO({**io_fields, **self.materials.columns})
+        self.materials.use_io(self._io)
         self.set_boundaries(grid)
         if has:
             self._set_up_structures(edges)

@@ -46,9 +46,14 @@ def material_rows(materials: Sequence[Material]) -> dict[str, np.ndarray]:
 
 @ti.data_oriented
 class MaterialTable:
-    """Taichi fields holding one row of constitutive constants per material."""
+    """Taichi fields holding one row of constitutive constants per material.
 
-    def __init__(self, materials: Sequence[Material], np_float=np.float32):
+    With ``shared_io`` the table has no field I/O of its own until :meth:`use_io` hands it one
+    that also moves other fields (the engine's: one copy kernel compiled per process instead of
+    two, see solver.fieldio); its rows are loaded then.
+    """
+
+    def __init__(self, materials: Sequence[Material], np_float=np.float32, shared_io: bool = False):
         n = max(1, len(materials))
         self.np_float = np_float
         self.count = len(materials)
@@ -60,17 +65,28 @@ class MaterialTable:
         self.alpha_psi = ti.field(float, n)
         self.t_cut = ti.field(float, n)
         self.rho0 = ti.field(float, n)
-        self._io = FieldIO({name: getattr(self, name) for name in MATERIAL_COLUMNS})
+        #: the table's fields by column name
+        self.columns = {name: getattr(self, name) for name in MATERIAL_COLUMNS}
         #: the table as loaded, numpy columns in the fields' dtypes
         self.host: dict[str, np.ndarray] = {}
-        self.load(materials)
+        self._materials = tuple(materials)
+        self._io: FieldIO | None = None
+        if not shared_io:
+            self.use_io(FieldIO(self.columns))
+
+    def use_io(self, io: FieldIO) -> None:
+        """Move the table's fields with ``io`` (it must hold :attr:`columns` under their names) and
+        load the rows."""
+        self._io = io
+        self.load(self._materials)
 
     def load(self, materials: Sequence[Material]) -> None:
         """Replace every row (a stage's material changes): one kernel launch for the whole table."""
         rows = material_rows(materials)
         self.host = {name: column.astype(np.int32 if name == "model" else self.np_float)
                      for name, column in rows.items()}
-        if len(materials):
+        self._materials = tuple(materials)
+        if len(materials) and self._io is not None:
             self._io.write(self.host)
 
     @ti.func
