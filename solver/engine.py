@@ -10,7 +10,8 @@ inside the arrays. Quadratic B-splines throughout; APIC inertia ``D_p = dx^2 / 4
 Schemes (chosen once, at construction, and compiled in with ``ti.static``):
 
 - ``mpm``: FLIP transfer, six stages (reset, P2G momentum, grid velocity, stress + force,
-  grid momentum update, G2P with FLIP increments).
+  grid momentum update, G2P with FLIP increments; from contact nodes the new velocity itself,
+  PIC there, see ``_g2p``).
 - ``apic``: APIC transfer (paper eqs 14-17), same six stages.
 - ``apic-affine``: improved MPM-APIC: strain rate and spin from the particle's own C
   (eqs 29-30), stress update and force scatter fused into P2G; four stages.
@@ -18,7 +19,8 @@ Schemes (chosen once, at construction, and compiled in with ``ti.static``):
 Contact (docs/solver.md): one grid contact law (``_contact``) for the closed sides and the rigid
 structures, applied in the grid stages; the mirror-image wall terms (``_mirror_forces``,
 ``_mirror_ghosts``) pass their reaction through it; ``contact tally`` adds up the force on each
-contact; G2P puts particles that ended inside a structure back on its surface.
+contact; G2P puts particles that ended inside a structure back on its surface, and mpm's
+particles take the contact nodes' constrained velocity itself (PIC at contact nodes).
 
 The particle passes (P2G; stress and force for mpm and apic) are written per particle
 (``_update_particle``: the particle's own constitutive update; ``_add_particle``: its shares to

@@ -46,7 +46,6 @@ TRAVEL_CELLS = 20.0  # the sliding cases run until the analytic travel is this m
 CFL = 0.5
 SETTLE_TRANSITS = 3.0  # settling on a fixed contact before the release: P-wave transits of the block
 SETTLE_DAMPING = 0.7  # Cundall's local damping while settling
-SETTLE_ON_CONTACT_TRANSITS = 0.0  # then settling on the frictional contact itself (transits)
 
 
 def block_length_cells(thickness_cells: int) -> int:
@@ -280,10 +279,6 @@ def _advance(e, material: Material, dx: float, gravity, theta_deg: float, delta_
             e.step(dt, gravity, SETTLE_DAMPING)
         e.set_velocity(np.zeros((e.n, 2)))
     contact(False)
-    if SETTLE_ON_CONTACT_TRANSITS > 0:
-        for _ in range(int(math.ceil(SETTLE_ON_CONTACT_TRANSITS * length_m / material.p_wave_speed_m_s / dt))):
-            e.step(dt, gravity, SETTLE_DAMPING)
-        e.set_velocity(np.zeros((e.n, 2)))
     t_end = run_time(theta_deg, delta_deg, dx)
     steps = int(math.ceil(t_end / dt))
     dt = t_end / steps
