@@ -10,7 +10,8 @@ inside the arrays. Quadratic B-splines throughout; APIC inertia ``D_p = dx^2 / 4
 Schemes (chosen once, at construction, and compiled in with ``ti.static``):
 
 - ``mpm``: FLIP transfer, six stages (reset, P2G momentum, grid velocity, stress + force,
-  grid momentum update, G2P with FLIP increments).
+  grid momentum update, G2P with FLIP increments; from contact nodes the new velocity itself,
+  PIC there, see ``_g2p``).
 - ``apic``: APIC transfer (paper eqs 14-17), same six stages.
 - ``apic-affine``: improved MPM-APIC: strain rate and spin from the particle's own C
   (eqs 29-30), stress update and force scatter fused into P2G; four stages.
@@ -18,7 +19,8 @@ Schemes (chosen once, at construction, and compiled in with ``ti.static``):
 Contact (docs/solver.md): one grid contact law (``_contact``) for the closed sides and the rigid
 structures, applied in the grid stages; the mirror-image wall terms (``_mirror_forces``,
 ``_mirror_ghosts``) pass their reaction through it; ``contact tally`` adds up the force on each
-contact; G2P puts particles that ended inside a structure back on its surface.
+contact; G2P puts particles that ended inside a structure back on its surface, and mpm's
+particles take the contact nodes' constrained velocity itself (PIC at contact nodes).
 
 The particle passes (P2G; stress and force for mpm and apic) are written per particle
 (``_update_particle``: the particle's own constitutive update; ``_add_particle``: its shares to
@@ -367,8 +369,8 @@ class Engine:
         elif ti.static(stage == "mirror forces"):
             self._mirror_forces(dt, not self.six_stage and not damped)
         elif ti.static(stage == "mirror walls (old)"):
-            # mpm: the particles never receive this first correction (see _grid_velocity): not an impulse
-            self._mirror_ghosts(True, ti.static(self.scheme != "mpm"))
+            # every scheme's particles receive this first correction (see _grid_velocity): an impulse
+            self._mirror_ghosts(True, True)
         elif ti.static(stage == "mirror walls"):
             self._mirror_ghosts(False, True)
         elif ti.static(stage == "G2P"):
@@ -495,6 +497,23 @@ class Engine:
                     self._record(4 + s, mass * (new - v))
                 v = new
         return v
+
+    @ti.func
+    def _held(self, I):
+        """Whether node I is a contact node of a closed side or of a structure (where
+        :meth:`_contact` acts)."""
+        held = False
+        for side in ti.static(range(4)):
+            axis = ti.static(side // 2)
+            low = ti.static(side % 2 == 0)
+            wall = ti.static(PAD if low else PAD + self.cells[axis])
+            on_wall = (I[axis] <= wall) if ti.static(low) else (I[axis] >= wall)
+            if on_wall and self._closed(self.bc_kind[side]):
+                held = True
+        if ti.static(self.n_structures > 0):
+            if self.node_struct[I] >= 0:
+                held = True
+        return held
 
     @ti.func
     def _closed(self, kind):
@@ -822,13 +841,10 @@ class Engine:
                 # the contact law on the interpolated velocity too (Bardenhagen et al. 2000): the
                 # stress update sees the constrained velocity. APIC's particles take the new grid
                 # velocity, so they receive this correction (an impulse of the contact). FLIP's take
-                # the increment of the grid update alone, v_p += S (v_new - v_old), the contact's
-                # part being the second correction, as in Bardenhagen et al.'s adjusted
-                # accelerations: the first one is not theirs (not recorded). Taking it too (the
-                # increment against the velocity before this correction) hands each particle the
-                # contact's correction of the interpolated velocity, not of its own, every step: a
-                # block that should stick creeps 0.2-2 % (docs/validation.md, contact).
-                v = self._contact(I, self.g_mom[I] / mass, mass, ti.static(self.scheme != "mpm"))
+                # the increment v_new - v_old from ordinary nodes but, at contact nodes, the new
+                # velocity itself (PIC there, see _g2p), so they receive it too: recorded in
+                # every scheme.
+                v = self._contact(I, self.g_mom[I] / mass, mass, True)
             self.g_v_old[I] = v
 
     @ti.func
@@ -876,13 +892,19 @@ class Engine:
                 new_v = ti.Vector.zero(float, 2)
                 new_C = ti.Matrix.zero(float, 2, 2)
                 dv = ti.Vector.zero(float, 2)
+                held = ti.Vector.zero(float, 2)  # mpm: sum over contact nodes of w (v_old - v_p)
+                touched = False
                 for i, j in ti.static(ti.ndrange(3, 3)):
                     offset = ti.Vector([i, j])
                     weight = w[i][0] * w[j][1]
                     gv = self.g_mom[base + offset]  # the new grid velocity
                     new_v += weight * gv
                     if ti.static(self.scheme == "mpm"):
-                        dv += weight * (gv - self.g_v_old[base + offset])
+                        old = self.g_v_old[base + offset]
+                        dv += weight * (gv - old)
+                        if self._held(base + offset):
+                            touched = True
+                            held += weight * (old - self.v[p])
                     else:
                         dpos = (ti.cast(offset, float) - fx) * self.dx
                         new_C += 4.0 * self.inv_dx * self.inv_dx * weight * gv.outer_product(dpos)  # eq 17
@@ -890,6 +912,11 @@ class Engine:
                 v = new_v
                 if ti.static(self.scheme == "mpm"):
                     v = self.v[p] + dv  # FLIP: particle velocity takes the grid's increment
+                    if touched:
+                        # PIC at contact nodes (docs/solver.md, contact): the particle takes a contact
+                        # node's constrained velocity itself, w v_new, not its own plus the increment,
+                        # w (v_p + v_new - v_old); away from contacts this is zero and v is FLIP's
+                        v += held
                 else:
                     self.C[p] = new_C
                 speed2 = v.dot(v)
