@@ -25,7 +25,11 @@ distance for E = 1e6 Pa, 0.27-0.38 % for 1e8 (30 on 45 holds, below 0.02 %). Sli
 its upslope end, which the overturning moment of the weight unloads, and ratchet it down the slope;
 the creep grows instead of settling (it runs away after 5-9 times the test's duration), grows with
 mesh refinement, and goes on under local damping, so it is no settling transient
-(docs/validation.md, contact). Those cases are strict xfails: they fail the suite if they ever meet
+(docs/validation.md, contact). The same shows in sliding cases just above the friction limit (not
+in the matrix, whose sliding pairs are 10 deg above it): on a 40 or 38 deg incline with 35 or 36
+deg friction blocks slide too far, +2 % (one cell) to +25 % (20 cells) at 40/35 and +7 % to
++135 % at 38/36 (a friction deficit of 0.4-10 % of mu, which the small net acceleration
+magnifies). Those cases are strict xfails: they fail the suite if they ever meet
 the tolerances, so that this note is updated.
 """
 
@@ -60,10 +64,15 @@ WALL_ROWS = [
 
 _PULSES = pytest.mark.xfail(strict=True, reason="20-cell block 5 deg from the friction limit: slip pulses from its "
                                                 "upslope end grow into sliding (module note)")
+_NEAR = pytest.mark.xfail(strict=True, reason="sliding 2 deg above the friction limit: the same creep adds to the "
+                                              "slide, a small friction deficit is a large error (module note)")
 #: outside the tolerances (module note; measured in docs/validation.md, contact)
 KNOWN_LIMITS = [
     pytest.param("apic", "f64", 20, 1e6, "right", [(40, 45)], marks=_PULSES, id="apic-soft-thick-40-45"),  # 1.07 %
     pytest.param("mpm", "f64", 20, 1e8, "left", [(40, 45)], marks=_PULSES, id="mpm-stiff-thick-40-45"),  # 0.38 %
+    pytest.param("apic", "f64", 5, 1e8, "bottom", [(38, 36)], marks=_NEAR, id="apic-stiff-5-slide-38-36"),  # +44 %
+    pytest.param("apic-affine", "f32", 1, 1e8, "left", [(38, 36)], marks=_NEAR,
+                 id="affine-stiff-sheet-slide-38-36"),  # +7.9 %
 ]
 
 # Classic mpm where FLIP's slip and opening waves used to grow (before PIC at contact nodes; module
