@@ -27,9 +27,10 @@ the creep grows instead of settling (it runs away after 5-9 times the test's dur
 mesh refinement, and goes on under local damping, so it is no settling transient
 (docs/validation.md, contact). The same shows in sliding cases just above the friction limit (not
 in the matrix, whose sliding pairs are 10 deg above it): on a 40 or 38 deg incline with 35 or 36
-deg friction blocks slide too far, +2 % (one cell) to +25 % (20 cells) at 40/35 and +7 % to
-+135 % at 38/36 (a friction deficit of 0.4-10 % of mu, which the small net acceleration
-magnifies). Those cases are strict xfails: they fail the suite if they ever meet
+deg friction blocks of 5 to 20 cells slide too far, +3.4 to +25 % at 40/35 and +42 to +135 % at
+38/36 (friction deficits of 0.8-10 % of mu, which the small net acceleration magnifies). A one-cell
+sheet is within the tolerance there since the mirror walls' normal impulse brings friction with it
+(``MIRROR_ROWS``; before, +2 to +8 %), except apic-affine in f32 (+4.1 % at 38/36). Those cases are strict xfails: they fail the suite if they ever meet
 the tolerances, so that this note is updated.
 """
 
@@ -116,6 +117,19 @@ def test_the_wall_rows_cover_every_pair_of_values():
 @pytest.mark.parametrize("scheme, precision, thickness, youngs, side, angles", WALL_ROWS)
 def test_a_block_at_rest_on_a_frictional_wall_slides_or_sticks_as_coulomb_says(scheme, precision, thickness,
                                                                                youngs, side, angles):
+    _wall_cases(scheme, precision, thickness, youngs, side, angles)
+
+
+# A sheet sliding just above the friction limit, where a small friction deficit is a large error: the
+# mirror walls' normal impulse used to come without friction (0.42 % less than mu N: +7.4 % at 38/36)
+MIRROR_ROWS = [
+    ("apic", "f64", 1, 1e8, "bottom", [(38, 36)]),
+    ("mpm", "f32", 1, 1e8, "right", [(38, 36), (40, 35)]),
+]
+
+
+@pytest.mark.parametrize("scheme, precision, thickness, youngs, side, angles", MIRROR_ROWS)
+def test_a_sheet_just_above_the_friction_limit_feels_mu_n(scheme, precision, thickness, youngs, side, angles):
     _wall_cases(scheme, precision, thickness, youngs, side, angles)
 
 
