@@ -4,7 +4,10 @@ The digests in ``tests/data/example_frames.json`` were first written at 2c3ebaa,
 one-run-path refactoring (runs as processes, checkpoints, ``resolve``), and every example gave the
 same frames after it. The contact law of issue 11 then changed the physics at closed walls (the
 friction no longer over-counted): the digests were written again after it, at the commit named in
-the file; the sand column, whose walls do not touch it in these steps, kept its digests. Each example runs 200 to 400 steps with its own settings and the
+the file; the sand column, whose walls do not touch it in these steps, kept its digests. Then the mirror
+walls' friction (the ghost's normal impulse on a friction wall brings Coulomb friction with it,
+issue 11) changed the two examples with a friction floor, the aluminium bars and the tiny column,
+written again at 3508e96; the sand column and the slope (fixed and slip walls) kept theirs. Each example runs 200 to 400 steps with its own settings and the
 scatter ``auto`` picks on this machine (serial below 10,000 particles, split above, on a CPU with
 few threads: both repeat bit for bit). A change that alters the numbers of a scene fails here; if
 the change is meant (a physics fix), write the digests again and say so in the commit.

@@ -20,12 +20,17 @@ to +28 %, a stiff sheet -7 %, creep up to 4 %). ``FLIP_ROWS`` are such cases, no
 tolerances, and mpm is in the covering design like the other schemes.
 
 Known limits (``KNOWN_LIMITS``). A 20-cell block (4 times as long as thick) 5 degrees from the
-friction limit (40 on 45 deg) creeps in every scheme and contact: 1.0-1.1 % of the frictionless
-distance for E = 1e6 Pa, 0.27-0.38 % for 1e8 (30 on 45 holds, below 0.02 %). Slip pulses start at
+friction limit (40 on 45 deg) creeps in every scheme and contact: 1.0-1.06 % of the frictionless
+distance for E = 1e6 Pa, 0.25-0.34 % for 1e8 (30 on 45 holds, below 0.02 %). Slip pulses start at
 its upslope end, which the overturning moment of the weight unloads, and ratchet it down the slope;
 the creep grows instead of settling (it runs away after 5-9 times the test's duration), grows with
 mesh refinement, and goes on under local damping, so it is no settling transient
-(docs/validation.md, contact). Those cases are strict xfails: they fail the suite if they ever meet
+(docs/validation.md, contact). The same shows in sliding cases just above the friction limit (not
+in the matrix, whose sliding pairs are 10 deg above it): on a 40 or 38 deg incline with 35 or 36
+deg friction blocks of 5 to 20 cells slide too far, +3.4 to +25 % at 40/35 and +42 to +135 % at
+38/36 (friction deficits of 0.8-10 % of mu, which the small net acceleration magnifies). A one-cell
+sheet is within the tolerance there since the mirror walls' normal impulse brings friction with it
+(``MIRROR_ROWS``; before, +2 to +8 %), except apic-affine in f32 (+4.1 % at 38/36). Those cases are strict xfails: they fail the suite if they ever meet
 the tolerances, so that this note is updated.
 """
 
@@ -60,10 +65,15 @@ WALL_ROWS = [
 
 _PULSES = pytest.mark.xfail(strict=True, reason="20-cell block 5 deg from the friction limit: slip pulses from its "
                                                 "upslope end grow into sliding (module note)")
+_NEAR = pytest.mark.xfail(strict=True, reason="sliding 2 deg above the friction limit: the same creep adds to the "
+                                              "slide, a small friction deficit is a large error (module note)")
 #: outside the tolerances (module note; measured in docs/validation.md, contact)
 KNOWN_LIMITS = [
-    pytest.param("apic", "f64", 20, 1e6, "right", [(40, 45)], marks=_PULSES, id="apic-soft-thick-40-45"),  # 1.07 %
-    pytest.param("mpm", "f64", 20, 1e8, "left", [(40, 45)], marks=_PULSES, id="mpm-stiff-thick-40-45"),  # 0.38 %
+    pytest.param("apic", "f64", 20, 1e6, "right", [(40, 45)], marks=_PULSES, id="apic-soft-thick-40-45"),  # 1.05 %
+    pytest.param("mpm", "f64", 20, 1e8, "left", [(40, 45)], marks=_PULSES, id="mpm-stiff-thick-40-45"),  # 0.34 %
+    pytest.param("apic", "f64", 5, 1e8, "bottom", [(38, 36)], marks=_NEAR, id="apic-stiff-5-slide-38-36"),  # +44 %
+    pytest.param("apic-affine", "f32", 1, 1e8, "left", [(38, 36)], marks=_NEAR,
+                 id="affine-stiff-sheet-slide-38-36"),  # +7.9 %
 ]
 
 # Classic mpm where FLIP's slip and opening waves used to grow (before PIC at contact nodes; module
@@ -107,6 +117,19 @@ def test_the_wall_rows_cover_every_pair_of_values():
 @pytest.mark.parametrize("scheme, precision, thickness, youngs, side, angles", WALL_ROWS)
 def test_a_block_at_rest_on_a_frictional_wall_slides_or_sticks_as_coulomb_says(scheme, precision, thickness,
                                                                                youngs, side, angles):
+    _wall_cases(scheme, precision, thickness, youngs, side, angles)
+
+
+# A sheet sliding just above the friction limit, where a small friction deficit is a large error: the
+# mirror walls' normal impulse used to come without friction (0.42 % less than mu N: +7.4 % at 38/36)
+MIRROR_ROWS = [
+    ("apic", "f64", 1, 1e8, "bottom", [(38, 36)]),
+    ("mpm", "f32", 1, 1e8, "right", [(38, 36), (40, 35)]),
+]
+
+
+@pytest.mark.parametrize("scheme, precision, thickness, youngs, side, angles", MIRROR_ROWS)
+def test_a_sheet_just_above_the_friction_limit_feels_mu_n(scheme, precision, thickness, youngs, side, angles):
     _wall_cases(scheme, precision, thickness, youngs, side, angles)
 
 
