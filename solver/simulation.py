@@ -465,7 +465,7 @@ class Simulation:
         after = float(np.median(ratio(returned[plastic])))
         log.warning("stage %r: the K0 stress lies outside the yield surface at %d of %d particles (plastic "
                     "points); the first step returns them to it: K = sigma_h / sigma_v %.3g -> %.3g (median). "
-                    "The cone cannot hold this K0 (docs/solver.md, initial stress)",
+                    "The cone cannot hold this K0 (docs/solver.md, plastic points after a k0 stage)",
                     stage.name, count, int(active.sum()), before, after)
         return {"plastic_points": count, "plastic_k0": after}
 

@@ -26,9 +26,15 @@ COLUMNS = ((20.0, 1.2), (35.0, 1.0), (27.0, 0.6))
 BEYOND = (40.0, 1.0)
 
 
-def _columns(scheme: str, cell_m: float, precision: str, duration_s: float = 0.3):
-    """One run with a column per COLUMNS row, each 4 cells wide between two slip structures 3 cells
-    thick (on node lines); frames of the dynamic stage every ``duration_s / 3``."""
+def _moved(polygon, origin_m):
+    return tuple((px + origin_m[0], py + origin_m[1]) for px, py in polygon)
+
+
+def _columns(scheme: str, cell_m: float, precision: str, origin_m=(0.0, 0.0), duration_s: float = 0.3):
+    """One run with a column per COLUMNS row (and BEYOND), each 4 cells wide between two slip
+    structures 3 cells thick (on node lines), the whole scene moved by ``origin_m``; frames of the
+    dynamic stage every ``duration_s / 3``."""
+    ox, oy = origin_m
     mats, pos, ids, structures = [], [], [], []
     h = cell_m / 2  # 2 x 2 particles per cell
     width = 4 * cell_m
@@ -37,18 +43,18 @@ def _columns(scheme: str, cell_m: float, precision: str, duration_s: float = 0.3
         mats.append(Material(f"sand {k}", "drucker-prager", RHO, 2e7, 0.3, cohesion_pa=0.0,
                              friction_angle_rad=math.radians(phi)))
         top = 2 * height
-        structures.append(Structure(f"left {k}", ((x - 3 * cell_m, -cell_m), (x, -cell_m), (x, top), (x - 3 * cell_m, top)),
-                                    Boundary("slip")))
+        structures.append(Structure(f"left {k}", _moved(((x - 3 * cell_m, -cell_m), (x, -cell_m), (x, top),
+                                                         (x - 3 * cell_m, top)), origin_m), Boundary("slip")))
         X, Y = np.meshgrid(x + (np.arange(round(width / h)) + 0.5) * h, (np.arange(round(height / h)) + 0.5) * h)
-        pos.append(np.c_[X.ravel(), Y.ravel()])
+        pos.append(np.c_[X.ravel() + ox, Y.ravel() + oy])
         ids.append(np.full(X.size, k, np.int32))
         x += width
-        structures.append(Structure(f"right {k}", ((x, -cell_m), (x + 3 * cell_m, -cell_m), (x + 3 * cell_m, top), (x, top)),
-                                    Boundary("slip")))
+        structures.append(Structure(f"right {k}", _moved(((x, -cell_m), (x + 3 * cell_m, -cell_m), (x + 3 * cell_m, top),
+                                                          (x, top)), origin_m), Boundary("slip")))
         x += 7 * cell_m
     positions = np.concatenate(pos)
     particles = Particles(positions, np.full(len(positions), h * h), np.concatenate(ids))
-    grid = Grid((0.0, 0.0), (x, 1.2 * max(H for _, H in COLUMNS + (BEYOND,))), cell_m, left=Boundary("slip"),
+    grid = Grid((ox, oy), (x, 1.2 * max(H for _, H in COLUMNS + (BEYOND,))), cell_m, left=Boundary("slip"),
                 right=Boundary("slip"), bottom=Boundary("slip"), top=Boundary("open"))
     # the k0 stage: every material's default K0, Jaky's 1 - sin(phi) for drucker-prager
     stages = (Stage("k0", "k0"), Stage("rest", "dynamic", duration_s=duration_s))
@@ -61,11 +67,13 @@ def _columns(scheme: str, cell_m: float, precision: str, duration_s: float = 0.3
     return frames, equilibrium, np.concatenate(ids)
 
 
-@pytest.mark.parametrize("scheme, cell_m, precision", [
-    ("mpm", 0.05, "f64"), ("apic", 0.1, "f32"), ("apic-affine", 0.05, "f32")])
+# every scheme, both precisions, two cell sizes (6-24 cells high); one scene far from (0, 0) (the
+# engine works relative to the grid origin, the structures too)
+@pytest.mark.parametrize("scheme, cell_m, precision, origin_m", [
+    ("mpm", 0.05, "f64", (0.0, 0.0)), ("apic", 0.1, "f32", (0.0, 0.0)), ("apic-affine", 0.05, "f32", (250.0, -40.0))])
 def test_a_granular_column_after_a_k0_stage_pushes_on_vertical_structures_with_the_at_rest_thrust(
-        scheme, cell_m, precision):
-    frames, equilibrium, ids = _columns(scheme, cell_m, precision)
+        scheme, cell_m, precision, origin_m):
+    frames, equilibrium, ids = _columns(scheme, cell_m, precision, origin_m)
     # the K0 state is in equilibrium next to the structures (a free top remains)
     assert equilibrium["unbalanced_force_ratio"] < 0.05
     # inside the cone but in the last column, where the report tells the K the return gives
