@@ -517,10 +517,13 @@ def _report_equilibrium(result: RunResult, quiet: bool) -> None:
     if quiet or not check:
         return
     ratio = check.get("unbalanced_force_ratio")
+    plastic = check.get("plastic_points") or 0
     err.print(
         f"initial equilibrium after {check.get('stage')!r}: unbalanced-force ratio "
         f"{ratio if ratio is None else format(ratio, '.3g')}, largest speed at its end "
-        f"{check.get('max_speed_m_s', 0.0):.3g} m/s",
+        f"{check.get('max_speed_m_s', 0.0):.3g} m/s"
+        + (f"; {plastic} plastic points (K0 stress outside the yield surface, returned to it at the "
+           f"first step: K = {check.get('plastic_k0'):.3g})" if plastic else ""),
         markup=False,
     )
 

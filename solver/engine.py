@@ -48,6 +48,9 @@ FIXED, SLIP, FRICTION, OPEN, PERIODIC = (BOUNDARY_CODES[k] for k in ("fixed", "s
 #: A particle found inside a structure after its move is put on the nearest point of the surface and
 #: this many cell sizes outside it (so that rounding never leaves it inside).
 PUSH_OUT_CELLS = 1e-3
+#: Particles closer than this many cell sizes to a structure's surface have a mirror image across it
+#: (``_mirror_structures``): an image deeper than 1.5 cells along each axis reaches no node outside.
+MIRROR_REACH_CELLS = 2.2
 #: Unit normal of each side (SIDES order), out of the wall into the domain.
 _INWARD = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
 
@@ -134,7 +137,8 @@ class Engine:
         # Grid: what every scheme needs, plus the force and old-velocity fields only where used.
         # ``g_mom`` holds momentum after P2G and the new velocity after the grid update.
         self.six_stage = scheme != "apic-affine"
-        self.separate_forces = self.six_stage or bool(damping)
+        # structures: the grid force is kept apart in every scheme, for their mirror forces
+        self.separate_forces = self.six_stage or bool(damping) or bool(structures)
         self.g_mass = ti.field(float, self.nodes)
         self.g_mom = ti.Vector.field(2, float, self.nodes)
         self.g_f = ti.Vector.field(2, float, self.nodes if self.separate_forces else (1, 1))
@@ -221,12 +225,15 @@ class Engine:
             kinds, mus = _contact_codes(contacts)
             self._io.write({"st_kind": kinds, "st_mu": mus})
 
+    def _node_coordinates(self) -> tuple[np.ndarray, np.ndarray]:
+        return (self.origin[0] + (np.arange(self.nodes[0]) - PAD) * self.dx,
+                self.origin[1] + (np.arange(self.nodes[1]) - PAD) * self.dx)
+
     def _set_up_structures(self, edges) -> None:
         self.set_structure_contacts(tuple(st.contact for st in self.structures))
         f = self.np_float
         counts = np.array([len(a) for a, _ in edges], np.int32)
-        xs = self.origin[0] + (np.arange(self.nodes[0]) - PAD) * self.dx
-        ys = self.origin[1] + (np.arange(self.nodes[1]) - PAD) * self.dx
+        xs, ys = self._node_coordinates()
         index, normal = node_contacts([st.polygon_m for st in self.structures], xs, ys, self.dx)
         self._io.write({
             "edge_a": np.concatenate([a for a, _ in edges]).astype(f),
@@ -336,6 +343,11 @@ class Engine:
         return ("reset grid", "P2G with stress and force", *fold, "mirror forces", "grid update", "mirror walls",
                 *copy, "G2P", "contact tally")
 
+    def _fused(self, damped: bool) -> bool:
+        """Whether apic-affine's P2G fuses the forces into the momentum: undamped and with no
+        structure (damping and the structures' mirror forces need the grid force apart)."""
+        return not self.six_stage and not damped and self.n_structures == 0
+
     @ti.kernel
     def _step(self, dt: float, gx: float, gy: float, damping: float, damped: ti.template()):
         # Each stage is a ti.func whose loops become top-level loops of this kernel, so they run in
@@ -361,13 +373,13 @@ class Engine:
             self.to_grid.particles(self, "force", dt, g, False)
         elif ti.static(stage == "P2G with stress and force"):
             # undamped, the forces go into the momentum (and the ghost nodes' force into ghost_f)
-            self.to_grid.particles(self, "affine", dt, g, not damped)
+            self.to_grid.particles(self, "affine", dt, g, ti.static(self._fused(damped)))
         elif ti.static(stage == "grid update" and self.six_stage):
             self._grid_update(dt, damping)
         elif ti.static(stage == "grid update"):
-            self._grid_update_fused(dt, damping, damped)
+            self._grid_update_fused(dt, damping, ti.static(not self._fused(damped)))
         elif ti.static(stage == "mirror forces"):
-            self._mirror_forces(dt, not self.six_stage and not damped)
+            self._mirror_forces(dt, g, ti.static(self._fused(damped)))
         elif ti.static(stage == "mirror walls (old)"):
             # every scheme's particles receive this first correction (see _grid_velocity): an impulse
             self._mirror_ghosts(True, True)
@@ -378,8 +390,8 @@ class Engine:
         elif ti.static(stage == "contact tally"):
             self._contact_tally(dt)
         elif ti.static(stage == "periodic fold"):
-            self._periodic_fold(True, not self.six_stage and self.separate_forces and damped,
-                                not self.six_stage and not damped)
+            self._periodic_fold(True, ti.static(not self.six_stage and not self._fused(damped)),
+                                ti.static(self._fused(damped)))
         elif ti.static(stage == "periodic fold (force)"):
             self._periodic_fold(False, True, False)
         elif ti.static(stage == "periodic copy (velocity)"):
@@ -668,7 +680,7 @@ class Engine:
                         self.g_mom[ghost] = new
 
     @ti.func
-    def _mirror_forces(self, dt, fused: ti.template()):
+    def _mirror_forces(self, dt, g, fused: ti.template()):
         for axis in ti.static(range(2)):
             # a few hundred nodes: on a CPU with few threads one thread beats waking the pool
             ti.loop_config(serialize=self.plain)
@@ -693,6 +705,89 @@ class Engine:
                         self.g_f[wall] -= f
                 if ti.static(fused):
                     self.ghost_f[side, along] = ti.Vector.zero(float, 2)  # ready for the next step
+        if ti.static(self.n_structures > 0):
+            self._mirror_structures(g)
+
+    @ti.func
+    def _mirror_structures(self, g):
+        """The mirror-image particles of the structures (docs/solver.md, contact).
+
+        A particle within MIRROR_REACH_CELLS of a structure's surface has an image across it: at
+        ``2 q - x`` (``q`` the nearest point of the surface), with the reflected stress and body
+        force, ``F sigma R`` and ``F m g`` (``R = I - 2 n n^T``, ``n`` the outward normal
+        ``(x - q) / |x - q|``; ``F = R`` for slip, the symmetric image, ``F = -I`` for fixed and
+        friction, the antisymmetric one, as at the closed sides). Its force goes to the free nodes
+        of its stencil (the share that material beyond the surface would give them, which their
+        truncated support misses) and its opposite to the particle's own contact nodes of that
+        structure, by their weights: momentum is unchanged and the reaction passes through the
+        contact law there. Particles share nodes: with plain adds (serial and split scatters) the
+        loop runs in one thread, so the sums repeat bit for bit (a bounding-box test per particle,
+        the image work only near a structure); with the atomic scatter (GPU) in parallel, with
+        atomic adds.
+        """
+        reach = ti.static(MIRROR_REACH_CELLS * self.dx)
+        ti.loop_config(serialize=self.plain)
+        for p in range(self.n):
+            if self.active[p]:
+                x = self.x[p]
+                for st in range(self.n_structures):
+                    box = self.st_box[st]
+                    if box[0] - reach <= x[0] <= box[2] + reach and box[1] - reach <= x[1] <= box[3] + reach:
+                        self._mirror_particle(p, st, x, g)
+
+    @ti.func
+    def _mirror_particle(self, p, st, x, g):
+        """Particle p's image across structure ``st`` (see :meth:`_mirror_structures`)."""
+        best = ti.cast(1e30, float)
+        q = x
+        inside = 0
+        first = self.st_edges[st, 0]
+        for k in range(first, first + self.st_edges[st, 1]):
+            a = self.edge_a[k]
+            ab = self.edge_b[k] - a
+            t = ti.min(ti.max((x - a).dot(ab) / ti.max(ab.dot(ab), 1e-30), 0.0), 1.0)
+            c = a + t * ab
+            d2 = (x - c).norm_sqr()
+            if d2 < best:
+                best = d2
+                q = c
+            if (a[1] > x[1]) != (a[1] + ab[1] > x[1]):  # crossing number
+                if x[0] < a[0] + (x[1] - a[1]) * ab[0] / ab[1]:
+                    inside = 1 - inside
+        dist = ti.sqrt(best)
+        reach = ti.static(MIRROR_REACH_CELLS * self.dx)
+        if inside == 0 and dist > 0.0 and dist < reach:
+            n = (x - q) / dist
+            R = ti.Matrix.identity(float, 2) - 2.0 * n.outer_product(n)
+            F = -ti.Matrix.identity(float, 2)
+            if self.st_kind[st] == SLIP:
+                F = R
+            s = self.s[p]
+            sig = F @ ti.Matrix([[s[0], s[2]], [s[2], s[1]]]) @ R
+            m = self.m[p]
+            vol = m / self.rho[p]
+            body = F @ (m * g)
+            # the particle's own contact nodes of this structure take the opposite, by their weights
+            base, fx, w, dw = self._stencil(x)
+            held = 0.0
+            for i, j in ti.static(ti.ndrange(3, 3)):
+                if self.node_struct[base + ti.Vector([i, j])] == st:
+                    held += w[i][0] * w[j][1]
+            if held > 0.0:
+                ibase, ifx, iw, idw = self._stencil(2.0 * q - x)
+                total = ti.Vector.zero(float, 2)
+                for i, j in ti.static(ti.ndrange(3, 3)):
+                    I = ibase + ti.Vector([i, j])
+                    if self._in_box(I) and not self._held(I):
+                        if self.g_mass[I] > 0.0:
+                            grad = ti.Vector([idw[i][0] * iw[j][1], iw[i][0] * idw[j][1]]) * self.inv_dx
+                            f = -vol * (sig @ grad) + iw[i][0] * iw[j][1] * body
+                            self.g_f[I] += f
+                            total += f
+                for i, j in ti.static(ti.ndrange(3, 3)):
+                    I = base + ti.Vector([i, j])
+                    if self.node_struct[I] == st:
+                        self.g_f[I] -= (w[i][0] * w[j][1] / held) * total
 
     @ti.func
     def _ghost_particle(self, p, g):
@@ -805,7 +900,7 @@ class Engine:
                 self.to_grid.add(self.g_f, I, force)
 
     @ti.func
-    def _grid_update_fused(self, dt, damping, damped: ti.template()):
+    def _grid_update_fused(self, dt, damping, apart: ti.template()):
         lo = self.lo[None]
         width = ti.max(self.hi[None] - lo, 0)
         for k in range(width[0] * width[1]):
@@ -813,7 +908,7 @@ class Engine:
             mass = self.g_mass[I]
             if mass > 0.0:
                 v = self.g_mom[I] / mass
-                if ti.static(damped):  # forces were kept apart for Cundall's local damping
+                if ti.static(apart):  # forces kept apart (Cundall's local damping, structures)
                     v += dt * self._damped(self.g_f[I], v, damping) / mass
                 self.g_mom[I] = self._contact(I, v, mass, True)
             else:

@@ -199,7 +199,10 @@ class Simulation:
             local_grid, config.materials, len(particles), config.numerics.scheme, np_float,
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
             damping=damping_support or any(st.damping > 0 for st in config.stages), scatter=config.numerics.scatter,
-            structures=config.structures,
+            # the structures in the engine's coordinates too (relative to the grid origin)
+            structures=tuple(dataclasses.replace(st, polygon_m=tuple(
+                (float(x - self.origin_m[0]), float(y - self.origin_m[1])) for x, y in st.polygon_m))
+                for st in config.structures),
         )
         self.engine.load_particles(np.asarray(particles.positions_m, dtype=np.float64) - self.origin_m,
                                    particles.volumes_m2, particles.material_ids,
@@ -423,6 +426,49 @@ class Simulation:
             log.info(text)
         return check
 
+    def plastic_points(self, stage: Stage, stress: np.ndarray, active: np.ndarray) -> dict[str, Any]:
+        """The particles whose K0 stress lies outside their material's yield surface ("plastic
+        points", as geotechnical codes call them after a K0 procedure), and the K they reach.
+
+        The run keeps the K0 stress as set; the first step's stress update returns these particles
+        to the yield surface (at rest, with a negligible strain increment), which is the
+        correction such codes make. Here the same return (``drucker_prager.return_map_host``)
+        tells what ``K = sigma_h / sigma_v`` results, and the log says so.
+
+        Returns
+        -------
+        dict
+            ``plastic_points`` (int) and ``plastic_k0`` (the median K of those particles after
+            the return, None without any).
+        """
+        from solver.materials import MODEL_CODES, drucker_prager, material_rows  # Taichi: after the runtime
+
+        rows = material_rows(self._materials)
+        mat = np.asarray(self.particles.material_ids)
+        dp = active & (rows["model"][mat] == MODEL_CODES["drucker-prager"])
+        if not dp.any():
+            return {"plastic_points": 0, "plastic_k0": None}
+        cols = {k: rows[k][mat[dp]] for k in ("K", "G", "alpha", "kc", "alpha_psi", "t_cut")}
+        returned, plastic = drucker_prager.return_map_host(stress[dp], **cols)
+        count = int(plastic.sum())
+        if not count:
+            return {"plastic_points": 0, "plastic_k0": None}
+        g = np.asarray(self.config.gravity_m_s2, dtype=float)
+        down = g / max(float(np.linalg.norm(g)), 1e-300)
+        across = np.array([-down[1], down[0]])
+
+        def ratio(s):
+            sig = np.stack([np.stack([s[:, 0], s[:, 2]], -1), np.stack([s[:, 2], s[:, 1]], -1)], -2)
+            return (sig @ across @ across) / np.minimum(sig @ down @ down, -1e-300)
+
+        before = float(np.median(ratio(stress[dp][plastic])))
+        after = float(np.median(ratio(returned[plastic])))
+        log.warning("stage %r: the K0 stress lies outside the yield surface at %d of %d particles (plastic "
+                    "points); the first step returns them to it: K = sigma_h / sigma_v %.3g -> %.3g (median). "
+                    "The cone cannot hold this K0 (docs/solver.md, plastic points after a k0 stage)",
+                    stage.name, count, int(active.sum()), before, after)
+        return {"plastic_points": count, "plastic_k0": after}
+
     # ------------------------------------------------------------------ the run
     def run(self, cancel: Callable[[], bool] | None = None,
             on_progress: Callable[[Progress], None] | None = None, *,
@@ -458,9 +504,11 @@ class Simulation:
                     log.info("stage %r: material parameters changed", stage.name)
                 if stage.kind == "k0":
                     now = e.state(("active", "x"))
-                    e.set_stress(k0_stress(self.particles, self._materials, cfg.gravity_m_s2,
-                                           cfg.grid.cell_size_m, stage.k0, now["active"].astype(bool), now["x"]))
-                    self.equilibrium = self.equilibrium_check(stage, c.dt_s, float(e.diagnostics()["max_speed"]))
+                    stress = k0_stress(self.particles, self._materials, cfg.gravity_m_s2,
+                                       cfg.grid.cell_size_m, stage.k0, now["active"].astype(bool), now["x"])
+                    e.set_stress(stress)
+                    self.equilibrium = {**self.equilibrium_check(stage, c.dt_s, float(e.diagnostics()["max_speed"])),
+                                        **self.plastic_points(stage, stress, now["active"].astype(bool))}
                     continue
                 if stage.kind == "dynamic" and self.envelopes is not None and not self.envelopes.started:
                     self.envelopes.start(self.time_s)  # the release: ground surface and initial state

@@ -45,6 +45,7 @@ plastic strain increment, ``(s_trial - s_new) / (2 G)``.
 
 import math
 
+import numpy as np
 from solver.runtime import ti
 
 
@@ -131,3 +132,39 @@ def return_map(s, K, G, alpha, kc, alpha_psi, t_cut):
         out = ti.Vector([out[0] - shift, out[1] - shift, out[2], out[3] - shift])
         yielded = 1
     return out, deq, yielded
+
+
+def return_map_host(stress, K, G, alpha, kc, alpha_psi, t_cut) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`return_map` in numpy (float64), for many stresses at once: the admissible stress and
+    whether it yielded (used on the host, e.g. to report the particles a K0 stress puts outside
+    the cone; tests/unit/test_solver_thrust.py checks it against the kernel).
+
+    Parameters
+    ----------
+    stress : (N, 4) Pa, xx, yy, xy, zz (compression negative)
+    K, G : bulk and shear moduli, Pa, scalars or (N,)
+    alpha, kc, alpha_psi, t_cut : the cone (:func:`dp_constants`; ``t_cut`` Pa), scalars or (N,)
+
+    Returns
+    -------
+    (N, 4) Pa, the returned stress; (N,) bool, whether the stress was outside (plastic).
+    """
+    s = np.asarray(stress, dtype=np.float64).reshape(-1, 4)
+    K, G, alpha, kc, alpha_psi, t_cut = np.broadcast_arrays(
+        *(np.asarray(v, dtype=np.float64) for v in (K, G, alpha, kc, alpha_psi, t_cut)), s[:, 0])[:6]
+    p = (s[:, 0] + s[:, 1] + s[:, 3]) / 3.0
+    d0, d1, dz, d01 = s[:, 0] - p, s[:, 1] - p, s[:, 3] - p, s[:, 2]
+    sq = np.sqrt(0.5 * (d0 * d0 + d1 * d1 + dz * dz) + d01 * d01)
+    f = sq + alpha * 3.0 * p - kc
+    tol = 1e-6 * (sq + np.abs(alpha * 3.0 * p) + kc) + 1e-30
+    plastic = f > tol
+    dlam = np.where(plastic, f, 0.0) / (G + 9.0 * K * alpha * alpha_psi)
+    cone = sq - G * dlam > 0.0
+    scale = np.where(plastic, np.where(cone, (sq - G * dlam) / np.where(sq > 0.0, sq, 1.0), 0.0), 1.0)
+    p_new = np.where(plastic, np.where(cone, p - 3.0 * K * alpha_psi * dlam, kc / (3.0 * np.maximum(alpha, 1e-12))), p)
+    out = np.stack([p_new + scale * d0, p_new + scale * d1, scale * d01, p_new + scale * dz], axis=1)
+    pm = (out[:, 0] + out[:, 1] + out[:, 3]) / 3.0
+    cut = pm > t_cut
+    shift = np.where(cut, pm - t_cut, 0.0)
+    out[:, [0, 1, 3]] -= shift[:, None]
+    return out, plastic | cut

@@ -1,0 +1,119 @@
+"""At-rest thrust of granular columns on vertical structures after a K0 stage (issue 11).
+
+A Drucker-Prager column (c = 0) between two vertical slip structures gets Jaky's geostatic stress
+from a ``k0`` stage (``sigma_h = (1 - sin phi) sigma_v``) and is then left to itself, undamped:
+the force on each structure is the at-rest thrust ``1/2 K0 rho g H^2`` (Terzaghi, Theoretical
+Soil Mechanics, 1943; Jaky 1944 for K0) as long as the K0 state is in equilibrium on the grid next
+to the structures, which the structures' mirror-image particles provide (docs/solver.md, contact).
+Without them the six-stage schemes drifted to +4 to +5 % within 0.5 s (docs/validation.md).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from solver.config import Boundary, Grid, Material, Numerics, Output, Particles, SimulationConfig, Stage, Structure
+from solver.simulation import Simulation
+
+RHO, G = 1800.0, 9.81
+#: (friction angle deg, height m) of the columns of one run: the range in which the default cone
+#: (``plane-strain-associated``) holds Jaky's K0 state (up to about 35 deg; see docs/solver.md)
+COLUMNS = ((20.0, 1.2), (35.0, 1.0), (27.0, 0.6))
+#: and one it cannot hold: every particle of this column is a plastic point after the k0 stage
+BEYOND = (40.0, 1.0)
+
+
+def _moved(polygon, origin_m):
+    return tuple((px + origin_m[0], py + origin_m[1]) for px, py in polygon)
+
+
+def _columns(scheme: str, cell_m: float, precision: str, origin_m=(0.0, 0.0), scatter: str = "auto",
+             duration_s: float = 0.3):
+    """One run with a column per COLUMNS row (and BEYOND), each 4 cells wide between two slip
+    structures 3 cells thick (on node lines), the whole scene moved by ``origin_m``; frames of the
+    dynamic stage every ``duration_s / 3``."""
+    ox, oy = origin_m
+    mats, pos, ids, structures = [], [], [], []
+    h = cell_m / 2  # 2 x 2 particles per cell
+    width = 4 * cell_m
+    x = 3 * cell_m
+    for k, (phi, height) in enumerate(COLUMNS + (BEYOND,)):
+        mats.append(Material(f"sand {k}", "drucker-prager", RHO, 2e7, 0.3, cohesion_pa=0.0,
+                             friction_angle_rad=math.radians(phi)))
+        top = 2 * height
+        structures.append(Structure(f"left {k}", _moved(((x - 3 * cell_m, -cell_m), (x, -cell_m), (x, top),
+                                                         (x - 3 * cell_m, top)), origin_m), Boundary("slip")))
+        X, Y = np.meshgrid(x + (np.arange(round(width / h)) + 0.5) * h, (np.arange(round(height / h)) + 0.5) * h)
+        pos.append(np.c_[X.ravel() + ox, Y.ravel() + oy])
+        ids.append(np.full(X.size, k, np.int32))
+        x += width
+        structures.append(Structure(f"right {k}", _moved(((x, -cell_m), (x + 3 * cell_m, -cell_m), (x + 3 * cell_m, top),
+                                                          (x, top)), origin_m), Boundary("slip")))
+        x += 7 * cell_m
+    positions = np.concatenate(pos)
+    particles = Particles(positions, np.full(len(positions), h * h), np.concatenate(ids))
+    grid = Grid((ox, oy), (x, 1.2 * max(H for _, H in COLUMNS + (BEYOND,))), cell_m, left=Boundary("slip"),
+                right=Boundary("slip"), bottom=Boundary("slip"), top=Boundary("open"))
+    # the k0 stage: every material's default K0, Jaky's 1 - sin(phi) for drucker-prager
+    stages = (Stage("k0", "k0"), Stage("rest", "dynamic", duration_s=duration_s))
+    cfg = SimulationConfig(grid, tuple(mats), stages, (0.0, -G),
+                           Numerics(scheme=scheme, cfl=0.5, arch="cpu", precision=precision, scatter=scatter),
+                           Output(duration_s / 3), tuple(structures))
+    with Simulation(cfg, particles) as sim:
+        frames = list(sim.run())
+        equilibrium = sim.equilibrium
+    return frames, equilibrium, np.concatenate(ids)
+
+
+# every scheme, both precisions, two cell sizes (6-24 cells high); one scene far from (0, 0) (the
+# engine works relative to the grid origin, the structures too) with the atomic scatter (the
+# mirror particles' parallel path, as on a GPU)
+@pytest.mark.parametrize("scheme, cell_m, precision, origin_m, scatter", [
+    ("mpm", 0.05, "f64", (0.0, 0.0), "auto"), ("apic", 0.1, "f32", (0.0, 0.0), "auto"),
+    ("apic-affine", 0.05, "f32", (250.0, -40.0), "atomic")])
+def test_a_granular_column_after_a_k0_stage_pushes_on_vertical_structures_with_the_at_rest_thrust(
+        scheme, cell_m, precision, origin_m, scatter):
+    frames, equilibrium, ids = _columns(scheme, cell_m, precision, origin_m, scatter)
+    # the K0 state is in equilibrium next to the structures (a free top remains)
+    assert equilibrium["unbalanced_force_ratio"] < 0.05
+    # inside the cone but in the last column, where the report tells the K the return gives
+    assert equilibrium["plastic_points"] == np.count_nonzero(ids == len(COLUMNS))
+    phi, height = BEYOND
+    k_plastic = equilibrium["plastic_k0"]
+    assert 1.0 - math.sin(math.radians(phi)) < k_plastic < 0.45
+    for frame in frames[1:]:  # and that K gives the thrust of that column
+        force = {c.contact: c for c in frame.contacts}[f"right {len(COLUMNS)}"].force_x_N_per_m
+        assert force == pytest.approx(0.5 * k_plastic * RHO * G * height ** 2, rel=0.05)
+    for k, (phi, height) in enumerate(COLUMNS):
+        thrust = 0.5 * (1.0 - math.sin(math.radians(phi))) * RHO * G * height ** 2
+        for frame in frames[1:]:  # the mean force over every output interval of the undamped stage
+            forces = {c.contact: c for c in frame.contacts}
+            where = f"{scheme} {cell_m} m {precision}, phi {phi}, H {height} m, t {frame.diagnostics.time_s:.2f} s"
+            assert forces[f"right {k}"].force_x_N_per_m == pytest.approx(thrust, rel=0.05), where
+            assert -forces[f"left {k}"].force_x_N_per_m == pytest.approx(thrust, rel=0.05), where
+            assert abs(forces[f"right {k}"].force_y_N_per_m) < 0.01 * thrust, where  # slip: no shear
+
+
+def test_the_host_return_map_is_the_kernels():
+    """``return_map_host`` (the k0 stage's plastic-point report) returns stresses as the kernel does."""
+    from solver import runtime
+    from solver.materials import MaterialPointDriver, drucker_prager, material_rows
+
+    runtime.acquire("cpu", "f64")
+    rng = np.random.default_rng(3)
+    n = 400
+    stress = rng.normal(0.0, 1e4, (n, 4)) - np.array([2e4, 3e4, 0.0, 2e4]) * rng.random((n, 1))
+    mats = [Material("a", "drucker-prager", RHO, 2e7, 0.3, cohesion_pa=c, friction_angle_rad=math.radians(phi),
+                     dilatancy_angle_rad=math.radians(psi), tensile_strength_pa=t)
+            for c, phi, psi, t in ((0.0, 40.0, 0.0, None), (5e3, 25.0, 10.0, 1e3))]
+    ids = np.arange(n) % 2
+    kernel = MaterialPointDriver(mats, n).run(stress, np.zeros((n, 2, 2)), 1e-4, material_ids=ids)
+    rows = material_rows(mats)
+    host, plastic = drucker_prager.return_map_host(
+        stress, **{k: rows[k][ids] for k in ("K", "G", "alpha", "kc", "alpha_psi", "t_cut")})
+    assert 0 < plastic.sum() < n
+    np.testing.assert_array_equal(plastic, kernel["yielded"] == 1)
+    np.testing.assert_allclose(host, kernel["stress"], rtol=1e-10, atol=1e-6)
