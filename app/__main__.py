@@ -36,7 +36,21 @@ def main(argv: list[str] | None = None) -> int:
         if not getattr(cli, "INTERRUPT_SHOWN", False):
             sys.stderr.write("error: interrupted (Ctrl-C)\n")
         return 130
+    finally:
+        if argv is None:
+            _ignore_stop_signals_while_exiting()
     return 0
+
+
+def _ignore_stop_signals_while_exiting() -> None:
+    """The command is done (its results and status written): a Ctrl-C or SIGTERM from now on is
+    ignored while the process exits. Python's finalisation puts the default handlers back
+    (except "ignore"), so a signal arriving there would kill the process with no word and a
+    misleading exit status (-2) although everything was saved. Process-wide: Taichi's worker
+    threads would take a signal that one thread blocked."""
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), signal.SIG_IGN)
 
 
 if __name__ == "__main__":  # pragma: no cover
