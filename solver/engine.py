@@ -736,10 +736,11 @@ class Engine:
                         self._mirror_particle(p, st, x, g)
 
     @ti.func
-    def _mirror_particle(self, p, st, x, g):
-        """Particle p's image across structure ``st`` (see :meth:`_mirror_structures`)."""
+    def _nearest_surface_point(self, st, x):
+        """The point of structure ``st``'s outline nearest to ``x``, its squared distance (m2), and
+        whether ``x`` lies inside the structure (1) or not (0; crossing number)."""
         best = ti.cast(1e30, float)
-        q = x
+        nearest = x
         inside = 0
         first = self.st_edges[st, 0]
         for k in range(first, first + self.st_edges[st, 1]):
@@ -750,10 +751,16 @@ class Engine:
             d2 = (x - c).norm_sqr()
             if d2 < best:
                 best = d2
-                q = c
-            if (a[1] > x[1]) != (a[1] + ab[1] > x[1]):  # crossing number
+                nearest = c
+            if (a[1] > x[1]) != (a[1] + ab[1] > x[1]):
                 if x[0] < a[0] + (x[1] - a[1]) * ab[0] / ab[1]:
                     inside = 1 - inside
+        return nearest, best, inside
+
+    @ti.func
+    def _mirror_particle(self, p, st, x, g):
+        """Particle p's image across structure ``st`` (see :meth:`_mirror_structures`)."""
+        q, best, inside = self._nearest_surface_point(st, x)
         dist = ti.sqrt(best)
         reach = ti.static(MIRROR_REACH_CELLS * self.dx)
         if inside == 0 and dist > 0.0 and dist < reach:
@@ -1072,22 +1079,7 @@ class Engine:
         for s in range(self.n_structures):
             box = self.st_box[s]
             if box[0] <= x[0] <= box[2] and box[1] <= x[1] <= box[3]:
-                inside = 0
-                best = ti.cast(1e30, float)
-                nearest = x
-                first = self.st_edges[s, 0]
-                for k in range(first, first + self.st_edges[s, 1]):
-                    a = self.edge_a[k]
-                    ab = self.edge_b[k] - a
-                    t = ti.min(ti.max((x - a).dot(ab) / ti.max(ab.dot(ab), 1e-30), 0.0), 1.0)
-                    q = a + t * ab
-                    d2 = (x - q).norm_sqr()
-                    if d2 < best:
-                        best = d2
-                        nearest = q
-                    if (a[1] > x[1]) != (a[1] + ab[1] > x[1]):  # crossing number
-                        if x[0] < a[0] + (x[1] - a[1]) * ab[0] / ab[1]:
-                            inside = 1 - inside
+                nearest, _d2, inside = self._nearest_surface_point(s, x)
                 if inside == 1:
                     out = nearest - x
                     size = out.norm()
