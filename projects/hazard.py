@@ -502,11 +502,18 @@ class HazardOutput:
 
 def read_hazard(results_dir: str | Path) -> dict[str, Any]:
     """``hazard.json`` of a results folder, with ``profile`` (dict of arrays from
-    ``hazard_profile.csv``) and ``series`` (dict of arrays from ``targets.csv``) added."""
+    ``hazard_profile.csv``) and ``series`` (dict of arrays from ``targets.csv``, the rows up to
+    ``hazard.json``'s time) added."""
     path = Path(results_dir)
     doc = json.loads((path / HAZARD_JSON).read_text(encoding="utf-8"))
     doc["profile"] = _read_csv(path / PROFILE_CSV)
-    doc["series"] = _read_csv(path / TARGETS_CSV)
+    series = _read_csv(path / TARGETS_CSV)
+    # hazard.json is written last: a run killed between the files leaves targets.csv a frame
+    # ahead of it. The rows hazard.json was made from are its first `sampling.updates`.
+    rows = doc.get("sampling", {}).get("updates")
+    if rows is not None:
+        series = {name: col[: int(rows)] for name, col in series.items()}
+    doc["series"] = series
     return doc
 
 

@@ -5,7 +5,8 @@
   block's speed, peak height its height, the deposit its footprint, the run-out its front.
 - A column collapse: the run-out equals the toe measured from the last frame within a raster
   cell, and the envelopes are never below the values of any output frame.
-- A killed run keeps the hazard files of its last frames, complete and readable.
+- A killed run keeps the hazard files of its last frames, complete and readable; a kill between
+  the files leaves them read as of hazard.json (written last).
 """
 
 from __future__ import annotations
@@ -205,6 +206,19 @@ def test_column_collapse_runout_and_envelopes_bound_every_frame(tiny_project, tm
     speed_map = vtk_to_numpy(image.GetCellData().GetArray("max_speed_m_s")).reshape(doc["raster"]["shape"][1], nx)
     np.testing.assert_allclose(speed_map.max(axis=0), prof["max_speed_m_s"], rtol=1e-6)
     assert json.loads((result.out_dir / HAZARD_JSON).read_text())["status"] == "completed"
+
+    # a run killed after writing a later update's targets.csv but before hazard.json: the reader
+    # gives the series hazard.json was made from, ending at its time
+    series = doc["series"]
+    assert series["time_s"][-1] == pytest.approx(doc["time_s"])
+    targets = result.out_dir / TARGETS_CSV
+    last = targets.read_text().splitlines()[-1].split(",")
+    later = [repr(doc["time_s"] + 0.002)] + last[1:]
+    targets.write_text(targets.read_text() + ",".join(later) + "\n")
+    again = read_hazard(result.out_dir)
+    assert set(again["series"]) == set(series)
+    for name, col in series.items():
+        np.testing.assert_array_equal(again["series"][name], col)
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="SIGKILL")
