@@ -190,6 +190,9 @@ class _RunProgress:
     """Rich progress bar fed by the solver's Progress callbacks (or nothing when quiet)."""
 
     def __init__(self, quiet: bool) -> None:
+        self.bar = None
+        if quiet:  # no bar: rich.progress is not even imported (part of every quiet run's start-up)
+            return
         from rich.progress import (
             BarColumn,
             Progress,
@@ -207,25 +210,30 @@ class _RunProgress:
             TextColumn("ETA"),
             TimeRemainingColumn(),
             console=err,
-            disable=quiet,
         )
         self.task = self.bar.add_task("preparing", total=None, rate="", clock="")
 
     def __enter__(self) -> _RunProgress:
-        self.bar.__enter__()
+        if self.bar is not None:
+            self.bar.__enter__()
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self.bar.__exit__(None, None, None)
+        if self.bar is not None:
+            self.bar.__exit__(None, None, None)
 
     def finish(self) -> None:
         """Show the bar full (the summed time steps may fall short of the total by round-off)."""
+        if self.bar is None:
+            return
         task = self.bar.tasks[0]
         if task.total is not None:
             self.bar.update(self.task, completed=task.total)
 
     def update(self, p: Any) -> None:
         """Show a ``solver.simulation.Progress`` (time_s, total_time_s, stage, steps_per_s)."""
+        if self.bar is None:
+            return
         total = p.total_time_s if p.total_time_s > 0 else None
         from rich.markup import escape
 

@@ -150,12 +150,10 @@ class Envelopes:
 
     def start(self, time_s: float) -> None:
         """The release: take the ground surface and the initial particle state, then update once."""
-        e = self.engine
-        self._reference(e.x, e.m, e.rho, e.active)
         self.initial = self._particles()
         self.started = True
         self.release_time_s = float(time_s)
-        self.update(time_s)
+        self.update(time_s, release=True)
 
     def after_step(self, time_s: float) -> None:
         """Count one step; update every ``every_steps`` steps."""
@@ -170,11 +168,12 @@ class Envelopes:
         if self.started and self._updated_at != self.steps:
             self.update(time_s)
 
-    def update(self, time_s: float) -> None:
-        """One update of every envelope at simulated time ``time_s`` (s)."""
+    def update(self, time_s: float, release: bool = False) -> None:
+        """One update of every envelope at simulated time ``time_s`` (s); at the ``release`` it
+        also takes the surface as the ground."""
         e = self.engine
         self._update(e.x, e.v, e.m, e.rho, e.active, float(time_s), float(self.config.flow_height_threshold_m),
-                     self._slot)
+                     self._slot, int(release))
         self.time_s = float(time_s)
         self._updated_at = self.steps
         self._slot += 1
@@ -335,32 +334,11 @@ class Envelopes:
             self.t_now[k] = ti.Vector.zero(float, 3)
             self.t_hit[k] = 0
 
-    @ti.func
-    def _surface_of(self, x: ti.template(), m: ti.template(), rho: ti.template(), active: ti.template()):
-        for p in range(self.n):
-            if active[p] != 0:
-                xp = x[p]
-                half = 0.5 * ti.sqrt(m[p] / rho[p])
-                i = self._column(xp)
-                ti.atomic_max(self.top[i], xp[1] + half)
-                ti.atomic_max(self.edge_hi[i], xp[0] + half)
-                ti.atomic_min(self.edge_lo[i], xp[0] - half)
-                for k in range(self.n_targets):
-                    if ti.abs(xp[0] - self.t_xy[k][0]) <= half:
-                        ti.atomic_max(self.t_top[k], xp[1] + half)
-
-    @ti.kernel
-    def _reference(self, x: ti.template(), m: ti.template(), rho: ti.template(), active: ti.template()):
-        self._clear_current()
-        self._surface_of(x, m, rho, active)
-        for i in range(self.shape[0]):
-            self.ground[i] = ti.max(self.floor[i], self.top[i])
-        for k in range(self.n_targets):
-            self.t_ground[k] = ti.max(self.floor[self._column(self.t_xy[k])], self.t_top[k])
-
     @ti.kernel
     def _update(self, x: ti.template(), v: ti.template(), m: ti.template(), rho: ti.template(),
-                active: ti.template(), t: float, threshold: float, slot: ti.i32):
+                active: ti.template(), t: float, threshold: float, slot: ti.i32, release: ti.i32):
+        # ``release``: this update is the release's, whose surface is also the ground (the
+        # reference of every height); one kernel for both saves compiling a second one per run
         self._clear_current()
         self.energy[None] = 0.0
         self.speed_now[None] = 0.0
@@ -399,6 +377,8 @@ class Envelopes:
                             self.t_hit[k] = 1
         ti.loop_config(serialize=True)
         for i in range(self.shape[0]):
+            if release != 0:
+                self.ground[i] = ti.max(self.floor[i], self.top[i])
             h = ti.max(self.top[i] - self.ground[i], 0.0)
             ti.atomic_max(self.peak_height[i], h)
             if h > threshold:
@@ -408,6 +388,8 @@ class Envelopes:
                 ti.atomic_min(self.front[1], self.edge_lo[i])
         ti.loop_config(serialize=True)
         for k in range(self.n_targets):
+            if release != 0:
+                self.t_ground[k] = ti.max(self.floor[self._column(self.t_xy[k])], self.t_top[k])
             h = ti.max(self.t_top[k] - self.t_ground[k], 0.0)
             self.t_now[k][0] = h
             reached = h > threshold

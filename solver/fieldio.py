@@ -66,6 +66,11 @@ class FieldIO:
         self.layout = tuple(layout)
         self._index = {entry[0]: k for k, entry in enumerate(layout)}
         self.entries = tuple((field, slot, offset, shape, element) for _n, field, slot, offset, shape, element in layout)
+        # fields of one shape share the bound test and the multi-index of element i in the kernel
+        groups: dict[tuple[int, ...], list[int]] = {}
+        for k, (*_r, shape, _e) in enumerate(layout):
+            groups.setdefault(shape, []).append(k)
+        self.groups = tuple((shape, tuple(ks)) for shape, ks in groups.items())
         self._counts = [math.prod(shape) for *_r, shape, _e in layout]  # elements per field
         self.sizes = sizes
         self.shapes = {name: shape + element for name, _f, _s, _o, shape, element in layout}
@@ -139,20 +144,24 @@ class FieldIO:
               f32: ti.types.ndarray(dtype=ti.f32, ndim=1), f64: ti.types.ndarray(dtype=ti.f64, ndim=1),
               i32: ti.types.ndarray(dtype=ti.i32, ndim=1), i8: ti.types.ndarray(dtype=ti.i8, ndim=1)):
         for i in range(extent):
-            for k in ti.static(range(len(self.entries))):
-                field, slot, offset, shape, element = ti.static(self.entries[k])
-                buf = ti.static((f32, f64, i32, i8)[_SLOTS.index(slot)])
-                if mask[k] and i < ti.static(math.prod(shape)):
-                    base = offset + i * ti.static(math.prod(element))
-                    if ti.static(len(shape) == 0):
-                        self._copy_element(into_fields, field, None, buf, base, element)
-                    else:
-                        I = ti.Vector([0] * ti.static(len(shape)))
+            for g in ti.static(range(len(self.groups))):
+                shape, members = ti.static(self.groups[g])
+                if i < ti.static(math.prod(shape)):
+                    I = ti.Vector([0] * ti.static(max(len(shape), 1)))
+                    if ti.static(len(shape) > 0):
                         rest = i
                         for d in ti.static(range(len(shape) - 1, -1, -1)):
                             I[d] = rest % shape[d]
                             rest //= shape[d]
-                        self._copy_element(into_fields, field, I, buf, base, element)
+                    for k in ti.static(members):
+                        field, slot, offset, _shape, element = ti.static(self.entries[k])
+                        buf = ti.static((f32, f64, i32, i8)[_SLOTS.index(slot)])
+                        if mask[k]:
+                            base = offset + i * ti.static(math.prod(element))
+                            if ti.static(len(shape) == 0):
+                                self._copy_element(into_fields, field, None, buf, base, element)
+                            else:
+                                self._copy_element(into_fields, field, I, buf, base, element)
 
     @ti.func
     def _copy_element(self, into_fields, field: ti.template(), I: ti.template(), buf: ti.template(), base,
