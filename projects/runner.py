@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 import os
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -28,6 +29,16 @@ from typing import TYPE_CHECKING, Any
 from projects.results import ResultsError, ResultsWriter, is_results_dir
 from projects.results_folder import check_results_dir
 from solver.config import InstabilityError, SolverError
+
+
+def runout_command(*args: str) -> list[str]:
+    """``runout ARGS`` as a child process of this Python (the workbench's runs, sweeps' runs).
+
+    ``python -m app`` is the ``runout`` script's own path: it takes ``app.__main__``'s start-up
+    settings and the command line's cached bytecode, where ``-m app.cli`` would compile that
+    module afresh in every process (a ``__main__`` is never cached).
+    """
+    return [sys.executable, "-m", "app", *args]
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from projects.build import ResolvedRun

@@ -29,6 +29,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from projects.runner import runout_command
+
 logger = logging.getLogger(__name__)
 
 #: Statuses of a run record. ``completed``/``failed`` (the solver stopped on an instability) and
@@ -208,8 +210,7 @@ def execute_run(task: dict[str, Any]) -> dict[str, Any]:
     threads = str(int(task.get("threads") or 1))
     env.update({"TI_CPU_MAX_NUM_THREADS": threads, "OMP_NUM_THREADS": threads,
                 "ENABLE_TAICHI_HEADER_PRINT": "0", "TI_ENABLE_PYBUF": "0"})
-    cmd = [sys.executable, "-m", "app.cli", "run", str(project), "--out", str(results), "--quiet",
-           "--arch", task.get("arch") or "cpu"]
+    cmd = runout_command("run", str(project), "--out", str(results), "--quiet", "--arch", task.get("arch") or "cpu")
     t0 = time.perf_counter()
     try:
         proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=task.get("timeout_s"),

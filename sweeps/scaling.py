@@ -18,9 +18,10 @@ import json
 import os
 import shutil
 import subprocess
-import sys
 import time
 from pathlib import Path
+
+from projects.runner import runout_command
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_SPEC = REPO / "projects" / "examples" / "sweeps" / "tiny_column_friction.toml"
@@ -61,8 +62,8 @@ def main(argv: list[str] | None = None) -> int:
     for plan in last.plans:
         project = seq / f"{plan.run_id}.toml"
         project.write_text(plan.project_text, encoding="utf-8")
-        subprocess.run([sys.executable, "-m", "app.cli", "run", str(project), "--out", str(seq / plan.run_id),
-                        "--quiet"], check=False, capture_output=True)
+        subprocess.run(runout_command("run", str(project), "--out", str(seq / plan.run_id), "--quiet"),
+                       check=False, capture_output=True)
     seq_s = time.perf_counter() - t0
     with open("/proc/loadavg", encoding="utf-8") as fh:
         load_after = fh.read().split()[:3]

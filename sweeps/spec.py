@@ -472,10 +472,10 @@ def command_line(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[s
     The workbench starts this as a process of its own (it never imports Ray or Taichi) and follows
     ``progress.json`` and ``sweep.csv`` (:func:`sweeps.sweep.read_sweep`) in ``out_dir``.
     """
-    import sys
-
     kind = "calibrate" if "calibration" in load_spec(spec_path).model_fields_set else "sweep"
-    cmd = [sys.executable, "-m", "app.cli", kind, str(spec_path), "--out", str(out_dir)]
+    from projects.runner import runout_command
+
+    cmd = runout_command(kind, str(spec_path), "--out", str(out_dir))
     if workers is not None:
         cmd += ["--workers", str(workers)]
     if address is not None:

@@ -1,6 +1,6 @@
 """A run is a process: ``runout run`` as a child of the workbench, followed through a pipe and its folder.
 
-:class:`RunProcess` starts ``python -m app.cli run PROJECT --out DIR --progress jsonl`` with a
+:class:`RunProcess` starts ``python -m app run PROJECT --out DIR --progress jsonl`` with a
 :class:`~PySide6.QtCore.QProcess` (no thread of ours: Qt watches the pipes in its event loop). The
 child prints one JSON object per line (see :class:`app.cli._JsonProgress`): ``started``,
 ``progress``, ``frame`` and ``finished``; this object turns them into signals. The frames
@@ -24,7 +24,6 @@ import logging
 import os
 import shutil
 import signal
-import sys
 import tempfile
 import time
 from collections import deque
@@ -154,8 +153,9 @@ class RunProcess(QObject):
             self._tmp = Path(tempfile.mkdtemp(prefix="runout-run-"))
         project_file = self._tmp / f"{self.name}.toml"
         project_file.write_text(self.project_text, encoding="utf-8")
-        args = [sys.executable, "-m", "app.cli", "run", str(project_file), "--out", str(self.out_dir),
-                "--progress", "jsonl"]
+        from projects.runner import runout_command
+
+        args = runout_command("run", str(project_file), "--out", str(self.out_dir), "--progress", "jsonl")
         if self.arch in ("cpu", "gpu"):
             args += ["--arch", self.arch]
         if self.overwrite:
