@@ -10,7 +10,7 @@ Usage::
 
     PYTHONPATH=$PWD python -m benchmarks.contact_matrix --out contact-matrix.csv [--start free]
         [--schemes mpm,apic,apic-affine] [--precisions f32,f64] [--thickness 1,5,20]
-        [--youngs 1e6,1e8] [--contacts bottom,left,right,ramp] [--angles 10:0,20:10,...]
+        [--youngs 1e6,1e8] [--contacts bottom,left,right,ramp] [--angles 10:0,20:10,...] [--aspect 4]
     PYTHONPATH=$PWD python -m benchmarks.contact_matrix --table a.csv b.csv   # the summary of saved rows
 """
 
@@ -25,7 +25,7 @@ from pathlib import Path
 
 ANGLES = "10:0,10:20,20:10,20:30,30:20,30:45,40:30,40:45"
 COLUMNS = ("contact", "scheme", "precision", "thickness_cells", "youngs_pa", "incline_deg", "friction_deg", "slides",
-           "slip_m", "analytic_m", "frictionless_m", "error", "steps", "wall_s")
+           "slip_m", "analytic_m", "frictionless_m", "error", "steps", "wall_s", "aspect")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -37,6 +37,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--youngs", default="1e6,1e8")
     ap.add_argument("--contacts", default="bottom,left,right,ramp")
     ap.add_argument("--angles", default=ANGLES, help="incline:friction pairs in degrees")
+    ap.add_argument("--aspect", type=float, default=4.0,
+                    help="block length / thickness (at least 40 cells long; the scenes' default 4)")
     ap.add_argument("--start", choices=("settled", "free"), default="settled",
                     help="settled: equilibrium stress at t = 0; free: stress free (elastic waves)")
     ap.add_argument("--table", nargs="+", type=Path, help="print the summary of saved CSVs and stop")
@@ -49,7 +51,8 @@ def main(argv: list[str] | None = None) -> int:
                     rows.append((r["contact"], r["scheme"], r["precision"], int(r["thickness_cells"]),
                                  float(r["youngs_pa"]), float(r["incline_deg"]), float(r["friction_deg"]),
                                  r["slides"] == "True", float(r["slip_m"]), float(r["analytic_m"]),
-                                 float(r["frictionless_m"]), float(r["error"]), int(r["steps"]), float(r["wall_s"])))
+                                 float(r["frictionless_m"]), float(r["error"]), int(r["steps"]), float(r["wall_s"]),
+                             float(r.get("aspect") or 4.0)))
         summarise(rows)
         return 0
 
@@ -74,14 +77,14 @@ def main(argv: list[str] | None = None) -> int:
                         t0 = time.perf_counter()
                         if contact == "ramp":
                             if theta not in scenes:
-                                scenes[theta] = RampIncline(scheme, precision, thickness, youngs, theta)
+                                scenes[theta] = RampIncline(scheme, precision, thickness, youngs, theta, aspect=args.aspect)
                             o = scenes[theta].run(delta, settled)
                         else:
                             if None not in scenes:
-                                scenes[None] = WallIncline(scheme, precision, thickness, youngs, contact)
+                                scenes[None] = WallIncline(scheme, precision, thickness, youngs, contact, aspect=args.aspect)
                             o = scenes[None].run(theta, delta, settled)
                         row = (contact, scheme, precision, thickness, youngs, theta, delta, o.slides, o.distance_m,
-                               o.analytic_m, o.frictionless_m, o.error, o.steps, time.perf_counter() - t0)
+                               o.analytic_m, o.frictionless_m, o.error, o.steps, time.perf_counter() - t0, args.aspect)
                         rows.append(row)
                         out.writerow(row)
                         fh.flush()

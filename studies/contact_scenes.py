@@ -41,20 +41,21 @@ G = 9.81
 DENSITY = 2000.0
 POISSON = 0.3
 PPC = 2  # particles per cell along each axis
-MIN_LENGTH_CELLS = 40  # block length along the slope: at least this and 4 x its thickness
+MIN_LENGTH_CELLS = 40  # block length along the slope: at least this and ASPECT x its thickness
+ASPECT = 4.0  # block length / thickness (the scenes' default; ``aspect`` of the scenes changes it)
 TRAVEL_CELLS = 20.0  # the sliding cases run until the analytic travel is this many cells (plus margin)
 CFL = 0.5
 SETTLE_TRANSITS = 3.0  # settling on a fixed contact before the release: P-wave transits of the block
 SETTLE_DAMPING = 0.7  # Cundall's local damping while settling
 
 
-def block_length_cells(thickness_cells: int) -> int:
+def block_length_cells(thickness_cells: int, aspect: float = ASPECT) -> int:
     """Block length (cells): never tips over (length / thickness > tan th) and long against its
     thickness. A finite block started with the infinite-slope stress is not quite in equilibrium at
     its free ends; the ends relax and the block vibrates, and close to the friction limit that
     makes a short block creep (measured: E = 1e6 Pa, 5 cells thick, 40 deg on 45 deg friction:
     13 cells long slipped 9.6 % of the frictionless distance, 40 cells long 0.06 %)."""
-    return max(MIN_LENGTH_CELLS, 4 * thickness_cells)
+    return max(MIN_LENGTH_CELLS, int(round(aspect * thickness_cells)))
 
 
 def cell_size_for(youngs_pa: float) -> float:
@@ -101,17 +102,18 @@ def _lattice(nx: int, ny: int, h: float) -> np.ndarray:
 
 
 class WallIncline:
-    """One engine for blocks of ``thickness_cells`` on the ``side`` wall ("bottom" or "left")."""
+    """One engine for blocks of ``thickness_cells`` on the ``side`` wall ("bottom", "left" or "right"),
+    ``aspect`` times as long as thick (at least MIN_LENGTH_CELLS long)."""
 
     def __init__(self, scheme: str, precision: str, thickness_cells: int, youngs_pa: float,
-                 side: str = "bottom", scatter: str = "serial"):
+                 side: str = "bottom", scatter: str = "serial", aspect: float = ASPECT):
         from solver.engine import Engine
 
         self.dx = dx = cell_size_for(youngs_pa)
         self.side = side
         self.material = Material("block", "linear-elastic", DENSITY, youngs_pa, POISSON)
         h = dx / PPC
-        length = block_length_cells(thickness_cells)
+        length = block_length_cells(thickness_cells, aspect)
         self.length_m = length * dx
         base = _lattice(length * PPC, thickness_cells * PPC, h)
         along = (length + TRAVEL_CELLS + 6) * dx
@@ -179,7 +181,7 @@ class RampIncline:
     the structure's nodes are set up at construction)."""
 
     def __init__(self, scheme: str, precision: str, thickness_cells: int, youngs_pa: float, theta_deg: float,
-                 delta_deg: float = 0.0, scatter: str = "serial"):
+                 delta_deg: float = 0.0, scatter: str = "serial", aspect: float = ASPECT):
         from solver.engine import Engine
 
         self.dx = dx = cell_size_for(youngs_pa)
@@ -187,7 +189,7 @@ class RampIncline:
         th = math.radians(theta_deg)
         self.material = Material("block", "linear-elastic", DENSITY, youngs_pa, POISSON)
         h = dx / PPC
-        length = block_length_cells(thickness_cells)
+        length = block_length_cells(thickness_cells, aspect)
         self.length_m = length * dx
         run_along = (length + TRAVEL_CELLS + 4) * dx  # ramp length along the slope
         t_hat = np.array([math.cos(th), -math.sin(th)])  # down the slope
