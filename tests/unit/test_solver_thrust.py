@@ -6,6 +6,10 @@ the force on each structure is the at-rest thrust ``1/2 K0 rho g H^2`` (Terzaghi
 Soil Mechanics, 1943; Jaky 1944 for K0) as long as the K0 state is in equilibrium on the grid next
 to the structures, which the structures' mirror-image particles provide (docs/solver.md, contact).
 Without them the six-stage schemes drifted to +4 to +5 % within 0.5 s (docs/validation.md).
+The k0 stage's overburden is each particle's own bar of material, exact for lattices at any
+alignment with the grid, so faces between node lines start in equilibrium too (before, binned by
+grid-cell columns, the particle line next to a face 0.3 cells off the node line had half its
+overburden: apic 1.06-1.08).
 """
 
 from __future__ import annotations
@@ -25,10 +29,15 @@ COLUMNS = ((20.0, 1.2), (35.0, 1.0), (27.0, 0.6))
 #: and one it cannot hold: every particle of this column is a plastic point after the k0 stage
 BEYOND = (40.0, 1.0)
 #: per column (COLUMNS, then BEYOND): the offset of its left face from the node line and its width,
-#: in cells (the right faces then lie 0, 0.75, 0.8 and 0.2 cells off the node line): faces on and off
-#: the node line on both sides of the material (the k0 overburden is exact for any alignment; faces
-#: 0.3-0.7 cells off the node line are a known limit, docs/solver.md)
-FACES = ((0.0, 4.0), (0.25, 4.5), (0.8, 4.0), (0.2, 4.0))
+#: in cells. apic-affine: the right faces then lie 0.5, 0.3, 0 and 0.7 cells off the node line, so a
+#: run has faces at 0, 0.3, 0.5 and 0.7 cells on both sides of the material (left of a structure and
+#: right of one). mpm and apic: faces 0, 0.2, 0.25, 0.75 and 0.8 cells off (right faces 0, 0.75, 0.8,
+#: 0.2); faces 0.3-0.7 cells off push a node held by the structure into the material, which these
+#: schemes' stress update ratchets (a known limit, docs/solver.md; the k0 overburden itself is exact
+#: for any alignment, test below)
+FACES = {"apic-affine": ((0.0, 4.5), (0.3, 4.0), (0.5, 4.5), (0.7, 4.0)),
+         "mpm": ((0.0, 4.0), (0.25, 4.5), (0.8, 4.0), (0.2, 4.0))}
+FACES["apic"] = FACES["mpm"]
 #: structures' thickness, cells
 THICK = 3
 
@@ -39,14 +48,14 @@ def _moved(polygon, origin_m):
 
 def _columns(scheme: str, cell_m: float, precision: str, origin_m=(0.0, 0.0), scatter: str = "auto",
              duration_s: float = 0.3):
-    """One run with a column per COLUMNS row (and BEYOND) between two slip structures 3 cells thick,
-    placed as FACES says, the whole scene moved by ``origin_m``; frames of the dynamic stage every
-    ``duration_s / 3``."""
+    """One run with a column per COLUMNS row (and BEYOND) between two slip structures THICK cells
+    thick, placed as FACES[scheme] says, the whole scene moved by ``origin_m``; frames of the
+    dynamic stage every ``duration_s / 3``."""
     ox, oy = origin_m
     mats, pos, ids, structures = [], [], [], []
     h = cell_m / 2  # 2 x 2 particles per cell
     x = 3 * cell_m
-    for k, ((phi, height), (offset, cells)) in enumerate(zip(COLUMNS + (BEYOND,), FACES)):
+    for k, ((phi, height), (offset, cells)) in enumerate(zip(COLUMNS + (BEYOND,), FACES[scheme])):
         x, width = x + offset * cell_m, cells * cell_m
         mats.append(Material(f"sand {k}", "drucker-prager", RHO, 2e7, 0.3, cohesion_pa=0.0,
                              friction_angle_rad=math.radians(phi)))
