@@ -6,7 +6,12 @@ workbench shows them):
 - a body within one cell of a closed wall (fixed, slip or friction) without touching it: it
   falls or slides onto the wall at the start and the settlement reads as deformation;
 - a k0 stage where the ground slopes: geostatic stresses are no equilibrium under a slope
-  (many particles yield at once); a gravity stage is the initial stress for sloping ground.
+  (many particles yield at once); a gravity stage is the initial stress for sloping ground;
+- a structure thinner than one cell at its thickest: material thrown at an inclined one was
+  ejected faster than the stability guard allows (apic-affine), and the force on it is unreliable;
+- with scheme mpm or apic, a vertical or horizontal structure face 0.26 to 0.74 cells off the grid's
+  node lines: the node the structure holds lies inside the material and these schemes' stress
+  update ratchets the thrust on it (docs/validation.md, thrust).
 
 :func:`recommended_initial_stage` is the default initial-stress stage for a new project (the
 slope template): gravity loading where the ground slopes, k0 where it is level.
@@ -30,6 +35,10 @@ WALL_ANGLE_DEG = 88.0
 TOUCH_TOLERANCE = 1e-6
 #: A gravity stage lasts this many fundamental periods ``4 H / c_s`` of the deposit.
 GRAVITY_STAGE_PERIODS = 3.0
+#: Structures thinner than this many cells at their thickest are warned about.
+STRUCTURE_MIN_CELLS = 1.0
+#: With mpm and apic, axis-aligned structure faces this far off the node lines (cells) are warned about.
+FACE_OFFSET_BAND = (0.26, 0.74)
 
 _CLOSED = ("fixed", "slip", "friction")
 
@@ -146,6 +155,69 @@ def _k0_on_slope(project: Project) -> list[str]:
     ]
 
 
+def structure_thickness_m(polygon_m, resolution: int = 200) -> float:
+    """Twice the largest distance from a point inside the polygon to its outline (m): the
+    thickness of the structure at its thickest (the diameter of its largest inscribed circle),
+    sampled on a ``resolution``-point lattice across its bounding box."""
+    from solver.structures import signed_distance
+
+    pts = np.asarray(polygon_m, dtype=np.float64)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    step = float((hi - lo).max()) / resolution
+    if not step > 0:
+        return 0.0
+    xs = np.arange(lo[0], hi[0] + step, step)
+    ys = np.arange(lo[1], hi[1] + step, step)
+    X, Y = np.meshgrid(xs, ys)
+    d = signed_distance(np.stack([X.ravel(), Y.ravel()], axis=-1), pts)
+    return float(max(0.0, -d.min()) * 2.0)
+
+
+def _thin_structures(project: Project) -> list[str]:
+    dx = project.domain.cell_size_m
+    warnings = []
+    for index, structure in enumerate(project.structures):
+        thick = structure_thickness_m(structure.polygon_m)
+        if thick < STRUCTURE_MIN_CELLS * dx:
+            warnings.append(
+                f"structures.{index} ({structure.name!r}) is {thick:.3g} m thick at its thickest, less than a cell "
+                f"({dx:g} m): material thrown at it can be ejected faster than the stability guard allows and the "
+                "force on it is unreliable; make it at least one cell thick or use smaller cells"
+            )
+    return warnings
+
+
+def _off_node_faces(project: Project) -> list[str]:
+    scheme = project.numerics.scheme
+    if scheme not in ("mpm", "apic"):
+        return []
+    dx = project.domain.cell_size_m
+    origin = project.domain.origin_m
+    lo, hi = FACE_OFFSET_BAND
+    warnings = []
+    for index, structure in enumerate(project.structures):
+        pts = np.asarray(structure.polygon_m, dtype=np.float64)
+        for a, b in zip(pts, np.roll(pts, -1, axis=0)):
+            for axis, name in ((0, "x"), (1, "y")):  # a face along y sits at one x, and the reverse
+                if abs(a[axis] - b[axis]) > 1e-9 * dx or abs(a[1 - axis] - b[1 - axis]) < dx:
+                    continue
+                cells = (a[axis] - origin[axis]) / dx
+                offset = cells - math.floor(cells)
+                if lo < offset < hi:
+                    below = origin[axis] + math.floor(cells) * dx
+                    warnings.append(
+                        f"structures.{index} ({structure.name!r}) has a face at {name} = {a[axis]:g} m, "
+                        f"{offset:.2f} cells off the grid's node lines: with scheme \"{scheme}\" the force on it "
+                        f"can drift far from the at-rest value; put it on a node line ({name} = {below:g} m or "
+                        f"{below + dx:g} m) or within a quarter cell of one, or use scheme \"apic-affine\""
+                    )
+                    break
+            else:
+                continue
+            break
+    return warnings
+
+
 def project_warnings(project: Project) -> list[str]:
     """Everything about a valid project that probably is not what the engineer meant.
 
@@ -159,7 +231,7 @@ def project_warnings(project: Project) -> list[str]:
         One line each, naming the key and what to do.
     """
     with np.errstate(all="ignore"):  # absurd coordinates (1e300 m) are the size limits' business
-        return [*_wall_gaps(project), *_k0_on_slope(project)]
+        return [*_wall_gaps(project), *_k0_on_slope(project), *_thin_structures(project), *_off_node_faces(project)]
 
 
 def recommended_initial_stage(project: Project) -> dict[str, Any]:
