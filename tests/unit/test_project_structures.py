@@ -104,19 +104,20 @@ def _warnings(structure, scheme="apic-affine"):
     return [w for w in project_warnings(validate_project(data)) if w.startswith("structures.")]
 
 
-@pytest.mark.parametrize("thickness_cells, warned", [(0.5, True), (0.9, True), (1.1, False), (3.0, False)])
-def test_a_structure_thinner_than_a_cell_is_warned_about(thickness_cells, warned):
+@pytest.mark.parametrize("thickness_cells, warned", [(0.5, True), (2.0, True), (2.8, True), (3.2, False), (6.0, False)])
+def test_a_structure_thinner_than_3_cells_is_warned_about(thickness_cells, warned):
     dx = BASE["domain"]["cell_size_m"]  # 2 mm
     t = thickness_cells * dx
-    leaning = {**WALL, "polygon_m": [[0.5, 0.0], [0.5 + t, 0.0], [0.53 + t, 0.1], [0.53, 0.1]]}  # ~17 deg
+    # ~17 deg from vertical: thickness across it t cos(17 deg); the same limit in cells across
+    t /= math.cos(math.atan(0.3))
+    leaning = {**WALL, "polygon_m": [[0.5, 0.0], [0.5 + t, 0.0], [0.53 + t, 0.1], [0.53, 0.1]]}
     lines = _warnings(leaning)
     assert bool(lines) == warned, lines
     if warned:
         assert len(lines) == 1 and lines[0].startswith("structures.0 ('wall') is ") and "at its thickest" in lines[0]
         assert "\n" not in lines[0]
         from projects.checks import structure_thickness_m
-        # the leaning wall's thickness across it: t cos(17 deg), within the sampling's resolution
-        assert structure_thickness_m(leaning["polygon_m"]) == pytest.approx(t * math.cos(math.atan(0.3)), rel=0.05)
+        assert structure_thickness_m(leaning["polygon_m"]) == pytest.approx(thickness_cells * dx, rel=1e-3)
 
 
 @pytest.mark.parametrize("offset_cells, scheme, warned", [
