@@ -11,9 +11,10 @@ workbench shows them):
   and 2 cells (nodes inside it are reached from both faces), up to 2.8 times under one cell, and
   material thrown at an inclined one half a cell thick was ejected faster than the stability
   guard allows (apic-affine);
-- with scheme mpm or apic, a vertical or horizontal structure face 0.26 to 0.74 cells off the grid's
-  node lines: the node the structure holds lies inside the material and these schemes' stress
-  update ratchets the thrust on it (docs/validation.md, thrust).
+- a vertical or horizontal structure face far from the grid's node lines (0.26 to 0.74 cells off
+  with mpm and apic, 0.41 to 0.59 with apic-affine): the node the structure holds lies inside the
+  material or the free node next to it close to the face, and the thrust on it drifts
+  (docs/validation.md, thrust).
 
 :func:`recommended_initial_stage` is the default initial-stress stage for a new project (the
 slope template): gravity loading where the ground slopes, k0 where it is level.
@@ -39,8 +40,8 @@ TOUCH_TOLERANCE = 1e-6
 GRAVITY_STAGE_PERIODS = 3.0
 #: Structures thinner than this many cells at their thickest are warned about.
 STRUCTURE_MIN_CELLS = 3.0
-#: With mpm and apic, axis-aligned structure faces this far off the node lines (cells) are warned about.
-FACE_OFFSET_BAND = (0.26, 0.74)
+#: Axis-aligned structure faces this far off the node lines (cells, per scheme) are warned about.
+FACE_OFFSET_BAND = {"mpm": (0.26, 0.74), "apic": (0.26, 0.74), "apic-affine": (0.41, 0.59)}
 
 _CLOSED = ("fixed", "slip", "friction")
 
@@ -200,11 +201,14 @@ def _thin_structures(project: Project) -> list[str]:
 
 def _off_node_faces(project: Project) -> list[str]:
     scheme = project.numerics.scheme
-    if scheme not in ("mpm", "apic"):
+    if scheme not in FACE_OFFSET_BAND:
         return []
     dx = project.domain.cell_size_m
     origin = project.domain.origin_m
-    lo, hi = FACE_OFFSET_BAND
+    lo, hi = FACE_OFFSET_BAND[scheme]
+    near = "within a quarter cell of one, or use scheme \"apic-affine\"" if scheme != "apic-affine" else \
+        "within 0.4 cells of one"
+
     warnings = []
     for index, structure in enumerate(project.structures):
         pts = np.asarray(structure.polygon_m, dtype=np.float64)
@@ -220,7 +224,7 @@ def _off_node_faces(project: Project) -> list[str]:
                         f"structures.{index} ({structure.name!r}) has a face at {name} = {a[axis]:g} m, "
                         f"{offset:.2f} cells off the grid's node lines: with scheme \"{scheme}\" the force on it "
                         f"can drift far from the at-rest value; put it on a node line ({name} = {below:g} m or "
-                        f"{below + dx:g} m) or within a quarter cell of one, or use scheme \"apic-affine\""
+                        f"{below + dx:g} m) or {near}"
                     )
                     break
             else:
