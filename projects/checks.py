@@ -7,7 +7,7 @@ workbench shows them):
   falls or slides onto the wall at the start and the settlement reads as deformation;
 - a k0 stage where the ground slopes: geostatic stresses are no equilibrium under a slope
   (many particles yield at once); a gravity stage is the initial stress for sloping ground;
-- a structure thinner than 3 cells at its thickest: the at-rest thrust on it was 13-14 % off at 1
+- a structure thinner than 3 cells at its thickest: the at-rest thrust on it was up to 10-13 % off at 1
   and 2 cells (nodes inside it are reached from both faces), up to 2.8 times under one cell, and
   material thrown at an inclined one half a cell thick was ejected faster than the stability
   guard allows (apic-affine);
@@ -192,7 +192,7 @@ def _thin_structures(project: Project) -> list[str]:
         if thick < STRUCTURE_MIN_CELLS * dx:
             warnings.append(
                 f"structures.{index} ({structure.name!r}) is {thick:.3g} m thick at its thickest, less than 3 cells "
-                f"({3 * dx:g} m): the force on it is unreliable (the at-rest thrust was up to 14 % off at 1-2 cells) "
+                f"({3 * dx:g} m): the force on it is unreliable (the at-rest thrust was up to 13 % off at 1-2 cells) "
                 "and under one cell material thrown at it can be ejected; make it at least 3 cells thick or use "
                 "smaller cells"
             )

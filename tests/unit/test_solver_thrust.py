@@ -66,8 +66,9 @@ def _columns(scheme: str, cell_m: float, precision: str, origin_m=(0.0, 0.0), sc
         pos.append(np.c_[X.ravel() + ox, Y.ravel() + oy])
         ids.append(np.full(X.size, k, np.int32))
         x += width
-        structures.append(Structure(f"right {k}", _moved(((x, -cell_m), (x + THICK * cell_m, -cell_m), (x + THICK * cell_m, top),
-                                                          (x, top)), origin_m), Boundary("slip")))
+        far = x + THICK * cell_m
+        structures.append(Structure(f"right {k}", _moved(((x, -cell_m), (far, -cell_m), (far, top), (x, top)), origin_m),
+                                    Boundary("slip")))
         x = (math.floor(x / cell_m + 1e-9) + 7) * cell_m
     positions = np.concatenate(pos)
     particles = Particles(positions, np.full(len(positions), h * h), np.concatenate(ids))
