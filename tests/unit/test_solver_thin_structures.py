@@ -6,8 +6,10 @@ a particle found inside a structure goes back to the first crossing of its path 
 on the side it came from (``Engine._push_out``; before, to the nearest point of the surface, which
 for a particle past the middle of a thin wall is on the far face). Barriers vertical and leaning
 25 degrees, on a node line and 0.25 / 0.5 cells off it, slip and friction, every scheme: a covering
-design (each scheme meets every thickness, both leanings and both contact kinds). The thrust on
-thin structures is a known limit (docs/solver.md, contact; docs/validation.md, thrust).
+design (each scheme meets every thickness, both leanings and both contact kinds). Known limits,
+warned about in the project (structures thinner than 3 cells): the thrust on thin structures, and
+apic-affine on a leaning wall half a cell thick on a node line, where 2 of the 320 particles
+splashed faster than the guard's bound and were removed (docs/validation.md, thrust).
 """
 
 from __future__ import annotations
