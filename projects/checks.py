@@ -6,7 +6,15 @@ workbench shows them):
 - a body within one cell of a closed wall (fixed, slip or friction) without touching it: it
   falls or slides onto the wall at the start and the settlement reads as deformation;
 - a k0 stage where the ground slopes: geostatic stresses are no equilibrium under a slope
-  (many particles yield at once); a gravity stage is the initial stress for sloping ground.
+  (many particles yield at once); a gravity stage is the initial stress for sloping ground;
+- a structure thinner than 3 cells at its thickest: the at-rest thrust on it was up to 10-13 % off at 1
+  and 2 cells (nodes inside it are reached from both faces), up to 2.8 times under one cell, and
+  material thrown at an inclined one half a cell thick was ejected faster than the stability
+  guard allows (apic-affine);
+- a vertical or horizontal structure face far from the grid's node lines (0.26 to 0.74 cells off
+  with mpm and apic, 0.41 to 0.59 with apic-affine): the node the structure holds lies inside the
+  material or the free node next to it close to the face, and the thrust on it drifts
+  (docs/validation.md, thrust).
 
 :func:`recommended_initial_stage` is the default initial-stress stage for a new project (the
 slope template): gravity loading where the ground slopes, k0 where it is level.
@@ -30,6 +38,10 @@ WALL_ANGLE_DEG = 88.0
 TOUCH_TOLERANCE = 1e-6
 #: A gravity stage lasts this many fundamental periods ``4 H / c_s`` of the deposit.
 GRAVITY_STAGE_PERIODS = 3.0
+#: Structures thinner than this many cells at their thickest are warned about.
+STRUCTURE_MIN_CELLS = 3.0
+#: Axis-aligned structure faces this far off the node lines (cells, per scheme) are warned about.
+FACE_OFFSET_BAND = {"mpm": (0.26, 0.74), "apic": (0.26, 0.74), "apic-affine": (0.41, 0.59)}
 
 _CLOSED = ("fixed", "slip", "friction")
 
@@ -146,6 +158,81 @@ def _k0_on_slope(project: Project) -> list[str]:
     ]
 
 
+def structure_thickness_m(polygon_m, resolution: int = 100) -> float:
+    """Twice the largest distance from a point inside the polygon to its outline (m): the
+    thickness of the structure at its thickest (the diameter of its largest inscribed circle).
+    Searched on a ``resolution``-point lattice across the bounding box, then on finer lattices
+    around the best point (each 10 times finer), to about 1e-4 of the box."""
+    from solver.structures import signed_distance
+
+    pts = np.asarray(polygon_m, dtype=np.float64)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    step = float((hi - lo).max()) / resolution
+    if not step > 0:
+        return 0.0
+    centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo) + step
+    best = 0.0
+    for _ in range(3):
+        xs = np.arange(centre[0] - half[0], centre[0] + half[0] + step, step)
+        ys = np.arange(centre[1] - half[1], centre[1] + half[1] + step, step)
+        X, Y = np.meshgrid(xs, ys)
+        grid = np.stack([X.ravel(), Y.ravel()], axis=-1)
+        d = signed_distance(grid, pts)
+        k = int(d.argmin())
+        best = max(best, -float(d[k]))
+        centre, half, step = grid[k], np.array([2 * step, 2 * step]), step / 10
+    return 2.0 * best
+
+
+def _thin_structures(project: Project) -> list[str]:
+    dx = project.domain.cell_size_m
+    warnings = []
+    for index, structure in enumerate(project.structures):
+        thick = structure_thickness_m(structure.polygon_m)
+        if thick < STRUCTURE_MIN_CELLS * dx:
+            warnings.append(
+                f"structures.{index} ({structure.name!r}) is {thick:.3g} m thick at its thickest, less than 3 cells "
+                f"({3 * dx:g} m): the force on it is unreliable (the at-rest thrust was up to 13 % off at 1-2 cells) "
+                "and under one cell material thrown at it can be ejected; make it at least 3 cells thick or use "
+                "smaller cells"
+            )
+    return warnings
+
+
+def _off_node_faces(project: Project) -> list[str]:
+    scheme = project.numerics.scheme
+    if scheme not in FACE_OFFSET_BAND:
+        return []
+    dx = project.domain.cell_size_m
+    origin = project.domain.origin_m
+    lo, hi = FACE_OFFSET_BAND[scheme]
+    near = "within a quarter cell of one, or use scheme \"apic-affine\"" if scheme != "apic-affine" else \
+        "within 0.4 cells of one"
+
+    warnings = []
+    for index, structure in enumerate(project.structures):
+        pts = np.asarray(structure.polygon_m, dtype=np.float64)
+        for a, b in zip(pts, np.roll(pts, -1, axis=0)):
+            for axis, name in ((0, "x"), (1, "y")):  # a face along y sits at one x, and the reverse
+                if abs(a[axis] - b[axis]) > 1e-9 * dx or abs(a[1 - axis] - b[1 - axis]) < dx:
+                    continue
+                cells = (a[axis] - origin[axis]) / dx
+                offset = cells - math.floor(cells)
+                if lo < offset < hi:
+                    below = origin[axis] + math.floor(cells) * dx
+                    warnings.append(
+                        f"structures.{index} ({structure.name!r}) has a face at {name} = {a[axis]:g} m, "
+                        f"{offset:.2f} cells off the grid's node lines: with scheme \"{scheme}\" the force on it "
+                        f"can drift far from the at-rest value; put it on a node line ({name} = {below:g} m or "
+                        f"{below + dx:g} m) or {near}"
+                    )
+                    break
+            else:
+                continue
+            break
+    return warnings
+
+
 def project_warnings(project: Project) -> list[str]:
     """Everything about a valid project that probably is not what the engineer meant.
 
@@ -159,7 +246,7 @@ def project_warnings(project: Project) -> list[str]:
         One line each, naming the key and what to do.
     """
     with np.errstate(all="ignore"):  # absurd coordinates (1e300 m) are the size limits' business
-        return [*_wall_gaps(project), *_k0_on_slope(project)]
+        return [*_wall_gaps(project), *_k0_on_slope(project), *_thin_structures(project), *_off_node_faces(project)]
 
 
 def recommended_initial_stage(project: Project) -> dict[str, Any]:

@@ -1060,7 +1060,7 @@ class Engine:
                         else:
                             x[d] = self.upper[d]
                 if ti.static(self.n_structures > 0):
-                    x, v = self._push_out(x, v, self.m[p])
+                    x, v = self._push_out(self.x[p], x, v, self.m[p])
                 self.x[p] = x
                 self.v[p] = v
                 if keep == -1:
@@ -1072,16 +1072,36 @@ class Engine:
                     self.to_grid.moved(self, p, x)
 
     @ti.func
-    def _push_out(self, x, v, mass):
-        """A particle that ended inside a structure goes to the nearest point of its surface (and
-        PUSH_OUT_CELLS cells outside); its velocity into the structure is removed (an impulse of
-        that structure's contact)."""
+    def _push_out(self, x_old, x, v, mass):
+        """A particle that ended inside a structure goes back to where its move ``x_old -> x``
+        entered it: the first crossing of the path with the outline, PUSH_OUT_CELLS cells out on
+        the side it came from, never through a thin structure to its far face (with no crossing,
+        a particle that started inside, the nearest point of the surface). Its velocity into the
+        structure (along the crossed edge's normal) is removed: an impulse of that structure's
+        contact."""
         for s in range(self.n_structures):
             box = self.st_box[s]
             if box[0] <= x[0] <= box[2] and box[1] <= x[1] <= box[3]:
                 nearest, _d2, inside = self._nearest_surface_point(s, x)
                 if inside == 1:
                     out = nearest - x
+                    path = x - x_old
+                    t_first = 2.0
+                    first = self.st_edges[s, 0]
+                    for k in range(first, first + self.st_edges[s, 1]):
+                        a = self.edge_a[k]
+                        ab = self.edge_b[k] - a
+                        den = path[0] * ab[1] - path[1] * ab[0]
+                        if den != 0.0:
+                            ao = a - x_old
+                            t = (ao[0] * ab[1] - ao[1] * ab[0]) / den  # along the path
+                            u = (ao[0] * path[1] - ao[1] * path[0]) / den  # along the edge
+                            if 0.0 <= t <= 1.0 and 0.0 <= u <= 1.0 and t < t_first:
+                                t_first = t
+                                nearest = x_old + t * path
+                                out = ti.Vector([ab[1], -ab[0]])  # the edge's normal, against the path
+                                if out.dot(path) > 0.0:
+                                    out = -out
                     size = out.norm()
                     if size > 0.0:
                         n = out / size

@@ -1,11 +1,27 @@
 """Geostatic (K0) initial stress from the overburden above each particle.
 
-The vertical stress of a particle is the weight per unit width of the material above it in its
-column (columns one cell wide, normal to gravity): ``sigma_v = -sum_{q above p} m_q |g| / dx``,
-with the particles at the particle's own height counted half. For grid-aligned (lattice) seeding
-this is exactly ``-rho |g| (H - y)`` at every particle, also for layered bodies. The horizontal and
-out-of-plane stresses are ``K0 sigma_v``; K0 is the stage's value or each material's default
-(Jaky's ``1 - sin(phi)``, ``nu / (1 - nu)`` for elastic materials). Compression is negative.
+The vertical stress of a particle is the weight per unit width of the material above it within
+its own horizontal extent. Each particle ``q`` stands for a bar of material of width
+``s_q = sqrt(V_q)`` (across gravity) centred on it; its weight ``m_q |g|`` is spread evenly over
+that width. The overburden of ``p`` is the weight above it inside ``p``'s own bar, divided by its
+width, with the particles at ``p``'s own height counted half:
+
+    sigma_v(p) = -1/s_p sum_q m_q |g| overlap(bar_q, bar_p) / s_q     (q above p; half at its level)
+
+The sum is taken over strips: the bars' edges cut the horizontal axis into elementary strips, in
+each of which every bar's weight is uniform, so the sum is exact strip by strip. For lattice
+seeding (bars tiling each row) this gives ``-rho |g| (H - y)`` at every particle, whatever the
+alignment of the lattice with the grid, for layered bodies, for bodies of different particle
+spacings and next to a structure face that cuts a grid cell: the particle line next to the face
+carries its full column. (The former binning by grid-cell columns assumed the material filled
+each column across: a face 0.3 cells off the node line left the particle line next to it at half
+its overburden.) Where the bars' edges are not shared (Gauss seeding, gravity oblique to the
+lattice) the edges are snapped to strips of a quarter of the median bar width, so the work stays
+a few entries per particle.
+
+The horizontal and out-of-plane stresses are ``K0 sigma_v``; K0 is the stage's value or each
+material's default (Jaky's ``1 - sin(phi)``, ``nu / (1 - nu)`` for elastic materials). Compression
+is negative.
 """
 
 from __future__ import annotations
@@ -15,6 +31,32 @@ from collections.abc import Sequence
 import numpy as np
 
 from solver.config import Material, Particles
+
+#: Round-off tolerance of heights and bar edges, in cell sizes.
+TOLERANCE_CELLS = 1e-6
+#: Above this many strip entries per particle, bar edges are snapped to a quarter of the median width.
+MAX_ENTRIES_PER_PARTICLE = 4
+SNAP_FRACTION = 0.25
+
+
+def _strips(lo_m: np.ndarray, hi_m: np.ndarray, tol_m: float):
+    """Elementary strips of the bars ``[lo, hi]``: per bar the first strip and the number of strips,
+    and the strips' widths (m)."""
+    ka = np.round(lo_m / tol_m).astype(np.int64)
+    kb = np.round(hi_m / tol_m).astype(np.int64)
+    edges, at = np.unique(np.concatenate([ka, kb]), return_index=True)
+    first = np.searchsorted(edges, ka)
+    count = np.searchsorted(edges, kb) - first
+    if count.sum() > MAX_ENTRIES_PER_PARTICLE * len(lo_m) + 16:
+        # edges not shared: snap them to a fixed set of strips
+        step = SNAP_FRACTION * float(np.median(hi_m - lo_m))
+        base = float(lo_m.min())
+        first = np.round((lo_m - base) / step).astype(np.int64)
+        count = np.maximum(np.round((hi_m - base) / step).astype(np.int64) - first, 1)
+        widths = np.full(int((first + count).max()), step)
+        return first, count, widths
+    # each edge at its first bar's own value (bars that share an edge agree to round-off)
+    return first, count, np.diff(np.concatenate([lo_m, hi_m])[at])
 
 
 def k0_stress(particles: Particles, materials: Sequence[Material], gravity_m_s2, cell_size_m: float,
@@ -38,28 +80,38 @@ def k0_stress(particles: Particles, materials: Sequence[Material], gravity_m_s2,
     across = np.array([-down[1], down[0]])
     mat = np.asarray(particles.material_ids)
     rho = np.array([m.density_kg_m3 for m in materials])[mat]
-    weight = rho * np.asarray(particles.volumes_m2, dtype=np.float64) * gn / cell_size_m
+    volume = np.asarray(particles.volumes_m2, dtype=np.float64)
+    weight = rho * volume * gn  # N per m out of plane
     if active is not None:
         weight = np.where(active, weight, 0.0)
+    width = np.sqrt(np.maximum(volume, 0.0))
+    tol = TOLERANCE_CELLS * cell_size_m
+    width = np.maximum(width, 4 * tol)
+    centre = x @ across
+    first, count, strip_w = _strips(centre - 0.5 * width, centre + 0.5 * width, tol)
+    # one entry per (particle, strip it covers); each strip holds the particle's share of its weight
+    owner = np.repeat(np.arange(n), count)
+    strip = np.repeat(first, count) + (np.arange(owner.size) - np.repeat(np.cumsum(count) - count, count))
+    bar_w = np.bincount(owner, weights=strip_w[strip], minlength=n)  # the bar's width on the strips
+    share = weight[owner] * strip_w[strip] / bar_w[owner]
     height = -(x @ down)
-    column = np.floor((x @ across) / cell_size_m).astype(np.int64)
-    # group particles at the same height in a column (round-off tolerant), tallest first
-    level = np.round(height / (cell_size_m * 1e-6)).astype(np.int64)
-    order = np.lexsort((-level, column))
-    col_s, lev_s, w_s = column[order], level[order], weight[order]
-    new_group = np.r_[True, (col_s[1:] != col_s[:-1]) | (lev_s[1:] != lev_s[:-1])]
+    level = np.round(height / tol).astype(np.int64)[owner]
+    # group entries at the same height in a strip (round-off tolerant), tallest first
+    order = np.lexsort((-level, strip))
+    str_s, lev_s, w_s = strip[order], level[order], share[order]
+    new_group = np.r_[True, (str_s[1:] != str_s[:-1]) | (lev_s[1:] != lev_s[:-1])]
     group = np.cumsum(new_group) - 1
     group_weight = np.bincount(group, weights=w_s)
-    group_col = col_s[new_group]
-    # weight of all groups above, within the column
+    group_strip = str_s[new_group]
+    # weight of all groups above, within the strip
     csum = np.cumsum(group_weight)
-    col_start = np.r_[True, group_col[1:] != group_col[:-1]]
-    start_index = np.maximum.accumulate(np.where(col_start, np.arange(len(group_col)), 0))
+    strip_start = np.r_[True, group_strip[1:] != group_strip[:-1]]
+    start_index = np.maximum.accumulate(np.where(strip_start, np.arange(len(group_strip)), 0))
     before = np.r_[0.0, csum[:-1]]
     above = before - np.r_[0.0, csum][start_index]
-    sigma_v_sorted = -(above[group] + 0.5 * group_weight[group])
-    sigma_v = np.empty(n)
-    sigma_v[order] = sigma_v_sorted
+    entry_above = np.empty(owner.size)
+    entry_above[order] = above[group] + 0.5 * group_weight[group]
+    sigma_v = -np.bincount(owner, weights=entry_above, minlength=n) / bar_w
     if k0 is None:
         k0_p = np.array([m.default_k0 for m in materials])[mat]
     else:

@@ -7,7 +7,12 @@ friction no longer over-counted): the digests were written again after it, at th
 the file; the sand column, whose walls do not touch it in these steps, kept its digests. Then the mirror
 walls' friction (the ghost's normal impulse on a friction wall brings Coulomb friction with it,
 issue 11) changed the two examples with a friction floor, the aluminium bars and the tiny column,
-written again at 3508e96; the sand column and the slope (fixed and slip walls) kept theirs. Each example runs 200 to 400 steps with its own settings and the
+written again at 3508e96; the sand column and the slope (fixed and slip walls) kept theirs. Then the k0
+stage's overburden by each particle's own bar of material instead of grid-cell columns (exact for
+lattices at any alignment; a structure face between node lines had its particle line at half its
+overburden) changed the two examples with a k0 stage, the aluminium bars and the tiny column, in the
+last bits (initial stresses 1e-12 of the largest apart): written again; the sand column and the slope
+(no k0 stage) kept theirs. Each example runs 200 to 400 steps with its own settings and the
 scatter ``auto`` picks on this machine (serial below 10,000 particles, split above, on a CPU with
 few threads: both repeat bit for bit). A change that alters the numbers of a scene fails here; if
 the change is meant (a physics fix), write the digests again and say so in the commit.

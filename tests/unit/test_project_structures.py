@@ -94,3 +94,43 @@ def test_contacts_csv_rows_and_peaks_in_the_summary(tmp_path):
     assert peaks == summary["contacts"]
     assert peaks["bottom"]["peak_force_N_per_m"] == 40.0 and peaks["bottom"]["peak_time_s"] == pytest.approx(0.1)
     assert peaks["wall"]["max_mean_force_N_per_m"] == 10.0
+
+
+def _warnings(structure, scheme="apic-affine"):
+    from projects.checks import project_warnings
+
+    data = with_structures(structure)
+    data["numerics"] = {**data.get("numerics", {}), "scheme": scheme}
+    return [w for w in project_warnings(validate_project(data)) if w.startswith("structures.")]
+
+
+@pytest.mark.parametrize("thickness_cells, warned", [(0.5, True), (2.0, True), (2.8, True), (3.2, False), (6.0, False)])
+def test_a_structure_thinner_than_3_cells_is_warned_about(thickness_cells, warned):
+    dx = BASE["domain"]["cell_size_m"]  # 2 mm
+    t = thickness_cells * dx
+    # ~17 deg from vertical: thickness across it t cos(17 deg); the same limit in cells across
+    t /= math.cos(math.atan(0.3))
+    leaning = {**WALL, "polygon_m": [[0.5, 0.0], [0.5 + t, 0.0], [0.53 + t, 0.1], [0.53, 0.1]]}
+    lines = _warnings(leaning)
+    assert bool(lines) == warned, lines
+    if warned:
+        assert len(lines) == 1 and lines[0].startswith("structures.0 ('wall') is ") and "at its thickest" in lines[0]
+        assert "\n" not in lines[0]
+        from projects.checks import structure_thickness_m
+        assert structure_thickness_m(leaning["polygon_m"]) == pytest.approx(thickness_cells * dx, rel=1e-3)
+
+
+@pytest.mark.parametrize("offset_cells, scheme, warned", [
+    (0.0, "mpm", False), (0.25, "apic", False), (0.3, "mpm", True), (0.5, "apic", True), (0.7, "mpm", True),
+    (0.8, "apic", False), (0.3, "apic-affine", False), (0.45, "apic-affine", True), (0.55, "apic-affine", True),
+    (0.65, "apic-affine", False)])
+def test_an_axis_aligned_face_far_from_the_node_lines_is_warned_about(offset_cells, scheme, warned):
+    dx = BASE["domain"]["cell_size_m"]
+    x = 0.5 + offset_cells * dx
+    wall = {**WALL, "polygon_m": [[x, 0.0], [x + 10 * dx, 0.0], [x + 10 * dx, 0.1], [x, 0.1]]}
+    lines = _warnings(wall, scheme)
+    assert bool(lines) == warned, lines
+    if warned:
+        assert len(lines) == 1 and lines[0].startswith("structures.0 ('wall') has a face at x = ")
+        assert f"{offset_cells:.2f} cells off the grid's node lines" in lines[0]
+        assert f'scheme "{scheme}"' in lines[0]
