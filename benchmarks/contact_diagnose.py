@@ -101,7 +101,8 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
         nbar = None
         full_node = cs.DENSITY * sc.dx * sc.dx  # mass of a node inside uniform material
         origin = np.asarray(sc.grid.origin_m, float)
-        lightstat = {"sep_speed": [], "sep_count": 0, "C_share": [], "C_rms": [], "v_share": [], "L_share": []}
+        lightstat = {"sep_speed": [], "sep_count": 0, "C_share": [], "C_rms": [], "v_share": [], "L_share": [],
+                     "wall_sep_speed": [], "wall_sep_vn": []}
 
         def kernel(stage):
             e._stage_kernel(stage, dt, g[0], g[1], damping, damping > 0.0)
@@ -225,6 +226,10 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
             friction += float(given[held].sum())
             lost["stick"] += float((allowed - given)[stick].sum())
             lost["slip"] += float((allowed - given)[down | up].sum())
+            if light_share > 0.0:  # light wall nodes that separate: their (free) velocity
+                lightsep = sep & (M < light_share * full_node)
+                lightstat["wall_sep_speed"] += np.linalg.norm(trial[lightsep], axis=-1).tolist()
+                lightstat["wall_sep_vn"] += vn[lightsep].tolist()
             speeds["stick_vn"] += (-vn[stick]).tolist()
             speeds["stick_vt"] += np.abs(vt[stick]).tolist()
             speeds["slip_vn"] += (-vn[down | up]).tolist()
@@ -288,6 +293,11 @@ def report(r: dict, label: str) -> None:
               f"median {np.median(cs_):.3g}, p90 {np.percentile(cs_, 90):.3g}, max {cs_.max():.3g}; "
               f"of the velocity: median {np.median(ls['v_share']):.3g}; "
               f"rms |C| of particles: first {ls['C_rms'][0]:.3g}, median {np.median(ls['C_rms']):.3g} 1/s")
+        ws = np.asarray(ls["wall_sep_speed"])
+        if len(ws):
+            print(f"  light wall nodes in separation steps: {len(ws)} node-steps, speed median {np.median(ws):.3g} m/s, "
+                  f"p90 {np.percentile(ws, 90):.3g}, max {ws.max():.3g}; normal (away from the wall) median "
+                  f"{np.median(ls['wall_sep_vn']):.3g}")
         if ls["L_share"]:
             print(f"  light nodes' share of the velocity gradient of the stress update (norm over all particles): "
                   f"median {np.median(ls['L_share']):.3g}, p90 {np.percentile(ls['L_share'], 90):.3g}")
