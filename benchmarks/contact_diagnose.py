@@ -16,13 +16,27 @@ is not counted here). Printed:
 - the wall node's mass at stick and slip steps, against its value at the release;
 - the block's kinetic energy of translation and the rest (elastic waves and rotation), over time.
 
+- with ``--light-share`` (on by default from the command line: 0.01): the light nodes (mass below that
+  fraction of a full node's ``rho dx^2``), their speed after the grid update and their share of the
+  particles' G2P velocity, affine matrix ``C`` and (mpm, apic) the velocity gradient of the stress
+  update (the norm of their terms over the norm of the whole, all particles, per step).
+
+Experiments (not the engine's law; docs/validation.md, contact), all at the main grid update:
+``--transfer`` (a stuck wall node's unused friction to the node inside it); ``--light F
+--light-mode old|zero`` (nodes below F of a full node take their interpolated velocity, no force,
+as MUSL's re-mapping gives it (six-stage schemes), or are treated as empty); ``--gap F`` (wall nodes
+below F of a full node take no contact); ``--lag K [--lag-all]`` (the wall line's friction bound
+follows each node's normal impulse with a lag of K steps; with ``--lag-all`` also while
+separating). ``--dx`` changes the cell size (refinement of the same block with ``--aspect``).
+
 With Cundall's damping (``--damping``) the six-stage schemes' trial velocity read here leaves the
 damping out (the counts are then approximate; the slip is the engine's).
 
 Usage::
 
     PYTHONPATH=$PWD python -m benchmarks.contact_diagnose apic-affine f64 20 1e6 40 45 [--aspect 4]
-        [--time 1] [--damping 0] [--cfl 0.5] [--ppc 2] [--transfer]
+        [--time 1] [--damping 0] [--cfl 0.5] [--ppc 2] [--dx 2] [--samples 12] [--light-share 0.01]
+        [--transfer | --light 0.01 --light-mode old | --gap 0.02 | --lag 30 --lag-all]
 """
 
 from __future__ import annotations
@@ -36,7 +50,8 @@ import numpy as np
 
 def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: float, delta: float,
              aspect: float = 4.0, time_factor: float = 1.0, damping: float = 0.0, samples: int = 12,
-             transfer: bool = False) -> dict:
+             transfer: bool = False, light: float = 0.0, light_mode: str = "", light_share: float = 0.0,
+             gap: float = 0.0, lag: float = 0.0, lag_all: bool = False) -> dict:
     """One case (bottom wall); ``transfer``: the experiment of docs/validation.md (contact; not the
     engine's law): after the grid update, the friction a stuck wall node left unused is applied to
     the node one cell inside it, never reversing that node's velocity along the wall."""
@@ -83,6 +98,12 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
         energy = []
         every = max(1, steps // samples)
 
+        nbar = None
+        full_node = cs.DENSITY * sc.dx * sc.dx  # mass of a node inside uniform material
+        origin = np.asarray(sc.grid.origin_m, float)
+        lightstat = {"sep_speed": [], "sep_count": 0, "C_share": [], "C_rms": [], "v_share": [], "L_share": [],
+                     "wall_sep_speed": [], "wall_sep_vn": []}
+
         def kernel(stage):
             e._stage_kernel(stage, dt, g[0], g[1], damping, damping > 0.0)
 
@@ -97,6 +118,82 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
                 if damping > 0.0:
                     trial = trial + dt * e.g_f.to_numpy()[:, PAD] / np.maximum(M, 1e-300)[:, None]
             kernel("grid update")
+            if light > 0.0 and light_mode:
+                # experiment (not the engine's law): nodes below ``light`` of a full node's mass
+                Mall = e.g_mass.to_numpy()
+                G = e.g_mom.to_numpy()
+                sel = (Mall > 0.0) & (Mall < light * full_node)
+                if light_mode == "old":  # velocity from the momentum alone (no force), then the contact
+                    if not e.six_stage:
+                        raise ValueError("--light-mode old needs a six-stage scheme (mpm, apic)")
+                    V = e.g_v_old.to_numpy()
+                    G[sel] = V[sel]
+                elif light_mode == "zero":
+                    G[sel] = 0.0
+                e.g_mom.from_numpy(G)
+            if lag > 0.0:
+                # experiment: the friction bound of each wall-line node follows its normal impulse with a
+                # relaxation of ``lag`` steps (Prakash-Clifton type); ``lag_all``: also while separating
+                G = e.g_mom.to_numpy()
+                if nbar is None:
+                    nbar = np.zeros(len(M))
+                N = np.where((M > 0.0) & (trial[:, 1] < 0.0), M * np.maximum(-trial[:, 1], 0.0), 0.0)
+                nbar += (N - nbar) / lag
+                act = (M > 0.0) & ((trial[:, 1] < 0.0) | lag_all)
+                vt = trial[:, 0]
+                new_t = np.sign(vt) * np.maximum(np.abs(vt) - mu * nbar / np.maximum(M, 1e-300), 0.0)
+                G[act, PAD, 0] = new_t[act]
+                G[act & (trial[:, 1] < 0.0), PAD, 1] = 0.0
+                e.g_mom.from_numpy(G)
+            if gap > 0.0:
+                # experiment: a wall node whose mass says the material has left the wall (below ``gap``
+                # of a full node's mass) takes no contact: its trial velocity, unconstrained
+                G = e.g_mom.to_numpy()
+                open_ = (M > 0.0) & (M < gap * full_node)
+                G[open_, PAD] = trial[open_]
+                e.g_mom.from_numpy(G)
+            if light_share > 0.0:
+                # the share of the particles' G2P velocity and affine matrix that comes from light nodes
+                Mall = e.g_mass.to_numpy()
+                G = e.g_mom.to_numpy()
+                xp = e.x.to_numpy()[: e.n].astype(np.float64)
+                X = (xp - origin) / sc.dx + PAD
+                base = np.floor(X - 0.5).astype(int)
+                fx = X - base
+                W = [0.5 * (1.5 - fx) ** 2, 0.75 - (fx - 1.0) ** 2, 0.5 * (fx - 0.5) ** 2]
+                DW = [fx - 1.5, -2.0 * (fx - 1.0), fx - 0.5]
+                Vold = e.g_v_old.to_numpy() if e.six_stage else None
+                Ll = np.zeros((e.n, 2, 2))
+                Lt = np.zeros((e.n, 2, 2))
+                Cl = np.zeros((e.n, 2, 2))
+                Ct = np.zeros((e.n, 2, 2))
+                vl = np.zeros((e.n, 2))
+                vt_ = np.zeros((e.n, 2))
+                for i in range(3):
+                    for j in range(3):
+                        w = W[i][:, 0] * W[j][:, 1]
+                        I0 = base[:, 0] + i
+                        I1 = base[:, 1] + j
+                        gv = G[I0, I1]
+                        dpos = (np.array([i, j]) - fx) * sc.dx
+                        c = 4.0 / sc.dx ** 2 * w[:, None, None] * gv[:, :, None] * dpos[:, None, :]
+                        lt = (Mall[I0, I1] < light_share * full_node)
+                        Ct += c
+                        if Vold is not None:  # the six-stage schemes' velocity gradient (stress update)
+                            grad = np.c_[DW[i][:, 0] * W[j][:, 1], W[i][:, 0] * DW[j][:, 1]] / sc.dx
+                            lc = Vold[I0, I1][:, :, None] * grad[:, None, :]
+                            Lt += lc
+                            Ll += lc * lt[:, None, None]
+                        Cl += c * lt[:, None, None]
+                        vt_ += w[:, None] * gv
+                        vl += (w * lt)[:, None] * gv
+                if Vold is not None:
+                    lightstat["L_share"].append(np.linalg.norm(Ll) / max(np.linalg.norm(Lt), 1e-300))
+                lightstat["C_share"].append(np.linalg.norm(Cl) / max(np.linalg.norm(Ct), 1e-300))
+                lightstat["v_share"].append(np.linalg.norm(vl) / max(np.linalg.norm(vt_), 1e-300))
+                lightstat["C_rms"].append(np.sqrt((Ct ** 2).sum((1, 2)).mean()))
+                sepl = (Mall > 0) & (Mall < light_share * full_node) & (np.linalg.norm(G, axis=-1) > 0)
+                lightstat["sep_speed"] += np.linalg.norm(G[sepl], axis=-1).tolist()
             if transfer:
                 G = e.g_mom.to_numpy()
                 new = G[:, PAD]
@@ -129,6 +226,10 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
             friction += float(given[held].sum())
             lost["stick"] += float((allowed - given)[stick].sum())
             lost["slip"] += float((allowed - given)[down | up].sum())
+            if light_share > 0.0:  # light wall nodes that separate: their (free) velocity
+                lightsep = sep & (M < light_share * full_node)
+                lightstat["wall_sep_speed"] += np.linalg.norm(trial[lightsep], axis=-1).tolist()
+                lightstat["wall_sep_vn"] += vn[lightsep].tolist()
             speeds["stick_vn"] += (-vn[stick]).tolist()
             speeds["stick_vt"] += np.abs(vt[stick]).tolist()
             speeds["slip_vn"] += (-vn[down | up]).tolist()
@@ -158,7 +259,7 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
         wall_ratio=friction / normal if normal > 0 else float("nan"),
         lost_stick=lost["stick"] / normal if normal > 0 else 0.0, lost_slip=lost["slip"] / normal if normal > 0 else 0.0,
         speeds={k: np.asarray(v) for k, v in speeds.items()}, energy=energy,
-        demand=math.tan(math.radians(theta)) / mu if mu > 0 else float("inf"))
+        demand=math.tan(math.radians(theta)) / mu if mu > 0 else float("inf"), light=lightstat)
 
 
 def report(r: dict, label: str) -> None:
@@ -182,6 +283,24 @@ def report(r: dict, label: str) -> None:
         print(f"  wall-node mass / its value at the release (median): stick steps {np.median(s['stick_m']):.3g}, "
               f"slip steps {np.median(s['slip_m']):.3g}; the 10 % of stick steps that lose most friction "
               f"({lost[heavy].sum() / max(lost.sum(), 1e-300):.0%} of the loss): mass {np.median(np.asarray(s['stick_m'])[heavy]):.3g}")
+    ls = r.get("light")
+    if ls and ls["C_share"]:
+        sp = np.asarray(ls["sep_speed"])
+        cs_ = np.asarray(ls["C_share"])
+        med, p90, top = (np.median(sp), np.percentile(sp, 90), sp.max()) if len(sp) else (0.0, 0.0, 0.0)
+        print(f"  light nodes: node-steps with a nonzero velocity {len(sp)}, speed median {med:.3g} m/s, "
+              f"p90 {p90:.3g}, max {top:.3g}; their share of the particles' affine matrix (norm over all particles): "
+              f"median {np.median(cs_):.3g}, p90 {np.percentile(cs_, 90):.3g}, max {cs_.max():.3g}; "
+              f"of the velocity: median {np.median(ls['v_share']):.3g}; "
+              f"rms |C| of particles: first {ls['C_rms'][0]:.3g}, median {np.median(ls['C_rms']):.3g} 1/s")
+        ws = np.asarray(ls["wall_sep_speed"])
+        if len(ws):
+            print(f"  light wall nodes in separation steps: {len(ws)} node-steps, speed median {np.median(ws):.3g} m/s, "
+                  f"p90 {np.percentile(ws, 90):.3g}, max {ws.max():.3g}; normal (away from the wall) median "
+                  f"{np.median(ls['wall_sep_vn']):.3g}")
+        if ls["L_share"]:
+            print(f"  light nodes' share of the velocity gradient of the stress update (norm over all particles): "
+                  f"median {np.median(ls['L_share']):.3g}, p90 {np.percentile(ls['L_share'], 90):.3g}")
     f = r["fractions"]
     print(f"  wall nodes under the block: {len(f)}; fraction of steps stick / slip down / slip up / separate:")
     print("    all nodes   " + " ".join(f"{v:.3f}" for v in f.mean(0)))
@@ -209,15 +328,32 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ppc", type=int, default=None, help="particles per cell along each axis (the scenes': 2)")
     ap.add_argument("--transfer", action="store_true",
                     help="experiment: a stuck wall node's unused friction to the node inside it (not the engine's law)")
+    ap.add_argument("--light", type=float, default=0.0,
+                    help="experiment: nodes below this fraction of a full node's mass")
+    ap.add_argument("--light-mode", default="", choices=("", "old", "zero"),
+                    help="experiment: such nodes take their interpolated velocity (old) or zero after the grid update")
+    ap.add_argument("--samples", type=int, default=12, help="kinetic-energy samples over the run")
+    ap.add_argument("--light-share", type=float, default=0.01,
+                    help="measure light nodes (below this fraction of a full node's mass): their speed and share of "
+                         "the particles' G2P velocity and affine matrix (0: off)")
+    ap.add_argument("--dx", type=float, default=None, help="cell size (m; the scenes': 2 for E >= 1e7 Pa, 0.1 below)")
+    ap.add_argument("--lag", type=float, default=0.0,
+                    help="experiment: wall-line friction bound relaxed over this many steps")
+    ap.add_argument("--lag-all", action="store_true", help="experiment: the lagged friction also while separating")
+    ap.add_argument("--gap", type=float, default=0.0,
+                    help="experiment: wall nodes below this fraction of a full node's mass take no contact")
     a = ap.parse_args(argv)
     from studies import contact_scenes as cs
 
+    if a.dx is not None:
+        cs.cell_size_for = lambda youngs_pa: a.dx
     if a.cfl is not None:
         cs.CFL = a.cfl
     if a.ppc is not None:
         cs.PPC = a.ppc
     r = diagnose(a.scheme, a.precision, a.thickness, a.youngs, a.incline, a.friction, a.aspect, a.time, a.damping,
-                 transfer=a.transfer)
+                 transfer=a.transfer, light=a.light, light_mode=a.light_mode, samples=a.samples, gap=a.gap,
+                 lag=a.lag, lag_all=a.lag_all, light_share=a.light_share)
     report(r, f"{a.scheme} {a.precision} {a.thickness} cells E={a.youngs:g} aspect {a.aspect:g} "
               f"{a.incline:g}/{a.friction:g} deg, damping {a.damping:g}, cfl {a.cfl or 0.5:g}, ppc {a.ppc or 2}")
     return 0

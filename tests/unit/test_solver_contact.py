@@ -38,7 +38,8 @@ is the upslope part of the base, unloaded by the weight's moment, slipping at mu
 twice as long as thick creeps 6.6 %); the excess slide is friction lost at wall nodes that an opening
 chatter of the base leaves almost without mass (their normal impulse, the stress of the cell, allows
 more friction than their own tangential momentum can give); at low friction too (a 20-cell block at
-13 deg on 12 deg: +35 %). ``ASPECT_ROWS``: a 20-cell block twice as
+13 deg on 12 deg: +35 %); that chatter grows with the friction and not from the small-mass
+nodes (treating them as MUSL does, or as empty, leaves it; docs/validation.md). ``ASPECT_ROWS``: a 20-cell block twice as
 long as thick holds the tolerances at 20/10 and 20/30 deg and creeps 6.4 % at 40/45 (strict xfail).
 The diagnosis itself is tested: stepped stage by stage it gives the engine's slip, and every slip
 step of the law gives exactly mu N.
