@@ -101,3 +101,22 @@ def test_the_workbench_process_never_imports_taichi(tmp_path):
         assert "PySide6" in loaded and "app.gui.main_window" in loaded, when
         assert "taichi" not in loaded, when
         assert not {"solver.engine", "solver.simulation", "solver.runtime"} & loaded, when
+
+
+def test_runout_starts_itself_in_one_way_only():
+    """Child runs of Runout (the workbench's, the sweeps') are started by
+    ``projects.runner.runout_command`` (``python -m app``), the one place that decides it; no
+    production module spells its own ``-m app.cli`` command line."""
+    from pathlib import Path
+
+    from projects.runner import runout_command
+
+    assert runout_command("run", "p.toml") == [sys.executable, "-m", "app", "run", "p.toml"]
+    root = Path(__file__).resolve().parents[2]
+    offenders = []
+    for package in ("app", "projects", "sweeps", "studies", "benchmarks", "solver", "geometry", "stability"):
+        for path in (root / package).rglob("*.py"):
+            text = path.read_text(encoding="utf-8")
+            if '"-m", "app.cli"' in text or "'-m', 'app.cli'" in text:
+                offenders.append(str(path.relative_to(root)))
+    assert offenders == []
