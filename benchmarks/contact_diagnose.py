@@ -73,14 +73,9 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
 
         h = sc.dx / cs.PPC
         e.load_particles(sc.positions, np.full(len(sc.positions), h * h), np.zeros(len(sc.positions), np.int32))
-        e.set_stress(cs.slope_stress(sc.positions, sc.slope, sc.normal, 0.0, sc.thickness_m, theta, delta))
-        dt = cs.CFL * sc.dx / sc.material.p_wave_speed_m_s
         g = sc.gravity(theta)
-        contact(True)
-        for _ in range(int(math.ceil(cs.SETTLE_TRANSITS * sc.length_m / sc.material.p_wave_speed_m_s / dt))):
-            e.step(dt, g, cs.SETTLE_DAMPING)
-        e.set_velocity(np.zeros((e.n, 2)))
-        contact(False)
+        stress = cs.slope_stress(sc.positions, sc.slope, sc.normal, 0.0, sc.thickness_m, theta, delta)
+        dt = cs.settle_and_release(e, sc.material, sc.dx, g, stress, contact, sc.length_m)
         t_end = cs.run_time(theta, delta, sc.dx) * time_factor
         steps = int(math.ceil(t_end / dt))
         dt = t_end / steps

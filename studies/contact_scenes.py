@@ -267,11 +267,10 @@ def slope_stress(positions_m: np.ndarray, slope, normal, base_m: float, thicknes
     return np.c_[sig[:, 0, 0], sig[:, 1, 1], sig[:, 0, 1], k0 * s_nn]
 
 
-def _advance(e, material: Material, dx: float, gravity, theta_deg: float, delta_deg: float, slope, base_row,
-             stress, contact, length_m: float) -> Outcome:
-    """Settle the block on a fixed contact (``contact(True)``, local damping, SETTLE_TRANSITS transits of
-    a P wave along the block), then release it on the frictional contact (``contact(False)``) and run
-    it for :func:`run_time`; the slip is measured from the release."""
+def settle_and_release(e, material: Material, dx: float, gravity, stress, contact, length_m: float) -> float:
+    """Settle the block on a fixed contact (``contact(True)``, local damping, SETTLE_TRANSITS
+    transits of a P wave along the block, velocities zeroed after), then switch to the frictional
+    contact (``contact(False)``); the time step (s) of the run that follows."""
     if stress is not None:
         e.set_stress(stress)
     dt = CFL * dx / material.p_wave_speed_m_s
@@ -281,6 +280,14 @@ def _advance(e, material: Material, dx: float, gravity, theta_deg: float, delta_
             e.step(dt, gravity, SETTLE_DAMPING)
         e.set_velocity(np.zeros((e.n, 2)))
     contact(False)
+    return dt
+
+
+def _advance(e, material: Material, dx: float, gravity, theta_deg: float, delta_deg: float, slope, base_row,
+             stress, contact, length_m: float) -> Outcome:
+    """Settle and release the block (:func:`settle_and_release`) and run it for :func:`run_time`;
+    the slip is measured from the release."""
+    dt = settle_and_release(e, material, dx, gravity, stress, contact, length_m)
     t_end = run_time(theta_deg, delta_deg, dx)
     steps = int(math.ceil(t_end / dt))
     dt = t_end / steps

@@ -19,10 +19,9 @@ import math
 import numpy as np
 import pytest
 
-from solver.config import Boundary, Numerics, Output, Particles, SimulationConfig, Structure
-from solver.simulation import Simulation
+from solver.config import Boundary, Structure
 from solver.structures import signed_distance
-from tests.unit.test_solver_contact import _box
+from tests.unit.test_solver_contact import thrown_block_frames
 
 DX = 0.02  # the cell of _box
 
@@ -52,15 +51,7 @@ def test_a_block_thrown_at_a_thin_barrier_never_ends_inside_or_beyond_it(scheme,
     polygon = _barrier(thickness, lean, offset)
     contact = Boundary("friction", math.radians(30)) if kind == "friction" else Boundary("slip")
     structures = (Structure("barrier", polygon, contact),)
-    cfg, parts = _box(scheme, precision, structures, (0.0, 0.0), duration=0.2)
-    with Simulation(cfg, parts) as sim:
-        speed = 0.9 * sim.speed_bound_m_s / math.sqrt(2)  # as the thick-structure test does
-    fast = Particles(parts.positions_m, parts.volumes_m2, parts.material_ids, np.tile([speed, 0.0], (len(parts), 1)))
-    cfg = SimulationConfig(cfg.grid, cfg.materials, cfg.stages, cfg.gravity_m_s2,
-                           Numerics(scheme=scheme, cfl=0.4, arch="cpu", precision=precision, guard="remove"),
-                           Output(0.005), structures)
-    with Simulation(cfg, fast) as sim:
-        frames = list(sim.run())
+    frames = thrown_block_frames(scheme, precision, structures, 0.2, 0.005)
     far_a, far_b = np.array(polygon[1]), np.array(polygon[2])
     far_n = np.array([far_b[1] - far_a[1], far_a[0] - far_b[0]])
     far_n /= np.linalg.norm(far_n)  # out of the far face
