@@ -34,7 +34,7 @@ empty parts of the domain cost nothing.
 
 
 import numpy as np
-from solver.runtime import ti
+from solver.runtime import mat_vec, outer, ti, transpose
 
 from solver.config import SIDES, Boundary, Grid, Material, Structure
 from solver.fieldio import FieldIO
@@ -584,8 +584,9 @@ class Engine:
     @ti.func
     def _stress_point(self, p, L, dt):
         """Constitutive update of particle p from its velocity gradient L; returns its volume."""
-        D = 0.5 * (L + L.transpose())
-        W = 0.5 * (L - L.transpose())
+        Lt = transpose(L)
+        D = 0.5 * (L + Lt)
+        W = 0.5 * (L - Lt)
         s, deq, yielded = self.materials.stress_update(self.mat[p], self.s[p], D, W, dt)
         self.s[p] = s
         self.eps_p[p] += deq
@@ -788,7 +789,7 @@ class Engine:
                     if self._in_box(I) and not self._held(I):
                         if self.g_mass[I] > 0.0:
                             grad = ti.Vector([idw[i][0] * iw[j][1], iw[i][0] * idw[j][1]]) * self.inv_dx
-                            f = -vol * (sig @ grad) + iw[i][0] * iw[j][1] * body
+                            f = -vol * mat_vec(sig, grad) + iw[i][0] * iw[j][1] * body
                             self.g_f[I] += f
                             total += f
                 for i, j in ti.static(ti.ndrange(3, 3)):
@@ -835,7 +836,7 @@ class Engine:
                     wy = _bspline(fx[1], j)
                     grad = ti.Vector([_bspline_slope(fx[0], i) * wy,
                                       wx * _bspline_slope(fx[1], j)]) * self.inv_dx
-                    force = -vol * (sig @ grad) + wx * wy * m * g
+                    force = -vol * mat_vec(sig, grad) + wx * wy * m * g
                     I = base + ti.Vector([i, j])
                     # atomic where threads share the pass: few particles get here. In the split
                     # scatter a ghost node, like any node, belongs to one band.
@@ -897,13 +898,13 @@ class Engine:
             dpos = (ti.cast(offset, float) - fx) * self.dx
             weight = w[i][0] * w[j][1]
             grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
-            force = -vol * (sig @ grad) + weight * m * g
+            force = -vol * mat_vec(sig, grad) + weight * m * g
             I = base + offset
             self.to_grid.add(self.g_mass, I, weight * m)
             if ti.static(fuse_force):
-                self.to_grid.add(self.g_mom, I, weight * (mv + mC @ dpos) + dt * force)
+                self.to_grid.add(self.g_mom, I, weight * (mv + mat_vec(mC, dpos)) + dt * force)
             else:
-                self.to_grid.add(self.g_mom, I, weight * (mv + mC @ dpos))
+                self.to_grid.add(self.g_mom, I, weight * (mv + mat_vec(mC, dpos)))
                 self.to_grid.add(self.g_f, I, force)
 
     @ti.func
@@ -937,7 +938,7 @@ class Engine:
             self.to_grid.add(self.g_mass, I, weight * m)
             if ti.static(self.scheme == "apic"):
                 dpos = (ti.cast(offset, float) - fx) * self.dx
-                self.to_grid.add(self.g_mom, I, weight * (mv + mC @ dpos))
+                self.to_grid.add(self.g_mom, I, weight * (mv + mat_vec(mC, dpos)))
             else:
                 self.to_grid.add(self.g_mom, I, weight * mv)
 
@@ -966,7 +967,7 @@ class Engine:
         L = ti.Matrix.zero(float, 2, 2)
         for i, j in ti.static(ti.ndrange(3, 3)):
             grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
-            L += self.g_v_old[base + ti.Vector([i, j])].outer_product(grad)
+            L += outer(self.g_v_old[base + ti.Vector([i, j])], grad)
         return self._stress_point(p, L, dt)
 
     @ti.func
@@ -978,7 +979,7 @@ class Engine:
         for i, j in ti.static(ti.ndrange(3, 3)):
             weight = w[i][0] * w[j][1]
             grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
-            self.to_grid.add(self.g_f, base + ti.Vector([i, j]), -vol * (sig @ grad) + weight * m * g)
+            self.to_grid.add(self.g_f, base + ti.Vector([i, j]), -vol * mat_vec(sig, grad) + weight * m * g)
 
     @ti.func
     def _grid_update(self, dt, damping):
@@ -1019,7 +1020,7 @@ class Engine:
                             held += weight * (old - self.v[p])
                     else:
                         dpos = (ti.cast(offset, float) - fx) * self.dx
-                        new_C += 4.0 * self.inv_dx * self.inv_dx * weight * gv.outer_product(dpos)  # eq 17
+                        new_C += 4.0 * self.inv_dx * self.inv_dx * weight * outer(gv, dpos)  # eq 17
                 x = self.x[p] + dt * new_v  # eq 28
                 v = new_v
                 if ti.static(self.scheme == "mpm"):

@@ -10,7 +10,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from solver.runtime import ti
+from solver.runtime import ti, transpose
 
 from solver.config import Material
 from solver.fieldio import FieldIO
@@ -129,8 +129,9 @@ class MaterialPointDriver:
     def _update(self, dt: float):
         for i in range(self.n):
             L = self.L[i]
-            D = 0.5 * (L + L.transpose())
-            W = 0.5 * (L - L.transpose())
+            Lt = transpose(L)
+            D = 0.5 * (L + Lt)
+            W = 0.5 * (L - Lt)
             s, deq, y = self.table.stress_update(self.mat[i], self.s[i], D, W, dt)
             self.s[i] = s
             self.deq[i] += deq

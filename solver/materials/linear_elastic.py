@@ -9,7 +9,7 @@ out-of-plane stress changes only through the volumetric term: dsigma_zz = lambda
 The in-plane spin does not rotate sigma_zz.
 """
 
-from solver.runtime import ti
+from solver.runtime import mat_mat, ti
 
 
 @ti.func
@@ -18,7 +18,7 @@ def trial_stress(s, D, W, dt, K, G):
     lam = K - 2.0 * G / 3.0
     tr = D[0, 0] + D[1, 1]
     sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
-    rot = W @ sig - sig @ W
+    rot = mat_mat(W, sig) - mat_mat(sig, W)
     d00 = lam * tr + 2.0 * G * D[0, 0] + rot[0, 0]
     d11 = lam * tr + 2.0 * G * D[1, 1] + rot[1, 1]
     d01 = 2.0 * G * D[0, 1] + rot[0, 1]
