@@ -30,4 +30,8 @@ if [ ! -x .venv/bin/python ]; then
   "$PYTHON" -m venv .venv
 fi
 .venv/bin/python -m pip install -q --upgrade pip
-.venv/bin/python -m pip install -q -e ".[test]"
+# Runout from this checkout, as a path entry (setuptools' "compat" editable mode): the default
+# editable mode imports a module finder at every interpreter start, 15-50 ms of every run's
+# start-up (docs/performance.md); the plain editable install where a setuptools has no compat mode
+.venv/bin/python -m pip install -q -e ".[test]" --config-settings editable_mode=compat 2>/dev/null \
+  || .venv/bin/python -m pip install -q -e ".[test]"
