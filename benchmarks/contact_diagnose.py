@@ -21,13 +21,25 @@ is not counted here). Printed:
   particles' G2P velocity, affine matrix ``C`` and (mpm, apic) the velocity gradient of the stress
   update (the norm of their terms over the norm of the whole, all particles, per step).
 
-Experiments (not the engine's law; docs/validation.md, contact), all at the main grid update:
+Experiments (not the engine's law; docs/validation.md, contact), at the main grid update unless said:
 ``--transfer`` (a stuck wall node's unused friction to the node inside it); ``--light F
 --light-mode old|zero`` (nodes below F of a full node take their interpolated velocity, no force,
 as MUSL's re-mapping gives it (six-stage schemes), or are treated as empty); ``--gap F`` (wall nodes
 below F of a full node take no contact); ``--lag K [--lag-all]`` (the wall line's friction bound
 follows each node's normal impulse with a lag of K steps; with ``--lag-all`` also while
-separating). ``--dx`` changes the cell size (refinement of the same block with ``--aspect``).
+separating); ``--patch R [--patch-iter P] [--patch-first]`` (patch friction: each approaching wall
+node's allowance ``mu m |vn|`` shared among the approaching wall nodes within R cells along the wall
+by binomial weight x mass, capped at each node's tangential momentum, what a capped node cannot take
+going round again, P passes; with ``--patch-first`` also at the first application, on the
+interpolated velocity); ``--transfer-first``, ``--transfer-depth D``, ``--transfer-spread`` (the
+transfer also at the first application, down D rows of nodes inside, over the three columns about
+the node by mass). ``--dx`` changes the cell size (refinement of the same block with ``--aspect``).
+
+Also printed: a momentum audit of the block (the recorded normal impulse over the weight's normal
+impulse; the recorded friction, and the friction the block's final momentum says it felt, over
+``mu`` times the weight's normal impulse: with an experiment, which the recorded impulse does not
+see, the felt one is the measure); the signed friction at the wall line; and where the friction
+lost in stick steps sits (is a wall node within two cells slipping, could the node inside take it).
 
 With Cundall's damping (``--damping``) the six-stage schemes' trial velocity read here leaves the
 damping out (the counts are then approximate; the slip is the engine's).
@@ -36,7 +48,8 @@ Usage::
 
     PYTHONPATH=$PWD python -m benchmarks.contact_diagnose apic-affine f64 20 1e6 40 45 [--aspect 4]
         [--time 1] [--damping 0] [--cfl 0.5] [--ppc 2] [--dx 2] [--samples 12] [--light-share 0.01]
-        [--transfer | --light 0.01 --light-mode old | --gap 0.02 | --lag 30 --lag-all]
+        [--transfer [--transfer-first --transfer-depth 3 --transfer-spread] | --patch 2 --patch-iter 3
+         [--patch-first] | --light 0.01 --light-mode old | --gap 0.02 | --lag 30 --lag-all]
 """
 
 from __future__ import annotations
@@ -54,7 +67,7 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
              aspect: float = 4.0, time_factor: float = 1.0, damping: float = 0.0, samples: int = 12,
              transfer: bool = False, light: float = 0.0, light_mode: str = "", light_share: float = 0.0,
              gap: float = 0.0, lag: float = 0.0, lag_all: bool = False, patch: int = 0, patch_iter: int = 1,
-             transfer_first: bool = False, transfer_depth: int = 1, transfer_spread: bool = False) -> dict:
+             patch_first: bool = False, transfer_first: bool = False, transfer_depth: int = 1, transfer_spread: bool = False) -> dict:
     """One case (bottom wall); ``transfer``: the experiment of docs/validation.md (contact; not the
     engine's law): after the grid update, the friction a stuck wall node left unused is applied to
     the node one cell inside it, never reversing that node's velocity along the wall."""
@@ -110,7 +123,20 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
             e._stage_kernel(stage, dt, g[0], g[1], damping, damping > 0.0)
 
         for k in range(steps):
-            if transfer_first and e.six_stage:
+            if patch_first and e.six_stage:
+                # experiment: the patch at the first application of the law too (interpolated velocity)
+                first = recipe.index("grid velocity")
+                for stage in recipe[:first]:
+                    kernel(stage)
+                M0 = e.g_mass.to_numpy()[:, PAD]
+                trial0 = e.g_mom.to_numpy()[:, PAD] / np.maximum(M0, 1e-300)[:, None]
+                kernel("grid velocity")
+                V = e.g_v_old.to_numpy()
+                _patch(V, M0, trial0, mu, patch, patch_iter)
+                e.g_v_old.from_numpy(V)
+                for stage in recipe[first + 1:cut]:
+                    kernel(stage)
+            elif transfer_first and e.six_stage:
                 # experiment: the same transfer at the first application of the law (interpolated velocity)
                 first = recipe.index("grid velocity")
                 for stage in recipe[:first]:
@@ -218,29 +244,7 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
                 # wall in proportion to binomial weight x mass, capped at each node's tangential momentum;
                 # what a capped node cannot take goes round again (``patch_iter`` passes)
                 G = e.g_mom.to_numpy()
-                K = np.array([math.comb(2 * patch, k) for k in range(2 * patch + 1)], float) / 4.0 ** patch
-                vn, vt = trial[:, 1], trial[:, 0]
-                act = (M > 0.0) & (vn < 0.0)
-                A = np.where(act, mu * M * np.maximum(-vn, 0.0), 0.0)
-                room = np.where(act, M * np.abs(vt), 0.0)
-                give = np.zeros(len(M))
-                for _ in range(patch_iter):
-                    take = act & (room > 0.0)
-                    mact = np.where(take, M, 0.0)
-                    Mj = np.convolve(mact, K, "same")
-                    F = mact * np.convolve(np.where(Mj > 0.0, A / np.maximum(Mj, 1e-300), 0.0), K, "same")
-                    F = np.where(Mj > 0.0, F, 0.0)
-                    got = np.minimum(F, room)
-                    # allowance of nodes with no taker in reach stays unused (lost)
-                    left = F - got
-                    give += got
-                    room -= got
-                    A = np.where(left > 0.0, left, 0.0)
-                    if A.sum() <= 1e-12 * max(give.sum(), 1e-300):
-                        break
-                new_t = vt - np.sign(vt) * give / np.maximum(M, 1e-300)
-                G[act, PAD, 0] = new_t[act]
-                G[act, PAD, 1] = 0.0
+                _patch(G, M, trial, mu, patch, patch_iter)
                 e.g_mom.from_numpy(G)
             if transfer:
                 G = e.g_mom.to_numpy()
@@ -340,6 +344,34 @@ def _audit(J, m, v, g, t, mu):
     felt = M * g[0] * t - P[0]
     return dict(normal=abs(J[1]) / weight_n, friction=abs(J[0]) / (mu * weight_n), felt=felt / (mu * weight_n),
                 normal_momentum=P[1] / weight_n)
+
+
+def _patch(V, M, trial, mu, patch, passes):
+    """Experiment: patch friction at the wall line, on the velocities ``V`` (changed in place) after the
+    law: each approaching node's allowance ``mu m |vn|`` shared among the approaching nodes with room (a
+    tangential speed) within ``patch`` cells along the wall, in proportion to binomial weight x mass, capped
+    at each node's tangential momentum (never reversed); what a capped node cannot take goes round again
+    (``passes``). Reduces to the law for a uniform contact and for an isolated node."""
+    K = np.array([math.comb(2 * patch, k) for k in range(2 * patch + 1)], float) / 4.0 ** patch
+    vn, vt = trial[:, 1], trial[:, 0]
+    act = (M > 0.0) & (vn < 0.0)
+    A = np.where(act, mu * M * np.maximum(-vn, 0.0), 0.0)
+    room = np.where(act, M * np.abs(vt), 0.0)
+    give = np.zeros(len(M))
+    for _ in range(passes):
+        take = act & (room > 0.0)
+        mact = np.where(take, M, 0.0)
+        Mj = np.convolve(mact, K, "same")
+        F = mact * np.convolve(np.where(Mj > 0.0, A / np.maximum(Mj, 1e-300), 0.0), K, "same")
+        got = np.minimum(F, room)
+        give += got
+        room -= got
+        A = F - got  # the allowance of a node with no taker in reach is lost
+        if A.sum() <= 1e-12 * max(give.sum(), 1e-300):
+            break
+    new_t = vt - np.sign(vt) * give / np.maximum(M, 1e-300)
+    V[act, PAD_ROW, 0] = new_t[act]
+    V[act, PAD_ROW, 1] = 0.0
 
 
 def _unused(M, trial, vt_new, mu):
@@ -464,6 +496,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--lag-all", action="store_true", help="experiment: the lagged friction also while separating")
     ap.add_argument("--transfer-first", action="store_true",
                     help="experiment: the transfer also at the first application (interpolated velocity; mpm, apic)")
+    ap.add_argument("--patch-first", action="store_true",
+                    help="experiment: the patch also at the first application (interpolated velocity; mpm, apic)")
     ap.add_argument("--transfer-depth", type=int, default=1, help="experiment: rows of nodes inside that take it")
     ap.add_argument("--transfer-spread", action="store_true",
                     help="experiment: the transfer spread over the three columns about the node, by mass")
@@ -484,7 +518,7 @@ def main(argv: list[str] | None = None) -> int:
     r = diagnose(a.scheme, a.precision, a.thickness, a.youngs, a.incline, a.friction, a.aspect, a.time, a.damping,
                  transfer=a.transfer, light=a.light, light_mode=a.light_mode, samples=a.samples, gap=a.gap,
                  lag=a.lag, lag_all=a.lag_all, light_share=a.light_share, patch=a.patch, patch_iter=a.patch_iter,
-                 transfer_first=a.transfer_first, transfer_depth=a.transfer_depth, transfer_spread=a.transfer_spread)
+                 patch_first=a.patch_first, transfer_first=a.transfer_first, transfer_depth=a.transfer_depth, transfer_spread=a.transfer_spread)
     report(r, f"{a.scheme} {a.precision} {a.thickness} cells E={a.youngs:g} aspect {a.aspect:g} "
               f"{a.incline:g}/{a.friction:g} deg, damping {a.damping:g}, cfl {a.cfl or 0.5:g}, ppc {a.ppc or 2}")
     return 0
