@@ -316,11 +316,12 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
     finally:
         runtime.release()
     slip = float(((x - x0)[sc.base_row] @ sc.slope).mean())
+    centroid = float((m @ ((x - x0)[: len(m)] @ sc.slope)) / m.sum())
     total = counts.sum(1)
     under = total > 0.5 * total.max()
     bottom = impulse[2]
     return dict(
-        steps=steps, t_end=t_end, slip_m=slip, analytic_m=cs.analytic_distance(theta, delta, t_end),
+        steps=steps, t_end=t_end, slip_m=slip, centroid_m=centroid, analytic_m=cs.analytic_distance(theta, delta, t_end),
         frictionless_m=cs.analytic_distance(theta, 0.0, t_end), fractions=counts[under] / total[under, None],
         contact_ratio=abs(bottom[0]) / (mu * abs(bottom[1])) if mu > 0 else float("nan"),
         wall_ratio=friction / normal if normal > 0 else float("nan"),
@@ -407,7 +408,8 @@ def _pass_inside(V, Mall, left, depth, spread):
 def report(r: dict, label: str) -> None:
     print(label + f": {r['steps']} steps, {r['t_end']:.3f} s")
     if r["analytic_m"] > 0:
-        print(f"  slip {r['slip_m']:.5g} m, analytic {r['analytic_m']:.5g} m: {r['slip_m'] / r['analytic_m'] - 1:+.2%}")
+        print(f"  slip {r['slip_m']:.5g} m, analytic {r['analytic_m']:.5g} m: {r['slip_m'] / r['analytic_m'] - 1:+.2%}; "
+              f"the block's centre of mass {r['centroid_m'] / r['analytic_m'] - 1:+.2%}")
     else:
         print(f"  slip {r['slip_m']:.5g} m = {r['slip_m'] / r['frictionless_m']:.3%} of the frictionless {r['frictionless_m']:.4g} m")
     print(f"  friction / (mu N): whole contact {r['contact_ratio']:.5f}, wall line {r['wall_ratio']:.5f} "
