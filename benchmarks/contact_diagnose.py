@@ -67,7 +67,8 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
              aspect: float = 4.0, time_factor: float = 1.0, damping: float = 0.0, samples: int = 12,
              transfer: bool = False, light: float = 0.0, light_mode: str = "", light_share: float = 0.0,
              gap: float = 0.0, lag: float = 0.0, lag_all: bool = False, patch: int = 0, patch_iter: int = 1,
-             patch_first: bool = False, transfer_first: bool = False, transfer_depth: int = 1, transfer_spread: bool = False) -> dict:
+             patch_first: bool = False, transfer_first: bool = False, transfer_depth: int = 1,
+             transfer_spread: bool = False) -> dict:
     """One case (bottom wall); ``transfer``: the experiment of docs/validation.md (contact; not the
     engine's law): after the grid update, the friction a stuck wall node left unused is applied to
     the node one cell inside it, never reversing that node's velocity along the wall."""
