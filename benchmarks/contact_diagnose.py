@@ -31,7 +31,8 @@ separating); ``--patch R [--patch-iter P] [--patch-first]`` (patch friction: eac
 node's allowance ``mu m |vn|`` shared among the approaching wall nodes within R cells along the wall
 by binomial weight x mass, capped at each node's tangential momentum, what a capped node cannot take
 going round again, P passes; with ``--patch-first`` also at the first application, on the
-interpolated velocity); ``--transfer-first``, ``--transfer-depth D``, ``--transfer-spread`` (the
+interpolated velocity; ``--patch-rows 3``: over the wall line and its two ghost rows, a square
+patch); ``--transfer-first``, ``--transfer-depth D``, ``--transfer-spread`` (the
 transfer also at the first application, down D rows of nodes inside, over the three columns about
 the node by mass). ``--dx`` changes the cell size (refinement of the same block with ``--aspect``).
 
@@ -67,7 +68,7 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
              aspect: float = 4.0, time_factor: float = 1.0, damping: float = 0.0, samples: int = 12,
              transfer: bool = False, light: float = 0.0, light_mode: str = "", light_share: float = 0.0,
              gap: float = 0.0, lag: float = 0.0, lag_all: bool = False, patch: int = 0, patch_iter: int = 1,
-             patch_first: bool = False, transfer_first: bool = False, transfer_depth: int = 1,
+             patch_rows: int = 1, patch_first: bool = False, transfer_first: bool = False, transfer_depth: int = 1,
              transfer_spread: bool = False) -> dict:
     """One case (bottom wall); ``transfer``: the experiment of docs/validation.md (contact; not the
     engine's law): after the grid update, the friction a stuck wall node left unused is applied to
@@ -162,6 +163,13 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
                 trial = e.g_mom.to_numpy()[:, PAD] / np.maximum(M, 1e-300)[:, None]
                 if damping > 0.0:
                     trial = trial + dt * e.g_f.to_numpy()[:, PAD] / np.maximum(M, 1e-300)[:, None]
+            if patch > 0 and patch_rows > 1:  # the ghost rows' trial velocities too
+                Mg = e.g_mass.to_numpy()[:, PAD - patch_rows + 1: PAD + 1]
+                if e.six_stage:
+                    trial_g = (e.g_v_old.to_numpy()[:, PAD - patch_rows + 1: PAD + 1]
+                               + dt * e.g_f.to_numpy()[:, PAD - patch_rows + 1: PAD + 1] / np.maximum(Mg, 1e-300)[..., None])
+                else:
+                    trial_g = e.g_mom.to_numpy()[:, PAD - patch_rows + 1: PAD + 1] / np.maximum(Mg, 1e-300)[..., None]
             kernel("grid update")
             if light > 0.0 and light_mode:
                 # experiment (not the engine's law): nodes below ``light`` of a full node's mass
@@ -245,7 +253,10 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
                 # wall in proportion to binomial weight x mass, capped at each node's tangential momentum;
                 # what a capped node cannot take goes round again (``patch_iter`` passes)
                 G = e.g_mom.to_numpy()
-                _patch(G, M, trial, mu, patch, patch_iter)
+                if patch_rows > 1:
+                    _patch_rows(G, Mg, trial_g, mu, patch, patch_iter)
+                else:
+                    _patch(G, M, trial, mu, patch, patch_iter)
                 e.g_mom.from_numpy(G)
             if transfer:
                 G = e.g_mom.to_numpy()
@@ -376,6 +387,44 @@ def _patch(V, M, trial, mu, patch, passes):
     V[act, PAD_ROW, 1] = 0.0
 
 
+def _patch_rows(V, M, trial, mu, patch, passes):
+    """Experiment: :func:`_patch` over the wall line and the ghost rows beyond it (``M``, ``trial``: the
+    last ``rows`` rows up to the wall line), the patch a square of binomial weights over the contact's
+    nodes."""
+    K = np.array([math.comb(2 * patch, k) for k in range(2 * patch + 1)], float) / 4.0 ** patch
+    rows = M.shape[1]
+
+    def conv(a):
+        out = np.zeros_like(a)
+        for r in range(rows):
+            line = np.convolve(a[:, r], K, "same")
+            for d in range(-patch, patch + 1):
+                if 0 <= r + d < rows:
+                    out[:, r + d] += K[d + patch] * line
+        return out
+
+    vn, vt = trial[..., 1], trial[..., 0]
+    act = (M > 0.0) & (vn < 0.0)
+    A = np.where(act, mu * M * np.maximum(-vn, 0.0), 0.0)
+    room = np.where(act, M * np.abs(vt), 0.0)
+    give = np.zeros_like(M)
+    for _ in range(passes):
+        take = act & (room > 0.0)
+        mact = np.where(take, M, 0.0)
+        Mj = conv(mact)
+        F = mact * conv(np.where(Mj > 0.0, A / np.maximum(Mj, 1e-300), 0.0))
+        got = np.minimum(F, room)
+        give += got
+        room -= got
+        A = F - got
+        if A.sum() <= 1e-12 * max(give.sum(), 1e-300):
+            break
+    new_t = vt - np.sign(vt) * give / np.maximum(M, 1e-300)
+    block = V[:, PAD_ROW - rows + 1: PAD_ROW + 1]
+    block[..., 0] = np.where(act, new_t, block[..., 0])
+    block[..., 1] = np.where(act, 0.0, block[..., 1])
+
+
 def _unused(M, trial, vt_new, mu):
     """Friction that the wall nodes' normal impulse allows and the law did not give (stuck nodes)."""
     vn, vt = trial[:, 1], trial[:, 0]
@@ -499,6 +548,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--lag-all", action="store_true", help="experiment: the lagged friction also while separating")
     ap.add_argument("--transfer-first", action="store_true",
                     help="experiment: the transfer also at the first application (interpolated velocity; mpm, apic)")
+    ap.add_argument("--patch-rows", type=int, default=1,
+                    help="experiment: the patch over this many rows of the contact (the wall line and ghost rows)")
     ap.add_argument("--patch-first", action="store_true",
                     help="experiment: the patch also at the first application (interpolated velocity; mpm, apic)")
     ap.add_argument("--transfer-depth", type=int, default=1, help="experiment: rows of nodes inside that take it")
@@ -521,7 +572,7 @@ def main(argv: list[str] | None = None) -> int:
     r = diagnose(a.scheme, a.precision, a.thickness, a.youngs, a.incline, a.friction, a.aspect, a.time, a.damping,
                  transfer=a.transfer, light=a.light, light_mode=a.light_mode, samples=a.samples, gap=a.gap,
                  lag=a.lag, lag_all=a.lag_all, light_share=a.light_share, patch=a.patch, patch_iter=a.patch_iter,
-                 patch_first=a.patch_first, transfer_first=a.transfer_first, transfer_depth=a.transfer_depth, transfer_spread=a.transfer_spread)
+                 patch_rows=a.patch_rows, patch_first=a.patch_first, transfer_first=a.transfer_first, transfer_depth=a.transfer_depth, transfer_spread=a.transfer_spread)
     report(r, f"{a.scheme} {a.precision} {a.thickness} cells E={a.youngs:g} aspect {a.aspect:g} "
               f"{a.incline:g}/{a.friction:g} deg, damping {a.damping:g}, cfl {a.cfl or 0.5:g}, ppc {a.ppc or 2}")
     return 0
