@@ -173,7 +173,8 @@ def test_a_block_twice_as_long_as_thick(scheme, precision, thickness, youngs, si
 def test_the_contact_diagnosis_steps_as_the_engine_and_every_slip_step_gives_mu_n():
     """benchmarks/contact_diagnose.py steps stage by stage and reads the law at the wall line: its slip
     is the scene's (one kernel a step), its counts cover every step of every wall node under the
-    block, and the law gives exactly mu N in every slip step (stick / slip / separation; issue 11)."""
+    block, and the law gives exactly mu N in every slip step (stick / slip / separation; issue 11); its
+    momentum audit (normal impulse against the weight's, friction felt against recorded) balances."""
     from benchmarks.contact_diagnose import diagnose
 
     args = ("apic", "f64", 5, 1e8, 30.0, 20.0)
@@ -188,6 +189,10 @@ def test_the_contact_diagnosis_steps_as_the_engine_and_every_slip_step_gives_mu_
     assert abs(r["lost_slip"]) < 1e-9 and r["lost_stick"] >= 0.0
     assert r["fractions"][:, 1].mean() > 0.5  # it slides: most node-steps slip down the slope
     assert 0.9 < r["wall_ratio"] <= 1.0 + 1e-9
+    # its momentum audit: the recorded normal impulse is the weight's, and the friction the block's
+    # momentum says it felt is the recorded one (the impulse balance's 2 %)
+    assert r["audit"]["normal"] == pytest.approx(1.0, abs=0.02)
+    assert r["audit"]["felt"] == pytest.approx(r["audit"]["friction"], rel=0.02)
 
 
 @pytest.mark.parametrize("angle_deg", [0.0, 20.0, 45.0, 70.0])
