@@ -504,7 +504,11 @@ class Engine:
         if ti.static(self.n_structures > 0):
             s = self.node_struct[I]
             if s >= 0:
-                new = self._contact_law(v, self.node_normal[I], self.st_kind[s], self.st_mu[s])
+                n = self.node_normal[I]
+                # a node on the structure's medial axis (the middle node line of a wall an even
+                # number of cells thick) has no outward direction (zero normal): it is held
+                kind = self.st_kind[s] if n.dot(n) > 0.25 else FIXED
+                new = self._contact_law(v, n, kind, self.st_mu[s])
                 if ti.static(record):
                     self._record(4 + s, mass * (new - v))
                 v = new

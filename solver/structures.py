@@ -23,6 +23,10 @@ import numpy as np
 
 #: Offset of the central differences of the signed distance, in cell sizes.
 GRADIENT_STEP_CELLS = 1e-3
+#: A node inside a structure is on its medial axis (held, no normal) where, within this many cells
+#: of it along its normal, the normal turns to face it (within FACING of opposite, cosine).
+MEDIAL_CELLS = 0.25
+FACING = 0.9
 
 
 def segments(polygon_m: Sequence[Sequence[float]]) -> tuple[np.ndarray, np.ndarray]:
@@ -60,6 +64,16 @@ def cell_reach(normal: np.ndarray, cell_m: float) -> np.ndarray:
     return 0.5 * cell_m * np.abs(np.asarray(normal, float)).sum(axis=-1)
 
 
+def _gradient(points_m: np.ndarray, polygon_m, step_m: float) -> np.ndarray:
+    """Unit gradient of the signed distance at ``points_m`` (N, 2) by central differences of
+    ``step_m``; zero where they cancel (a point on the medial axis)."""
+    q = np.asarray(points_m, float)
+    grad = np.stack([signed_distance(q + [step_m, 0.0], polygon_m) - signed_distance(q - [step_m, 0.0], polygon_m),
+                     signed_distance(q + [0.0, step_m], polygon_m) - signed_distance(q - [0.0, step_m], polygon_m)],
+                    axis=-1)
+    return grad / np.maximum(np.linalg.norm(grad, axis=-1, keepdims=True), 1e-300)
+
+
 def node_contacts(polygons: Sequence[Sequence[Sequence[float]]], node_x_m: np.ndarray, node_y_m: np.ndarray,
                   cell_m: float) -> tuple[np.ndarray, np.ndarray]:
     """Which structure covers each grid node, and the outward normal there.
@@ -90,10 +104,28 @@ def node_contacts(polygons: Sequence[Sequence[Sequence[float]]], node_x_m: np.nd
         if not near.any():
             continue
         q = pts[near]
-        grad = np.stack([signed_distance(q + [h, 0.0], poly) - signed_distance(q - [h, 0.0], poly),
-                         signed_distance(q + [0.0, h], poly) - signed_distance(q - [0.0, h], poly)], axis=-1)
-        grad /= np.maximum(np.linalg.norm(grad, axis=-1, keepdims=True), 1e-300)
-        covered = signed_distance(q, poly) < cell_reach(grad, cell_m)
+        grad = _gradient(q, poly, h)
+        inside = signed_distance(q, poly)
+        covered = inside < cell_reach(grad, cell_m)
+        # Nodes near the medial axis of a thin part (the middle of a wall two cells thick): within
+        # MEDIAL_CELLS of the node along its normal the signed distance's gradient turns to the
+        # far face's, facing the near one. Such a node is nearly as close to the far face as to
+        # the near one, so its nearest-face normal is a coin toss (round-off decides it on a node
+        # line) and, pointing away from the material, let the material's approach through
+        # unopposed; it is held instead (zero normal: the engine treats it as a fixed contact
+        # node). Only facing surfaces (normals within FACING of opposite: at the apex of a wide
+        # wedge the normal of the nearer face is the right one for the material on that side),
+        # and only where the part is at least a cell thick (half a cell to either face): a node
+        # held in a sharp tip stops material that passes over it (a block thrown over a dam's
+        # crest went unstable there).
+        medial = np.zeros(len(q), bool)
+        deep = inside <= -0.5 * cell_m
+        if deep.any():
+            step = MEDIAL_CELLS * cell_m
+            for sign in (1.0, -1.0):
+                other = _gradient(q[deep] + sign * step * grad[deep], poly, h)
+                medial[deep] |= (other * grad[deep]).sum(axis=-1) < -FACING
+        grad[medial] = 0.0
         where = np.flatnonzero(near.ravel())[covered]
         index.reshape(-1)[where] = k
         normal.reshape(-1, 2)[where] = grad[covered]
