@@ -42,6 +42,8 @@ def test_structures_are_optional_and_round_trip_through_toml():
 
 @pytest.mark.parametrize("structure, expected", [
     ({**WALL, "contact": "open"}, 'structures.0.contact = "open": must be "fixed", "slip" or a table'),
+    ({**WALL, "contact": 3}, 'structures.0.contact = 3: must be "fixed", "slip" or a table {type = "friction"'),
+    ({**WALL, "contact": ["slip"]}, 'structures.0.contact = ["slip"]: must be "fixed", "slip" or a table'),
     ({**WALL, "contact": {"type": "friction"}}, 'structures.0.contact.friction_angle_deg: required for type "friction"'),
     ({**WALL, "contact": {"type": "slip", "friction_angle_deg": 10.0}},
      'structures.0.contact.friction_angle_deg = 10.0: only allowed with type "friction"'),
@@ -118,6 +120,22 @@ def test_a_structure_thinner_than_3_cells_is_warned_about(thickness_cells, warne
         assert "\n" not in lines[0]
         from projects.checks import structure_thickness_m
         assert structure_thickness_m(leaning["polygon_m"]) == pytest.approx(thickness_cells * dx, rel=1e-3)
+
+
+@pytest.mark.parametrize("polygon_cells", [
+    [[250, 0], [253, 0], [253, 50], [250, 50]],  # a wall exactly 3 cells thick, 50 high
+    [[50, 0], [350, 0], [350, 3], [50, 3]],  # a slab exactly 3 cells thick, 300 long
+    [[0, 0], [400, 0], [400, 3], [0, 3]],  # the whole domain's width
+    [[250, 0], [265, 0], [265, 60], [250, 60]]])  # 15 cells thick: its thickness to 1e-6
+def test_a_structure_exactly_3_cells_thick_is_not_warned_about(polygon_cells):
+    from projects.checks import structure_thickness_m
+
+    dx = BASE["domain"]["cell_size_m"]
+    polygon = [[i * dx, j * dx] for i, j in polygon_cells]
+    assert _warnings({**WALL, "polygon_m": polygon}) == []
+    xs, ys = zip(*polygon_cells)
+    thick = min(max(xs) - min(xs), max(ys) - min(ys)) * dx
+    assert structure_thickness_m(polygon) == pytest.approx(thick, rel=1e-6)
 
 
 @pytest.mark.parametrize("offset_cells, scheme, warned", [
