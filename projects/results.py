@@ -973,7 +973,7 @@ class ResultsWriter:
         peaks = self.summary.setdefault("contacts", {})
         for c in contacts:
             def num(v: float | None) -> str:
-                return "" if v is None else repr(float(v))
+                return "" if v is None else repr(float(v) + 0.0)  # + 0.0: no "-0.0"
 
             self._contacts_csv.writerow([repr(float(time_s)), c.contact, num(c.force_x_N_per_m), num(c.force_y_N_per_m),
                                          num(c.force_normal_N_per_m), num(c.force_tangential_N_per_m),

@@ -88,6 +88,8 @@ def test_contacts_csv_rows_and_peaks_in_the_summary(tmp_path):
     summary = writer.close("completed")
     header = (tmp_path / "r" / "contacts.csv").read_text().splitlines()[0]
     assert tuple(header.split(",")) == CONTACT_COLUMNS
+    # no "-0.0" for a contact that carries nothing (the first row's -2 * 0.0)
+    assert ",-0.0," not in (tmp_path / "r" / "contacts.csv").read_text()
     table = read_contacts(tmp_path / "r")
     np.testing.assert_allclose(table["bottom"]["time_s"], [0.0, 0.1, 0.2])
     np.testing.assert_allclose(table["bottom"]["force_y_N_per_m"], [0.0, -20.0, -10.0])
