@@ -319,6 +319,8 @@ def resume_run(
     if checkpoint is None:
         checkpoint = resumable(out_path)
     resolved = check_project(load_project(out_path / PROJECT_NAME), arch=arch, force=True)
+    checkpoint = _without_stop_frame(checkpoint, out_path, resolved.config.output.interval_s,
+                                     [st.name for st in resolved.config.structures])
     sim = _simulation(resolved)
     try:
         try:
@@ -332,6 +334,61 @@ def resume_run(
         return _run(sim, resolved, writer, started, cancel, on_frame, on_progress)
     finally:
         sim.close()
+
+
+def _without_stop_frame(checkpoint: Checkpoint, out_path: Path, interval_s: float,
+                        structures: list[str]) -> Checkpoint:
+    """The checkpoint of a stopped run as if its stop frame had not been written.
+
+    A stop (SIGTERM, Ctrl-C, the workbench's Stop) ends a run with one more frame at the stop
+    time, between two output times, and its checkpoint there. The uninterrupted run has no frame
+    at that time, so the resumed run writes the frames from the one before it on: the stop frame
+    and its rows are written over, and the impulse and peak force the stop frame reported go back
+    into the contact accumulators, so that the next row of ``contacts.csv`` gives the force over
+    the whole output interval, as the uninterrupted run does. Any other checkpoint (at an output
+    time, at a stage's early end, at the end of a stage) is returned as it is.
+    """
+    import dataclasses
+    import math
+
+    import numpy as np
+
+    from projects.results import open_results, read_contacts
+    from solver.config import SIDES
+
+    run, cursor = checkpoint.run, checkpoint.run.get("cursor", {})
+    t = float(run.get("time_s", 0.0))
+    previous_output_s = float(cursor.get("next_output_s", 0.0)) - interval_s
+    frames = int(cursor.get("frames", 0))
+    if (cursor.get("phase") != "loop" or cursor.get("reason") or frames < 2
+            or t <= previous_output_s + 1e-6 * interval_s):
+        return checkpoint
+    try:
+        times = open_results(out_path).series["time_s"]
+        contacts = read_contacts(out_path) if (out_path / "contacts.csv").is_file() else {}
+    except (OSError, ValueError, KeyError):
+        return checkpoint
+    if len(times) < frames or not math.isclose(float(times[frames - 1]), t, rel_tol=1e-12, abs_tol=1e-12):
+        return checkpoint
+    since_s = float(times[frames - 2])
+    arrays = dict(checkpoint.arrays)
+    if "contact_impulse" in arrays and "contact_peak" in arrays:
+        impulse = np.zeros_like(arrays["contact_impulse"])
+        peak = np.zeros_like(arrays["contact_peak"])
+        names = list(SIDES) + structures  # the engine's order of contacts
+        for c, name in enumerate(names[: len(impulse)]):
+            rows = contacts.get(name)
+            if rows is None or not len(rows["time_s"]):
+                continue
+            k = int(np.argmin(np.abs(rows["time_s"] - t)))
+            if not math.isclose(float(rows["time_s"][k]), t, rel_tol=1e-12, abs_tol=1e-12):
+                continue
+            impulse[c] = (rows["force_x_N_per_m"][k] * (t - since_s), rows["force_y_N_per_m"][k] * (t - since_s))
+            peak[c] = (rows["peak_force_N_per_m"][k], rows["peak_force_x_N_per_m"][k], rows["peak_force_y_N_per_m"][k])
+        arrays["contact_impulse"], arrays["contact_peak"] = impulse, peak
+    # last_output_step -1: a stop at a stage's last step still gets that stage's end frame
+    run = {**run, "contacts_since_s": since_s, "cursor": {**cursor, "frames": frames - 1, "last_output_step": -1}}
+    return dataclasses.replace(checkpoint, run=run, arrays=arrays)
 
 
 def run_resolved(

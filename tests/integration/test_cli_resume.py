@@ -84,3 +84,44 @@ def test_resume_refuses_what_it_cannot_continue(tmp_path):
     both = subprocess.run(_cli("run", str(TINY_PROJECT), "--resume", str(tmp_path)), cwd=REPO, env=env,
                           capture_output=True, text=True, timeout=120)
     assert both.returncode != 0 and "not both" in both.stderr
+
+
+def test_resume_of_a_stopped_run_gives_the_frames_of_the_uninterrupted_run(tmp_path):
+    """A stop (SIGTERM, Ctrl-C, the workbench's Stop) ends the run with a frame at the stop time,
+    between two output times. The resumed run continues from that state and gives the frames of
+    the uninterrupted run, numbered as they are: the stop frame is not one of them, and the force
+    on each contact over the interval the stop cut in two is the whole interval's."""
+    from projects.results import read_contacts
+    from projects.runner import StopRequest, resume_run
+
+    sets = SETS[:1] + ["stages.1.duration_s=0.3", "output.interval_s=0.05"]
+    stop = StopRequest()
+
+    def on_progress(progress):
+        if progress.time_s > 0.12:  # mid-way between the frames at 0.10 and 0.15 s
+            stop.request("test")
+
+    stopped = tmp_path / "stopped"
+    first = run_project(load_project(TINY_PROJECT, sets), stopped, cancel=stop, on_progress=on_progress)
+    assert first.status == "stopped"
+    times = Results(stopped).series["time_s"]
+    assert 0.12 < times[-1] < 0.15 - 1e-6, times  # the stop frame, off the output times
+    resumed = resume_run(stopped)
+    assert resumed.ok, resumed.message
+    reference = tmp_path / "reference"
+    assert run_project(load_project(TINY_PROJECT, sets), reference).ok
+
+    a, b = Results(stopped), Results(reference)
+    assert a.status == "completed" and len(a) == len(b) == 7  # t = 0 and every 0.05 s of 0.3 s
+    for column in ("time_s", "step", "stage"):
+        np.testing.assert_array_equal(a.series[column], b.series[column], err_msg=column)
+    for i in range(len(b)):
+        fa, fb = a.frame(i), b.frame(i)
+        for name in fb:
+            np.testing.assert_array_equal(fa[name], fb[name], err_msg=f"frame {i} {name}")
+    ca, cb = read_contacts(stopped), read_contacts(reference)
+    assert ca.keys() == cb.keys()
+    for contact in cb:
+        for column, values in cb[contact].items():
+            np.testing.assert_allclose(ca[contact][column], values, rtol=1e-9, atol=1e-9,
+                                       err_msg=f"{contact} {column}")
