@@ -39,6 +39,7 @@ import queue
 import re
 import threading
 import time
+import zipfile
 import zlib
 from collections import OrderedDict
 from collections.abc import Callable, Iterable, Mapping
@@ -219,7 +220,8 @@ def read_checkpoint(path: str | os.PathLike[str]) -> Any:
             arrays = {key[len("state/"):]: data[key] for key in data.files if key.startswith("state/")}
             run = json.loads(bytes(data["run"]).decode())
             fingerprint = bytes(data["fingerprint"]).decode()
-    except (OSError, ValueError, KeyError, zlib.error) as err:
+    except (OSError, ValueError, KeyError, EOFError, zlib.error, zipfile.BadZipFile) as err:
+        # a checkpoint cut short (a full disk, an interrupted copy) is not a zip file at all
         raise ResultsError(f"cannot read the checkpoint {path}: {err}") from err
     return Checkpoint(run=run, arrays=arrays, fingerprint=fingerprint)
 #: Bytes kept on disk during a run for the final ``summary.json`` (see :func:`_write_reserve`).

@@ -115,3 +115,22 @@ def test_run_killed_with_sigkill_reads_up_to_its_last_frame(tmp_path):
         assert arrays["positions"].shape == (800, 2)
         assert np.isfinite(arrays["stress"]).all()
     assert len(res.series["time_s"]) >= len(res)
+
+
+@pytest.mark.parametrize("damage", ["truncated", "empty", "text", "no-run"])
+def test_a_damaged_checkpoint_is_a_one_line_results_error(tmp_path, damage):
+    """``--resume`` and ``--start-from`` on a folder whose checkpoint.npz was cut short (a full disk,
+    a copy interrupted) or replaced: a ResultsError naming the file, never a traceback."""
+    import io
+
+    from projects.results import CHECKPOINT_NAME, ResultsError, read_checkpoint
+
+    buffer = io.BytesIO()
+    np.savez(buffer, **{"state/x": np.zeros((4, 2)), "fingerprint": np.frombuffer(b"abc", np.uint8)},
+             **({} if damage == "no-run" else {"run": np.frombuffer(b"{}", np.uint8)}))
+    good = buffer.getvalue()
+    data = {"truncated": good[: len(good) // 2], "empty": b"", "text": b"hello\n", "no-run": good}[damage]
+    (tmp_path / CHECKPOINT_NAME).write_bytes(data)
+    with pytest.raises(ResultsError, match="cannot read the checkpoint") as err:
+        read_checkpoint(tmp_path)
+    assert "\n" not in str(err.value)
