@@ -294,6 +294,7 @@ def resume_run(
     on_frame: Callable[[Frame], None] | None = None,
     on_progress: Callable[[Progress], None] | None = None,
     checkpoint: Checkpoint | None = None,
+    force: bool = False,
 ) -> RunResult:
     """Continue a killed, stopped or failed run from the last checkpoint in its results folder.
 
@@ -302,14 +303,16 @@ def resume_run(
     again. The frames are those of an uninterrupted run (bit for bit with the serial scatter).
 
     ``checkpoint`` is the folder's checkpoint as :func:`resumable` returned it (read from the
-    folder when not given).
+    folder when not given). The size limits are checked as for a new run, before anything is
+    allocated (the folder's project.toml may have been edited, or the run needed ``force``).
 
     Raises
     ------
     projects.results.ResultsError
         Not a results folder, no checkpoint, or a checkpoint of another run.
     projects.schema.ProjectError
-        The folder's ``project.toml`` is not a valid project.
+        The folder's ``project.toml`` is not a valid project, or beyond the size limits (without
+        ``force``).
     """
     from projects.document import dumps_project, load_project
     from projects.results import PROJECT_NAME
@@ -318,7 +321,7 @@ def resume_run(
     out_path = Path(results_dir).expanduser().absolute()
     if checkpoint is None:
         checkpoint = resumable(out_path)
-    resolved = check_project(load_project(out_path / PROJECT_NAME), arch=arch, force=True)
+    resolved = check_project(load_project(out_path / PROJECT_NAME), arch=arch, force=force)
     checkpoint = _without_stop_frame(checkpoint, out_path, resolved.config.output.interval_s,
                                      [st.name for st in resolved.config.structures])
     sim = _simulation(resolved)

@@ -125,3 +125,23 @@ def test_resume_of_a_stopped_run_gives_the_frames_of_the_uninterrupted_run(tmp_p
         for column, values in cb[contact].items():
             np.testing.assert_allclose(ca[contact][column], values, rtol=1e-9, atol=1e-9,
                                        err_msg=f"{contact} {column}")
+
+
+def test_resume_checks_the_size_limits_before_it_takes_memory(tmp_path):
+    """The folder's project.toml is what a resume builds: one edited to a run too large for the
+    machine (or a run that needed --force) is refused by the size limits, naming the key, before
+    any particle is seeded; `--force` goes past them as for a new run."""
+    from projects.runner import StopRequest
+
+    stop = StopRequest()
+    stop.request("test")  # stopped at its first check: a checkpoint to resume from
+    stopped = tmp_path / "stopped"
+    assert run_project(load_project(TINY_PROJECT, SETS[:1]), stopped, cancel=stop).status == "stopped"
+    project = stopped / "project.toml"
+    project.write_text(project.read_text().replace("cell_size_m = 0.02", "cell_size_m = 1e-06"))
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    done = subprocess.run(_cli("run", "--resume", str(stopped), "--quiet"), cwd=REPO, env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1, done.stderr
+    assert "domain.cell_size_m = 1e-06: the run would" in done.stderr and "--force" in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr
