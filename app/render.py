@@ -161,11 +161,13 @@ def _nice_axis(lo: float, hi: float) -> tuple[float, float, int, float]:
     return lo2, hi2, int(round((hi2 - lo2) / step)) + 1, step
 
 
-def _label_format(step: float) -> str:
-    """printf format with just enough decimals for labels ``step`` apart."""
+def _label_format(*steps: float) -> str:
+    """printf format with just enough decimals for labels ``steps`` apart (one format for both
+    axes: the decimals of the step that needs most, so 0.25 is not printed as 0.2)."""
     decimals = 0
-    while decimals < 6 and abs(round(step, decimals) - step) > 1e-9 * step:
-        decimals += 1
+    for step in steps:
+        while decimals < 6 and abs(round(step, decimals) - step) > 1e-9 * step:
+            decimals += 1
     return f"%.{decimals}f"
 
 
@@ -252,7 +254,7 @@ def _view(bounds: tuple[float, float, float, float], size: tuple[int, int]) -> _
     x0, x1, nx, xstep = _nice_axis(bounds[0], bounds[1])
     y0, y1, ny, ystep = _nice_axis(bounds[2], bounds[3])
     ppm = min(_DATA_W * size[0] / (x1 - x0), _DATA_H * size[1] / (y1 - y0))
-    return _View((x0, x1, y0, y1), (nx, ny), _label_format(min(xstep, ystep)), ppm)
+    return _View((x0, x1, y0, y1), (nx, ny), _label_format(xstep, ystep), ppm)
 
 
 def _particle_spacing(results: Results, arrays: Mapping[str, np.ndarray]) -> float:

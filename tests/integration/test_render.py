@@ -156,3 +156,19 @@ def test_structures_are_drawn_in_pictures(tmp_path):
                                                      tmp_path / f"{name}.png", size=SMALL))
     grey = lambda img: np.all(np.abs(img[..., :3].astype(int) - 180) <= 3, axis=-1)  # noqa: E731 - fill #b4b4b4
     assert grey(pictures["with"]).sum() > grey(pictures["without"]).sum() + 300
+
+
+@pytest.mark.parametrize("bounds", [(0.0, 1.2, 0.0, 0.8), (0.0, 0.8, 0.0, 0.15), (0.0, 12.0, -3.0, 0.5),
+                                    (100.0, 101.3, 0.0, 0.02), (0.0, 0.6, 0.0, 0.3)])
+def test_every_axis_label_reads_as_its_tick(bounds):
+    """One label format serves both axes: it must have the decimals of the finer-written step
+    (x every 0.25 m and y every 0.2 m: "%.2f", not "%.1f", which printed 0.25 as "0.2" and 0.75
+    as "0.8")."""
+    from app.render import _view
+
+    view = _view(bounds, (1600, 900))
+    x0, x1, y0, y1 = view.bounds
+    for lo, hi, n in ((x0, x1, view.labels[0]), (y0, y1, view.labels[1])):
+        for tick in np.linspace(lo, hi, n):
+            assert float(view.label_format % tick) == pytest.approx(tick, abs=1e-9 * max(1.0, abs(tick))), (
+                view.label_format, tick)
