@@ -171,6 +171,17 @@ def _label_format(*steps: float) -> str:
     return f"%.{decimals}f"
 
 
+def bar_format(lo: float, hi: float, labels: int = 5) -> str:
+    """printf format of the colour bar's ``labels`` evenly spaced labels from ``lo`` to ``hi``:
+    3 significant digits, more while two labels would read the same (a narrow range)."""
+    values = np.linspace(lo, hi, labels)
+    for digits in range(3, 10):
+        fmt = f"%.{digits}g"
+        if len({fmt % v for v in values}) == labels:
+            return fmt
+    return "%.10g"
+
+
 def value_range(values: np.ndarray) -> tuple[float, float]:
     """Colour range of the finite values, widened a little when they are all equal."""
     finite = values[np.isfinite(values)]
@@ -424,7 +435,7 @@ class _Scene:
             )
         else:
             clim = self.clim or value_range(np.asarray(self.cloud.point_data["values"]))
-            bar.update(fmt="%.3g", n_labels=5)
+            bar.update(fmt=bar_format(*clim, labels=5), n_labels=5)
             self._actor = self.plotter.add_mesh(
                 self.cloud, cmap=self._cmap, clim=clim, scalar_bar_args=bar, **common
             )

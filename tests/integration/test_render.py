@@ -172,3 +172,18 @@ def test_every_axis_label_reads_as_its_tick(bounds):
         for tick in np.linspace(lo, hi, n):
             assert float(view.label_format % tick) == pytest.approx(tick, abs=1e-9 * max(1.0, abs(tick))), (
                 view.label_format, tick)
+
+
+@pytest.mark.parametrize("lo, hi", [(0.0, 4.54), (0.08169, 0.08181), (2.2, 4.54), (101325.0, 101331.0),
+                                    (-1e-6, 1e-6), (0.0, 1.0)])
+def test_the_colour_bar_labels_are_distinct(lo, hi):
+    """Five colour-bar labels that read differently: a narrow range (a block that moved as one,
+    displacements 0.08169 to 0.08181 m) printed "0.0818, 0.0818, 0.0817, 0.0817, 0.0817" with 3
+    significant digits; the digits grow until each label differs, 3 where they suffice."""
+    from app.render import bar_format
+
+    fmt = bar_format(lo, hi)
+    labels = [fmt % v for v in np.linspace(lo, hi, 5)]
+    assert len(set(labels)) == 5, labels
+    if (lo, hi) == (0.0, 4.54):
+        assert fmt == "%.3g"
