@@ -809,7 +809,7 @@ class SceneView(QWidget):
             d[kind][body]["polygon_m"][vertex] = [x, y]
 
         name = self.doc.get(f"{kind}.{body}.name", body)
-        self.doc.edit(f"move vertex {vertex} of {name}", mutate, merge_key)
+        self.doc.edit(f"move vertex {vertex + 1} of {name}", mutate, merge_key)  # as the panel's table rows
 
     def delete_selected_vertex(self) -> None:
         sel = self.doc.selection
