@@ -255,3 +255,41 @@ def test_envelopes_survive_a_killed_run(tiny_project, tmp_path):
     assert min(abs(t - doc["time_s"]) for t in [*res.times, res.times[-1] + 0.01]) < 1e-6
     assert len(doc["series"]["time_s"]) >= 4 and doc["series"]["time_s"][-1] == pytest.approx(doc["time_s"])
     assert doc["max_speed_m_s"] > 0 and np.all(np.isfinite(doc["profile"]["peak_flow_height_m"]))
+
+
+def test_the_hazard_files_of_a_scene_far_from_the_origin_are_those_of_the_same_scene_at_it(tmp_path):
+    """Real-world coordinates (``domain.origin_m`` far from zero, docs/project-format.md): the
+    engine works relative to the grid's origin, and so must the envelopes; the hazard files give
+    the scene's measures in the project's coordinates, the same as for the scene at (0, 0) moved
+    by the origin (before: the raster was placed at the project's origin over the engine's relative
+    positions, so nothing was found on it: no flow height, no run-out, targets never reached)."""
+    from projects.schema import validate_project
+
+    shift = (1000.0, 200.0)
+    text = BLOCK.format(x0=0.05, x1=0.15, h=H, v=1.5, duration=0.2, every=4, near=0.3, far=0.4, window=0.35)
+    data = loads_project(text).to_dict()
+    data["domain"]["origin_m"] = list(shift)
+    data["bodies"][0]["polygon_m"] = [[x + shift[0], y + shift[1]] for x, y in data["bodies"][0]["polygon_m"]]
+    for target in data["targets"]:
+        if "x_m" in target:
+            target["x_m"] += shift[0]
+        else:
+            target["point_m"] = [target["point_m"][0] + shift[0], target["point_m"][1] + shift[1]]
+    docs = []
+    for name, project in (("at-origin", loads_project(text)), ("far", validate_project(data))):
+        result = run_project(project, tmp_path / name)
+        assert result.ok, result.message
+        docs.append(read_hazard(result.out_dir))
+    near, far = docs
+    assert near["runout_x_m"] is not None and near["max_flow_height_m"] == pytest.approx(H, rel=0.01)
+    for key in ("runout_x_m", "source_front_x_m", "runout_x_envelope_m"):
+        assert far[key] == pytest.approx(near[key] + shift[0], abs=1e-3), key
+    for key in ("runout_distance_m", "max_flow_height_m", "drop_height_m", "travel_length_m", "max_speed_m_s",
+                "mobilised_area_m2_per_m"):
+        assert far[key] == pytest.approx(near[key], rel=1e-3, abs=1e-4), key
+    for name, t in near["targets"].items():
+        assert far["targets"][name]["arrival_time_s"] == pytest.approx(t["arrival_time_s"], abs=1e-6), name
+        assert far["targets"][name]["max_height_m"] == pytest.approx(t["max_height_m"], rel=1e-3), name
+    for column, offset in (("x_m", shift[0]), ("floor_m", shift[1]), ("ground_m", shift[1]), ("surface_m", shift[1])):
+        np.testing.assert_allclose(far["profile"][column], near["profile"][column] + offset, atol=1e-3, err_msg=column)
+    np.testing.assert_allclose(far["profile"]["peak_flow_height_m"], near["profile"]["peak_flow_height_m"], atol=1e-3)
