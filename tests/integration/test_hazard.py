@@ -293,3 +293,51 @@ def test_the_hazard_files_of_a_scene_far_from_the_origin_are_those_of_the_same_s
     for column, offset in (("x_m", shift[0]), ("floor_m", shift[1]), ("ground_m", shift[1]), ("surface_m", shift[1])):
         np.testing.assert_allclose(far["profile"][column], near["profile"][column] + offset, atol=1e-3, err_msg=column)
     np.testing.assert_allclose(far["profile"]["peak_flow_height_m"], near["profile"]["peak_flow_height_m"], atol=1e-3)
+
+
+def test_the_floor_under_a_structure_is_its_top(tmp_path):
+    """A block sliding on a structure (bedrock, a platform: issue 11's rigid sliding surface) flows
+    over the structure's top, not over the grid's bottom: its flow height is its own height and
+    it drops nothing (before: flow heights and drop measured from the grid's bottom under the
+    structure, here 0.12 m instead of 0.06 m)."""
+    from projects.schema import validate_project
+
+    base = 0.06  # the platform's top: 3 cells, on a node line
+    text = BLOCK.format(x0=0.05, x1=0.15, h=H, v=1.5, duration=0.2, every=4, near=0.3, far=0.4, window=0.35)
+    data = loads_project(text).to_dict()
+    data["bodies"][0]["polygon_m"] = [[x, y + base] for x, y in data["bodies"][0]["polygon_m"]]
+    data["targets"][2]["point_m"][1] += base
+    data["structures"] = [{"name": "platform", "polygon_m": [[0.0, 0.0], [1.0, 0.0], [1.0, base], [0.0, base]],
+                           "contact": "slip"}]
+    result = run_project(validate_project(data), tmp_path / "platform")
+    assert result.ok, result.message
+    doc = read_hazard(result.out_dir)
+    prof = doc["profile"]
+    np.testing.assert_allclose(prof["floor_m"], base, atol=1e-9)
+    passed = (prof["x_lo_m"] >= 0.15 - 1e-9) & (prof["x_hi_m"] <= 0.35 + 1e-9)
+    np.testing.assert_allclose(prof["peak_flow_height_m"][passed], H, rtol=0.01)
+    assert doc["max_flow_height_m"] == pytest.approx(H, rel=0.01)
+    assert doc["drop_height_m"] == pytest.approx(H, abs=1e-3)  # from its top to the platform
+    assert doc["runout_distance_m"] == pytest.approx(1.5 * 0.2, abs=1e-3)
+    for name in ("near", "far"):
+        assert doc["targets"][name]["max_height_m"] == pytest.approx(H, rel=0.01), name
+
+
+def test_the_floor_of_each_raster_column_is_the_top_of_the_structures_at_its_centre():
+    from projects.hazard import structure_floor_m
+    from projects.schema import validate_project
+
+    data = loads_project(BLOCK.format(x0=0.05, x1=0.15, h=H, v=1.5, duration=0.2, every=4, near=0.3, far=0.4,
+                                      window=0.35)).to_dict()
+    # a ramp falling from 0.1 m at x = 0.2 to 0 at x = 0.6, and a wall from 0.7 to 0.76, 0.15 high
+    data["structures"] = [{"name": "ramp", "polygon_m": [[0.2, 0.0], [0.6, 0.0], [0.2, 0.1]]},
+                          {"name": "wall", "polygon_m": [[0.7, 0.0], [0.76, 0.0], [0.76, 0.15], [0.7, 0.15]]}]
+    project = validate_project(data)
+    floor = structure_floor_m(project, 0.02)
+    assert floor.shape == (50,)  # 1.0 m of 0.02 m columns
+    x = (np.arange(50) + 0.5) * 0.02
+    expected = np.where((x > 0.2) & (x < 0.6), 0.1 * (0.6 - x) / 0.4, 0.0)
+    expected = np.where((x > 0.7) & (x < 0.76), 0.15, expected)
+    np.testing.assert_allclose(floor, expected, atol=1e-12)
+    assert structure_floor_m(validate_project(loads_project(BLOCK.format(
+        x0=0.05, x1=0.15, h=H, v=1.5, duration=0.2, every=4, near=0.3, far=0.4, window=0.35)).to_dict()), 0.02) is None
