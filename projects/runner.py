@@ -257,7 +257,7 @@ def run_project(
     sim = _simulation(resolved)
     try:
         if initial is not None:
-            _start_from(sim, initial, start_from)
+            _start_from(sim, initial, start_from, resolved)
         meta = _meta(resolved, sim, path)
         if start_from is not None:
             meta["started_from"] = str(Path(start_from).absolute())
@@ -431,13 +431,43 @@ def _simulation(resolved: ResolvedRun) -> Any:
         raise _solver_rejects(f"{type(err).__name__}: {first_line}") from None
 
 
-def _start_from(sim: Any, checkpoint: Any, source: Any) -> None:
-    """Load another run's particle state into a fresh simulation (its own stages then run)."""
+def _start_from(sim: Any, checkpoint: Any, source: Any, resolved: ResolvedRun) -> None:
+    """Load another run's particle state into a fresh simulation (its own stages then run).
+
+    The other run must have this project's particles: as many, of the same materials and masses,
+    seeded at the same places (checked against its folder's project.toml where there is one), so
+    that a folder of another scene with as many particles is refused, not silently taken.
+    """
+    import numpy as np
+
+    from projects.build import resolve
+    from projects.document import load_project
+    from projects.schema import ProjectError
+
+    def refuse(why: str) -> ResultsError:
+        return ResultsError(f"cannot start from {source}: its particles are not this project's ({why})")
+
     arrays = {k: v for k, v in checkpoint.arrays.items() if k in sim.engine.PARTICLE_STATE and k != "band"}
+    own = sim.engine.state(("mat", "m"))
+    if "mat" in arrays and np.shape(arrays["mat"]) == np.shape(own["mat"]):
+        if not np.array_equal(arrays["mat"], own["mat"]):
+            raise refuse("other materials")
+        if "m" in arrays and not np.allclose(arrays["m"], own["m"], rtol=1e-5, atol=0.0):
+            raise refuse("other masses: another density or particle volume")
+    folder = Path(source)
+    folder = folder if folder.is_dir() else folder.parent
+    try:
+        theirs = resolve(load_project(folder / "project.toml")).seeded().particles
+    except (OSError, ProjectError, ValueError):
+        theirs = None  # a bare checkpoint file: the engine's checks below
+    if theirs is not None and len(theirs.positions_m) == len(resolved.particles.positions_m):
+        size = max(resolved.project.domain.size_m)
+        if not np.allclose(theirs.positions_m, resolved.particles.positions_m, rtol=0.0, atol=1e-9 * size):
+            raise refuse("seeded at other places")
     try:
         sim.engine.load_state(arrays)
     except ValueError as err:
-        raise ResultsError(f"cannot start from {source}: {err} (its particles are not this project's)") from None
+        raise refuse(str(err)) from None
 
 
 def _meta(resolved: ResolvedRun, sim: Any, project_path: Path | None) -> dict[str, Any]:

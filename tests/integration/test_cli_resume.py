@@ -145,3 +145,28 @@ def test_resume_checks_the_size_limits_before_it_takes_memory(tmp_path):
     assert done.returncode == 1, done.stderr
     assert "domain.cell_size_m = 1e-06: the run would" in done.stderr and "--force" in done.stderr, done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_start_from_takes_the_particle_state_of_a_run_of_the_same_particles_only(tmp_path):
+    """`--start-from RESULTS` starts a project's stages from another run's particle state; the runs
+    must have the same particles: a project of another scene with as many particles (a different
+    density, hence masses; another material) is refused with one line, not silently started
+    from a state that is not its own."""
+    from projects.results import ResultsError
+
+    source = tmp_path / "source"
+    assert run_project(load_project(TINY_PROJECT, SETS[:1]), source).ok
+    last = Results(source).frame(len(Results(source)) - 1)
+    # the same particles: the next run's first frame is the source's last state
+    follow = run_project(load_project(TINY_PROJECT, SETS[:1] + ["stages.0.k0=0.5"]), tmp_path / "follow",
+                         start_from=source)
+    assert follow.ok, follow.message
+    np.testing.assert_array_equal(Results(tmp_path / "follow").frame(0)["velocity"], last["velocity"])
+    for change in ("materials.sand.density_kg_m3=2500.0", "bodies.0.polygon_m=[[0.2,0],[0.32,0],[0.32,0.24],[0.2,0.24]]"):
+        other = load_project(TINY_PROJECT, SETS[:1] + [change])
+        try:
+            run_project(other, tmp_path / "other", start_from=source)
+        except ResultsError as err:
+            assert "not this project's" in str(err) and "\n" not in str(err), err
+        else:
+            raise AssertionError(f"{change}: started from the state of another scene")
