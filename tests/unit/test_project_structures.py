@@ -154,3 +154,30 @@ def test_an_axis_aligned_face_far_from_the_node_lines_is_warned_about(offset_cel
         assert len(lines) == 1 and lines[0].startswith("structures.0 ('wall') has a face at x = ")
         assert f"{offset_cells:.2f} cells off the grid's node lines" in lines[0]
         assert f'scheme "{scheme}"' in lines[0]
+
+
+def test_a_resumed_folder_takes_its_contact_peaks_from_the_rows_it_keeps(tmp_path):
+    """A resume writes over the frames after its checkpoint (and a stop's frame): the run's peaks in
+    summary.json must come from the contacts.csv rows kept, not from the earlier summary, which
+    also counted the rows written over."""
+    from projects.results import ResultsWriter
+
+    out = tmp_path / "r"
+    writer = ResultsWriter(out, "", {"particles": 1})
+    pos = np.zeros((1, 2), np.float32)
+
+    def frame(i, fx, peak):
+        diag = Diagnostics(0.1 * i, "s", 0, 0.1 * i, i, 1e-3, 0, 0, 0, 0, 0, 0, 1.0, 0)
+        contacts = (ContactForce("bottom", fx, -2 * fx, 2 * fx, fx, peak, peak / 2, -peak),)
+        return Frame(diag, {"positions": pos, "active": np.ones(1, bool)}, contacts)
+
+    for i, (fx, peak) in enumerate([(0.0, 0.0), (5.0, 12.0), (10.0, 40.0)]):
+        writer.write_frame(frame(i, fx, peak))
+    assert writer.close("stopped")["contacts"]["bottom"]["peak_force_N_per_m"] == 40.0
+    resumed = ResultsWriter(out, "", {"particles": 1}, keep_frames=2)
+    assert resumed.summary["contacts"]["bottom"]["peak_force_N_per_m"] == 12.0
+    assert resumed.summary["contacts"]["bottom"]["max_mean_force_N_per_m"] == pytest.approx(math.hypot(5.0, 10.0))
+    resumed.write_frame(frame(2, 8.0, 30.0))
+    peaks = resumed.close("completed")["contacts"]["bottom"]
+    assert peaks["peak_force_N_per_m"] == 30.0 and peaks["peak_time_s"] == pytest.approx(0.2)
+    assert json.loads((out / "summary.json").read_text())["contacts"]["bottom"] == peaks
