@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from projects.results import ResultsError, ResultsWriter, is_results_dir
-from projects.results_folder import check_results_dir
+from projects.results_folder import check_results_dir, lock_holder
 from solver.config import InstabilityError, SolverError
 
 
@@ -280,6 +280,10 @@ def resumable(results_dir: str | os.PathLike[str]) -> Checkpoint:
     out_path = Path(results_dir).expanduser().absolute()
     if not is_results_dir(out_path) or not (out_path / PROJECT_NAME).is_file():
         raise ResultsError(f"{out_path} is not a results folder with its project.toml")
+    holder = lock_holder(out_path)
+    if holder is not None:  # still running: it may have no checkpoint yet, and it must not be run twice
+        who = f"process {holder}" if holder > 0 else "another process"
+        raise ResultsError(f"{out_path} is in use by another run ({who}): it is still running, nothing to resume")
     checkpoint = read_checkpoint(out_path)
     if checkpoint.run["cursor"]["phase"] == "done":
         raise ResultsError(f"the run in {out_path} is complete: nothing to resume")

@@ -134,3 +134,17 @@ def test_a_damaged_checkpoint_is_a_one_line_results_error(tmp_path, damage):
     with pytest.raises(ResultsError, match="cannot read the checkpoint") as err:
         read_checkpoint(tmp_path)
     assert "\n" not in str(err.value)
+
+
+def test_resume_of_a_folder_a_live_run_is_writing_names_the_run(tmp_path):
+    """`runout run --resume` on the folder of a run that is still going: the folder is in use (one
+    line naming the process), not "no checkpoint" (it may not have written one yet)."""
+    from projects.results import ResultsError
+    from projects.runner import resumable
+
+    writer = ResultsWriter(tmp_path / "live", "", dict(SYNTHETIC_META))
+    try:
+        with pytest.raises(ResultsError, match=f"in use by another run \\(process {os.getpid()}\\)"):
+            resumable(tmp_path / "live")
+    finally:
+        writer.close("completed")
