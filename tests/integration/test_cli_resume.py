@@ -1,4 +1,6 @@
-"""`runout run --resume` after SIGKILL reproduces the uninterrupted run (serial scatter: bit for bit)."""
+"""`runout run --resume` after SIGKILL or a stop reproduces the uninterrupted run (serial scatter: bit
+for bit, frames numbered as its); a resume checks the size limits first; `--start-from` takes only a
+run of the same particles."""
 
 import os
 import signal

@@ -7,6 +7,8 @@
   cell, and the envelopes are never below the values of any output frame.
 - A killed run keeps the hazard files of its last frames, complete and readable; a kill between
   the files leaves them read as of hazard.json (written last).
+- The block scene moved far from the origin (real-world coordinates) gives the same measures,
+  moved; on a platform structure its floor is the structure's top (flow height = its height).
 """
 
 from __future__ import annotations
