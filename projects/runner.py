@@ -275,7 +275,7 @@ def resumable(results_dir: str | os.PathLike[str]) -> Checkpoint:
     projects.results.ResultsError
         Not a results folder with its project.toml, no readable checkpoint, or a complete run.
     """
-    from projects.results import PROJECT_NAME, read_checkpoint
+    from projects.results import CHECKPOINT_NAME, PROJECT_NAME, read_checkpoint
 
     out_path = Path(results_dir).expanduser().absolute()
     if not is_results_dir(out_path) or not (out_path / PROJECT_NAME).is_file():
@@ -284,10 +284,25 @@ def resumable(results_dir: str | os.PathLike[str]) -> Checkpoint:
     if holder is not None:  # still running: it may have no checkpoint yet, and it must not be run twice
         who = f"process {holder}" if holder > 0 else "another process"
         raise ResultsError(f"{out_path} is in use by another run ({who}): it is still running, nothing to resume")
+    if not (out_path / CHECKPOINT_NAME).is_file() and _has_strength_reduction(out_path / PROJECT_NAME):
+        raise ResultsError(f"{out_path}: a strength-reduction run cannot be resumed (its search lives in memory "
+                           "and writes no checkpoint part-way); run it again")
     checkpoint = read_checkpoint(out_path)
     if checkpoint.run["cursor"]["phase"] == "done":
         raise ResultsError(f"the run in {out_path} is complete: nothing to resume")
     return checkpoint
+
+
+def _has_strength_reduction(project_file: Path) -> bool:
+    """Whether the project file has a strength-reduction stage (False when it cannot be read)."""
+    from projects.document import parse_toml
+    from projects.schema import ProjectError
+
+    try:
+        stages = parse_toml(project_file.read_text(encoding="utf-8")).get("stages") or []
+    except (OSError, ValueError, ProjectError):
+        return False
+    return any(isinstance(st, dict) and st.get("type") == "strength-reduction" for st in stages)
 
 
 def resume_run(

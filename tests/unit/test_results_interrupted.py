@@ -148,3 +148,18 @@ def test_resume_of_a_folder_a_live_run_is_writing_names_the_run(tmp_path):
             resumable(tmp_path / "live")
     finally:
         writer.close("completed")
+
+
+def test_resume_of_a_strength_reduction_run_says_why_it_cannot(tmp_path):
+    """A strength-reduction run keeps its search in memory and writes no checkpoint part-way
+    (docs/project-format.md): resuming a stopped one says so and what to do, not only "no
+    checkpoint"."""
+    from projects.results import ResultsError
+    from projects.runner import resumable
+    from tests.conftest import EXAMPLES
+
+    writer = ResultsWriter(tmp_path / "fos", (EXAMPLES / "slope_fos.toml").read_text(), dict(SYNTHETIC_META))
+    writer.close("stopped")
+    with pytest.raises(ResultsError, match="strength-reduction run cannot be resumed") as err:
+        resumable(tmp_path / "fos")
+    assert "run it again" in str(err.value) and "\n" not in str(err.value)
