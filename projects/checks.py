@@ -3,8 +3,9 @@
 :func:`project_warnings` lists them (``runout validate`` and ``runout run`` print them, the
 workbench shows them):
 
-- a body within one cell of a closed wall (fixed, slip or friction) without touching it: it
-  falls or slides onto the wall at the start and the settlement reads as deformation;
+- a body within one cell of a closed wall (fixed, slip or friction) or of a structure without
+  touching it: it falls or slides onto the wall at the start and the settlement reads as
+  deformation;
 - a k0 stage where the ground slopes: geostatic stresses are no equilibrium under a slope
   (many particles yield at once); a gravity stage is the initial stress for sloping ground;
 - a structure thinner than 3 cells at its thickest: the at-rest thrust on it was up to 10-13 % off at 1
@@ -142,6 +143,31 @@ def _wall_gaps(project: Project) -> list[str]:
     return warnings
 
 
+def _structure_gaps(project: Project) -> list[str]:
+    """A body less than a cell from a structure without touching or overlapping it (as a wall)."""
+    from solver.structures import signed_distance
+
+    dx = project.domain.cell_size_m
+    warnings = []
+    for index, body in enumerate(project.bodies):
+        b = np.asarray(body.polygon_m, dtype=np.float64)
+        for k, structure in enumerate(project.structures):
+            st = np.asarray(structure.polygon_m, dtype=np.float64)
+            # apart, the nearest points of two polygons include a vertex of one of them
+            d_body, d_struct = signed_distance(b, st), signed_distance(st, b)
+            if (d_body < 0).any() or (d_struct < 0).any():
+                continue  # overlapping: the structure takes its part of the body
+            gap = float(min(d_body.min(), d_struct.min()))
+            if TOUCH_TOLERANCE * dx < gap < dx:
+                warnings.append(
+                    f"bodies.{index} ({body.name!r}) is {gap:.3g} m from structures.{k} ({structure.name!r}) "
+                    f"without touching it, less than a cell ({dx:g} m): it will move onto the structure at the "
+                    "start and the settlement looks like deformation; move it to touch the structure or leave a "
+                    "gap of several cells"
+                )
+    return warnings
+
+
 def _k0_on_slope(project: Project) -> list[str]:
     k0 = [i for i, stage in enumerate(project.stages) if stage.type == "k0"]
     if not k0:
@@ -255,7 +281,7 @@ def project_warnings(project: Project) -> list[str]:
         One line each, naming the key and what to do.
     """
     with np.errstate(all="ignore"):  # absurd coordinates (1e300 m) are the size limits' business
-        return [*_wall_gaps(project), *_k0_on_slope(project), *_thin_structures(project), *_off_node_faces(project)]
+        return [*_wall_gaps(project), *_structure_gaps(project), *_k0_on_slope(project), *_thin_structures(project), *_off_node_faces(project)]
 
 
 def recommended_initial_stage(project: Project) -> dict[str, Any]:

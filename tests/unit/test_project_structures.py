@@ -181,3 +181,23 @@ def test_a_resumed_folder_takes_its_contact_peaks_from_the_rows_it_keeps(tmp_pat
     peaks = resumed.close("completed")["contacts"]["bottom"]
     assert peaks["peak_force_N_per_m"] == 30.0 and peaks["peak_time_s"] == pytest.approx(0.2)
     assert json.loads((out / "summary.json").read_text())["contacts"]["bottom"] == peaks
+
+
+@pytest.mark.parametrize("gap_cells, warned", [(0.0, False), (0.3, True), (0.9, True), (1.5, False), (-2.0, False)])
+@pytest.mark.parametrize("where", ["beside", "above"])
+def test_a_body_within_a_cell_of_a_structure_is_warned_about_as_near_a_wall(gap_cells, warned, where):
+    """As for a closed side: a body less than a cell from a structure without touching it drops or
+    slides onto it at the start (issue 11: structures act like walls). Overlapping (the structure
+    takes its part) or touching is fine."""
+    from projects.checks import project_warnings
+
+    dx = BASE["domain"]["cell_size_m"]
+    g = gap_cells * dx  # the block is [0, 0.2] x [0, 0.1]
+    polygon = ([[0.2 + g, 0.0], [0.26 + g, 0.0], [0.26 + g, 0.1], [0.2 + g, 0.1]] if where == "beside"
+               else [[0.0, 0.1 + g], [0.3, 0.1 + g], [0.3, 0.14], [0.0, 0.14]])
+    lines = [w for w in project_warnings(validate_project(with_structures({**WALL, "polygon_m": polygon})))
+             if "without touching" in w]
+    assert bool(lines) == warned, lines
+    if warned:
+        assert lines[0].startswith(f"bodies.0 ('block') is {g:.3g} m from structures.0 ('wall') without touching it")
+        assert "\n" not in lines[0]
