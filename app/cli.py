@@ -438,7 +438,7 @@ def run(
                 if resume is not None:
                     result = resume_run(resume, arch=arch.value if arch is not None else None,
                                         cancel=stop, on_progress=on_progress, on_frame=on_frame,
-                                        checkpoint=checkpoint)
+                                        checkpoint=checkpoint, force=force)
                 else:
                     result = run_project(
                         model,

@@ -161,12 +161,25 @@ def _nice_axis(lo: float, hi: float) -> tuple[float, float, int, float]:
     return lo2, hi2, int(round((hi2 - lo2) / step)) + 1, step
 
 
-def _label_format(step: float) -> str:
-    """printf format with just enough decimals for labels ``step`` apart."""
+def _label_format(*steps: float) -> str:
+    """printf format with just enough decimals for labels ``steps`` apart (one format for both
+    axes: the decimals of the step that needs most, so 0.25 is not printed as 0.2)."""
     decimals = 0
-    while decimals < 6 and abs(round(step, decimals) - step) > 1e-9 * step:
-        decimals += 1
+    for step in steps:
+        while decimals < 6 and abs(round(step, decimals) - step) > 1e-9 * step:
+            decimals += 1
     return f"%.{decimals}f"
+
+
+def bar_format(lo: float, hi: float, labels: int = 5) -> str:
+    """printf format of the colour bar's ``labels`` evenly spaced labels from ``lo`` to ``hi``:
+    3 significant digits, more while two labels would read the same (a narrow range)."""
+    values = np.linspace(lo, hi, labels)
+    for digits in range(3, 10):
+        fmt = f"%.{digits}g"
+        if len({fmt % v for v in values}) == labels:
+            return fmt
+    return "%.10g"
 
 
 def value_range(values: np.ndarray) -> tuple[float, float]:
@@ -252,7 +265,7 @@ def _view(bounds: tuple[float, float, float, float], size: tuple[int, int]) -> _
     x0, x1, nx, xstep = _nice_axis(bounds[0], bounds[1])
     y0, y1, ny, ystep = _nice_axis(bounds[2], bounds[3])
     ppm = min(_DATA_W * size[0] / (x1 - x0), _DATA_H * size[1] / (y1 - y0))
-    return _View((x0, x1, y0, y1), (nx, ny), _label_format(min(xstep, ystep)), ppm)
+    return _View((x0, x1, y0, y1), (nx, ny), _label_format(xstep, ystep), ppm)
 
 
 def _particle_spacing(results: Results, arrays: Mapping[str, np.ndarray]) -> float:
@@ -422,7 +435,7 @@ class _Scene:
             )
         else:
             clim = self.clim or value_range(np.asarray(self.cloud.point_data["values"]))
-            bar.update(fmt="%.3g", n_labels=5)
+            bar.update(fmt=bar_format(*clim, labels=5), n_labels=5)
             self._actor = self.plotter.add_mesh(
                 self.cloud, cmap=self._cmap, clim=clim, scalar_bar_args=bar, **common
             )

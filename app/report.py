@@ -9,9 +9,9 @@ one file can be handed on). Pictures are drawn headless: matplotlib's Agg canvas
 Contents: the run's settings and provenance; the scene before and after; the envelope profiles
 along the section (surfaces, peak flow height, speed, impact pressure, arrival time, deposit) with
 the targets and run-out points marked; the measures with their thresholds; the targets' table and
-time series; the energy curves (``series.csv`` and the envelope updates); the structures' peak
-forces (``contacts.csv``); and context from experience (:func:`context`), which is context, not a
-verdict.
+time series; the energy curves (``series.csv`` and the envelope updates); the peak and mean
+forces on the sides and structures (``contacts.csv``); and context from experience
+(:func:`context`), which is context, not a verdict.
 """
 
 from __future__ import annotations
@@ -375,30 +375,29 @@ def _img(path: Path | None, alt: str) -> str:
 
 
 def _contacts(path: Path) -> list[list[str]]:
-    """Peak absolute value and its time of every force column of ``contacts.csv``."""
+    """Per contact of ``contacts.csv`` (a side or a structure): the largest single-step force with
+    its components and time, and the largest mean force of an output interval with its time."""
+    from projects.results import read_contacts
+
     if not path.is_file():
         return []
-    with open(path, newline="", encoding="utf-8") as fh:
-        rows = list(csv.reader(fh))
-    if len(rows) < 2:
+    try:
+        table = read_contacts(path)
+    except (OSError, ValueError, KeyError, IndexError) as err:
+        logger.warning("contacts.csv not read: %s", err)
         return []
-    head = rows[0]
-    data = []
-    for r in rows[1:]:
-        try:
-            data.append([float(v) if v != "" else np.nan for v in r])
-        except ValueError:
-            continue
-    if not data:
-        return []
-    arr = np.array(data, float)
-    tcol = next((k for k, h in enumerate(head) if h.startswith("time")), None)
     out = []
-    for k, h in enumerate(head):
-        if "force" not in h.lower() or not np.any(np.isfinite(arr[:, k])):
+    for name, cols in table.items():
+        t = np.asarray(cols["time_s"], float)
+        if not len(t):
             continue
-        i = int(np.nanargmax(np.abs(arr[:, k])))
-        out.append([h, _fmt(float(arr[i, k])), _fmt(float(arr[i, tcol]), "s") if tcol is not None else "-"])
+        peak = np.nan_to_num(np.asarray(cols["peak_force_N_per_m"], float), nan=-1.0)
+        mean = np.hypot(np.asarray(cols["force_x_N_per_m"], float), np.asarray(cols["force_y_N_per_m"], float))
+        mean = np.nan_to_num(mean, nan=-1.0)
+        i, j = int(np.argmax(peak)), int(np.argmax(mean))
+        px, py = float(cols["peak_force_x_N_per_m"][i]), float(cols["peak_force_y_N_per_m"][i])
+        out.append([name, f"{_fmt(float(peak[i]), 'N/m')} ({_fmt(px)}, {_fmt(py)})", _fmt(float(t[i]), "s"),
+                    _fmt(float(mean[j]), "N/m"), _fmt(float(t[j]), "s")])
     return out
 
 
@@ -537,8 +536,11 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
         parts.append("<p class='note'>No targets in the project ([[targets]]).</p>")
     contacts = _contacts(res.path / CONTACTS_CSV)
     if contacts:
-        parts.append("<h3>Structures (contacts.csv)</h3>")
-        parts.append(_table(["force", "peak", "at"], contacts))
+        parts.append("<h3>Forces on the sides and structures (contacts.csv)</h3>")
+        parts.append("<p class='note'>The force the material exerts on each closed side and structure, N per "
+                     "metre out of plane: the largest of a single step (x, y) and the largest mean over an "
+                     "output interval (the impulse over the interval divided by its length).</p>")
+        parts.append(_table(["contact", "peak force (x, y)", "at", "largest interval mean", "at"], contacts))
 
     parts.append("<h2>Energy</h2>")
     parts.append(_img(pictures["energy"], "kinetic energy and the fastest particle (series.csv and the envelope "

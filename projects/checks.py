@@ -3,8 +3,9 @@
 :func:`project_warnings` lists them (``runout validate`` and ``runout run`` print them, the
 workbench shows them):
 
-- a body within one cell of a closed wall (fixed, slip or friction) without touching it: it
-  falls or slides onto the wall at the start and the settlement reads as deformation;
+- a body within one cell of a closed wall (fixed, slip or friction) or of a structure without
+  touching it: it falls or slides onto the wall at the start and the settlement reads as
+  deformation;
 - a k0 stage where the ground slopes: geostatic stresses are no equilibrium under a slope
   (many particles yield at once); a gravity stage is the initial stress for sloping ground;
 - a structure thinner than 3 cells at its thickest: the at-rest thrust on it was up to 10-13 % off at 1
@@ -36,6 +37,8 @@ SLOPE_TOLERANCE_DEG = 2.0
 WALL_ANGLE_DEG = 88.0
 #: Gaps below this fraction of a cell count as touching.
 TOUCH_TOLERANCE = 1e-6
+#: A body this close to a structure (in cells) touches it (its faces are seldom on round numbers)
+STRUCTURE_TOUCH_CELLS = 0.02
 #: A gravity stage lasts this many fundamental periods ``4 H / c_s`` of the deposit.
 GRAVITY_STAGE_PERIODS = 3.0
 #: Structures thinner than this many cells at their thickest are warned about.
@@ -142,6 +145,33 @@ def _wall_gaps(project: Project) -> list[str]:
     return warnings
 
 
+def _structure_gaps(project: Project) -> list[str]:
+    """A body less than a cell from a structure without touching or overlapping it (as a wall)."""
+    from solver.structures import signed_distance
+
+    dx = project.domain.cell_size_m
+    warnings = []
+    for index, body in enumerate(project.bodies):
+        b = np.asarray(body.polygon_m, dtype=np.float64)
+        for k, structure in enumerate(project.structures):
+            st = np.asarray(structure.polygon_m, dtype=np.float64)
+            # apart, the nearest points of two polygons include a vertex of one of them
+            d_body, d_struct = signed_distance(b, st), signed_distance(st, b)
+            if (d_body < 0).any() or (d_struct < 0).any():
+                continue  # overlapping: the structure takes its part of the body
+            gap = float(min(d_body.min(), d_struct.min()))
+            # touching within 2 % of a cell: a body laid on an inclined structure with rounded
+            # coordinates (a few 1e-7 m off) settles by nothing that shows
+            if STRUCTURE_TOUCH_CELLS * dx < gap < dx:
+                warnings.append(
+                    f"bodies.{index} ({body.name!r}) is {gap:.3g} m from structures.{k} ({structure.name!r}) "
+                    f"without touching it, less than a cell ({dx:g} m): it will move onto the structure at the "
+                    "start and the settlement looks like deformation; move it to touch the structure or leave a "
+                    "gap of several cells"
+                )
+    return warnings
+
+
 def _k0_on_slope(project: Project) -> list[str]:
     k0 = [i for i, stage in enumerate(project.stages) if stage.type == "k0"]
     if not k0:
@@ -158,30 +188,39 @@ def _k0_on_slope(project: Project) -> list[str]:
     ]
 
 
-def structure_thickness_m(polygon_m, resolution: int = 100) -> float:
+def structure_thickness_m(polygon_m, resolution: int = 100, max_points: int = 250_000) -> float:
     """Twice the largest distance from a point inside the polygon to its outline (m): the
     thickness of the structure at its thickest (the diameter of its largest inscribed circle).
-    Searched on a ``resolution``-point lattice across the bounding box, then on finer lattices
-    around the best point (each 10 times finer), to about 1e-4 of the box."""
+    Searched on a lattice across the bounding box (``resolution`` points along its longer side,
+    and at least four across the polygon's mean width ``2 area / perimeter``, so that a long thin
+    slab is not missed; at most ``max_points`` points), then on finer lattices around the best
+    point (each 10 times finer) down to 1e-7 of the box: to round-off for straight walls and slabs
+    (a structure exactly 3 cells thick is 3 cells thick)."""
     from solver.structures import signed_distance
 
     pts = np.asarray(polygon_m, dtype=np.float64)
     lo, hi = pts.min(axis=0), pts.max(axis=0)
-    step = float((hi - lo).max()) / resolution
-    if not step > 0:
+    extent = float((hi - lo).max())
+    if not extent > 0:
         return 0.0
+    closed = np.vstack([pts, pts[:1]])
+    area = 0.5 * abs(float(np.sum(closed[:-1, 0] * closed[1:, 1] - closed[1:, 0] * closed[:-1, 1])))
+    perimeter = float(np.hypot(*np.diff(closed, axis=0).T).sum())
+    step = min(extent / resolution, 0.5 * area / perimeter)  # (2 area / perimeter) / 4
+    step = max(step, float(np.prod(hi - lo)) ** 0.5 / max_points ** 0.5, extent * 1e-9)
     centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo) + step
     best = 0.0
-    for _ in range(3):
+    while True:
         xs = np.arange(centre[0] - half[0], centre[0] + half[0] + step, step)
         ys = np.arange(centre[1] - half[1], centre[1] + half[1] + step, step)
         X, Y = np.meshgrid(xs, ys)
         grid = np.stack([X.ravel(), Y.ravel()], axis=-1)
-        d = signed_distance(grid, pts)
+        d = np.concatenate([signed_distance(chunk, pts) for chunk in np.array_split(grid, 1 + len(grid) // 20_000)])
         k = int(d.argmin())
         best = max(best, -float(d[k]))
+        if step < 1e-7 * extent:
+            return 2.0 * best
         centre, half, step = grid[k], np.array([2 * step, 2 * step]), step / 10
-    return 2.0 * best
 
 
 def _thin_structures(project: Project) -> list[str]:
@@ -189,7 +228,7 @@ def _thin_structures(project: Project) -> list[str]:
     warnings = []
     for index, structure in enumerate(project.structures):
         thick = structure_thickness_m(structure.polygon_m)
-        if thick < STRUCTURE_MIN_CELLS * dx:
+        if thick < STRUCTURE_MIN_CELLS * dx * (1.0 - 1e-6):  # exactly 3 cells is enough
             warnings.append(
                 f"structures.{index} ({structure.name!r}) is {thick:.3g} m thick at its thickest, less than 3 cells "
                 f"({3 * dx:g} m): the force on it is unreliable (the at-rest thrust was up to 13 % off at 1-2 cells) "
@@ -246,7 +285,7 @@ def project_warnings(project: Project) -> list[str]:
         One line each, naming the key and what to do.
     """
     with np.errstate(all="ignore"):  # absurd coordinates (1e300 m) are the size limits' business
-        return [*_wall_gaps(project), *_k0_on_slope(project), *_thin_structures(project), *_off_node_faces(project)]
+        return [*_wall_gaps(project), *_structure_gaps(project), *_k0_on_slope(project), *_thin_structures(project), *_off_node_faces(project)]
 
 
 def recommended_initial_stage(project: Project) -> dict[str, Any]:

@@ -36,6 +36,7 @@ except ModuleNotFoundError:  # Python 3.10: tomlkit reads too
 
 from projects.schema import (
     Boundary,
+    Contact,
     Problem,
     Project,
     ProjectError,
@@ -519,10 +520,14 @@ def _set_path(data: dict[str, Any], parts: list[str], value: Any) -> Problem | N
         child_kind = schema_kind(child_schema)[0]
         if child is None and child_kind in ("model", "dict"):
             child = node[key] = {}
-        elif isinstance(child, str) and schema_kind(child_schema)[1] is Boundary:
-            child = node[key] = {"type": child}
+        elif isinstance(child, str) and schema_kind(child_schema)[1] in (Boundary, Contact):
+            child = node[key] = {"type": child}  # "slip" -> {type = "slip"}: a key inside can be set
         if child_kind == "list" and not isinstance(child, list):
-            child = node[key] = list(child) if isinstance(child, tuple) else child
+            # an optional list the file does not have ([[structures]], [[targets]]): no items, and
+            # nothing is added to the data (the next part names the missing item)
+            child = [] if child is None else list(child) if isinstance(child, tuple) else child
+            if child:
+                node[key] = child
         if not isinstance(child, (dict, list)):
             return Problem(".".join(parts), None, f"{path} is a value, not a table")
         node, schema = child, child_schema

@@ -126,8 +126,40 @@ def envelope_config(project: Project) -> sc.EnvelopeConfig | None:
     if not s.enabled:
         return None
     targets = tuple(sc.Target(t.name, *t.xy) for t in project.targets)
+    floor = structure_floor_m(project, s.cell_size_m)
     return sc.EnvelopeConfig(cell_size_m=s.cell_size_m, every_steps=s.update_every_steps,
-                             flow_height_threshold_m=s.flow_height_threshold_m, targets=targets)
+                             flow_height_threshold_m=s.flow_height_threshold_m, targets=targets,
+                             ground_m=None if floor is None else tuple(float(v) for v in floor))
+
+
+def structure_floor_m(project: Project, cell_size_m: float) -> np.ndarray | None:
+    """The rigid floor under each raster column (m, (nx,)): the top of the highest
+    ``[[structures]]`` entry on the vertical line through the column's centre, or the grid's
+    bottom where no structure is; None for a project without structures.
+
+    Material flows over a structure (a platform, bedrock, a barrier's crest): its flow height and
+    the ground of a column it never covered are measured from the structure's top there.
+    """
+    if not project.structures:
+        return None
+    d = project.domain
+    grid = sc.Grid(tuple(d.origin_m), tuple(d.size_m), d.cell_size_m)
+    width = grid.cells[0] * grid.cell_size_m
+    nx = max(1, math.ceil(width / cell_size_m - 1e-9))  # as solver.envelopes.Envelopes
+    xc = d.origin_m[0] + (np.arange(nx) + 0.5) * cell_size_m
+    floor = np.full(nx, float(d.origin_m[1]))
+    for structure in project.structures:
+        pts = np.asarray(structure.polygon_m, dtype=float)
+        a, b = pts, np.roll(pts, -1, axis=0)
+        lo, hi = np.minimum(a[:, 0], b[:, 0]), np.maximum(a[:, 0], b[:, 0])
+        for (ax, ay), (bx, by), x0, x1 in zip(a, b, lo, hi):
+            on = (xc >= x0) & (xc <= x1)
+            if bx == ax:  # a vertical edge exactly on a column centre: its top
+                y = np.full(nx, max(ay, by))
+            else:
+                y = ay + (xc - ax) * (by - ay) / (bx - ax)
+            floor = np.where(on, np.maximum(floor, y), floor)
+    return floor
 
 
 # --------------------------------------------------------------------------------------------

@@ -39,6 +39,7 @@ import queue
 import re
 import threading
 import time
+import zipfile
 import zlib
 from collections import OrderedDict
 from collections.abc import Callable, Iterable, Mapping
@@ -219,7 +220,8 @@ def read_checkpoint(path: str | os.PathLike[str]) -> Any:
             arrays = {key[len("state/"):]: data[key] for key in data.files if key.startswith("state/")}
             run = json.loads(bytes(data["run"]).decode())
             fingerprint = bytes(data["fingerprint"]).decode()
-    except (OSError, ValueError, KeyError, zlib.error) as err:
+    except (OSError, ValueError, KeyError, EOFError, zlib.error, zipfile.BadZipFile) as err:
+        # a checkpoint cut short (a full disk, an interrupted copy) is not a zip file at all
         raise ResultsError(f"cannot read the checkpoint {path}: {err}") from err
     return Checkpoint(run=run, arrays=arrays, fingerprint=fingerprint)
 #: Bytes kept on disk during a run for the final ``summary.json`` (see :func:`_write_reserve`).
@@ -664,6 +666,15 @@ class ResultsWriter:
         if keep_frames is not None:
             self.summary["status"] = RUNNING
             self.summary["resumed_at_frame"] = keep_frames
+            # the run's peaks from the rows kept, not the earlier summary's (which counted the rows
+            # written over: those after the checkpoint, a stop's frame)
+            self.summary.pop("contacts", None)
+            for row in self._kept_contact_rows:
+                try:
+                    values = [float(v) if v != "" else None for v in row[2:]]
+                    self._add_peaks(float(row[0]), row[1], values[0], values[1], values[4], values[5], values[6])
+                except (IndexError, ValueError, TypeError):
+                    continue
 
         try:
             self._frames_dir.mkdir(exist_ok=True)
@@ -970,26 +981,30 @@ class ResultsWriter:
         and the largest mean force of an interval)."""
         if not contacts:
             return
-        peaks = self.summary.setdefault("contacts", {})
         for c in contacts:
             def num(v: float | None) -> str:
-                return "" if v is None else repr(float(v))
+                return "" if v is None else repr(float(v) + 0.0)  # + 0.0: no "-0.0"
 
             self._contacts_csv.writerow([repr(float(time_s)), c.contact, num(c.force_x_N_per_m), num(c.force_y_N_per_m),
                                          num(c.force_normal_N_per_m), num(c.force_tangential_N_per_m),
                                          num(c.peak_force_N_per_m), num(c.peak_force_x_N_per_m),
                                          num(c.peak_force_y_N_per_m)])
-            entry = peaks.setdefault(c.contact, {"peak_force_N_per_m": 0.0, "peak_force_x_N_per_m": 0.0,
-                                                 "peak_force_y_N_per_m": 0.0, "peak_time_s": 0.0,
-                                                 "max_mean_force_N_per_m": 0.0})
-            if math.isfinite(c.peak_force_N_per_m) and c.peak_force_N_per_m > entry["peak_force_N_per_m"]:
-                entry.update(peak_force_N_per_m=float(c.peak_force_N_per_m),
-                             peak_force_x_N_per_m=float(c.peak_force_x_N_per_m),
-                             peak_force_y_N_per_m=float(c.peak_force_y_N_per_m), peak_time_s=float(time_s))
-            mean = math.hypot(c.force_x_N_per_m, c.force_y_N_per_m)
-            if math.isfinite(mean):
-                entry["max_mean_force_N_per_m"] = max(entry["max_mean_force_N_per_m"], mean)
+            self._add_peaks(time_s, c.contact, c.force_x_N_per_m, c.force_y_N_per_m, c.peak_force_N_per_m,
+                            c.peak_force_x_N_per_m, c.peak_force_y_N_per_m)
         self._contacts.flush()
+
+    def _add_peaks(self, time_s: float, name: str, fx: float, fy: float, peak: float, peak_x: float,
+                   peak_y: float) -> None:
+        """Count one row of ``contacts.csv`` into the run's peaks (``summary["contacts"]``)."""
+        entry = self.summary.setdefault("contacts", {}).setdefault(
+            name, {"peak_force_N_per_m": 0.0, "peak_force_x_N_per_m": 0.0, "peak_force_y_N_per_m": 0.0,
+                   "peak_time_s": 0.0, "max_mean_force_N_per_m": 0.0})
+        if math.isfinite(peak) and peak > entry["peak_force_N_per_m"]:
+            entry.update(peak_force_N_per_m=float(peak), peak_force_x_N_per_m=float(peak_x),
+                         peak_force_y_N_per_m=float(peak_y), peak_time_s=float(time_s))
+        mean = math.hypot(fx, fy)
+        if math.isfinite(mean):
+            entry["max_mean_force_N_per_m"] = max(entry["max_mean_force_N_per_m"], mean)
 
     def _write_pvd(self) -> None:
         _atomic_write_text(self.out_dir / PVD_NAME, _pvd_text(self._pvd_entries))

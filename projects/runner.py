@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from projects.results import ResultsError, ResultsWriter, is_results_dir
-from projects.results_folder import check_results_dir
+from projects.results_folder import check_results_dir, lock_holder
 from solver.config import InstabilityError, SolverError
 
 
@@ -257,7 +257,7 @@ def run_project(
     sim = _simulation(resolved)
     try:
         if initial is not None:
-            _start_from(sim, initial, start_from)
+            _start_from(sim, initial, start_from, resolved)
         meta = _meta(resolved, sim, path)
         if start_from is not None:
             meta["started_from"] = str(Path(start_from).absolute())
@@ -275,15 +275,34 @@ def resumable(results_dir: str | os.PathLike[str]) -> Checkpoint:
     projects.results.ResultsError
         Not a results folder with its project.toml, no readable checkpoint, or a complete run.
     """
-    from projects.results import PROJECT_NAME, read_checkpoint
+    from projects.results import CHECKPOINT_NAME, PROJECT_NAME, read_checkpoint
 
     out_path = Path(results_dir).expanduser().absolute()
     if not is_results_dir(out_path) or not (out_path / PROJECT_NAME).is_file():
         raise ResultsError(f"{out_path} is not a results folder with its project.toml")
+    holder = lock_holder(out_path)
+    if holder is not None:  # still running: it may have no checkpoint yet, and it must not be run twice
+        who = f"process {holder}" if holder > 0 else "another process"
+        raise ResultsError(f"{out_path} is in use by another run ({who}): it is still running, nothing to resume")
+    if not (out_path / CHECKPOINT_NAME).is_file() and _has_strength_reduction(out_path / PROJECT_NAME):
+        raise ResultsError(f"{out_path}: a strength-reduction run cannot be resumed (its search lives in memory "
+                           "and writes no checkpoint part-way); run it again")
     checkpoint = read_checkpoint(out_path)
     if checkpoint.run["cursor"]["phase"] == "done":
         raise ResultsError(f"the run in {out_path} is complete: nothing to resume")
     return checkpoint
+
+
+def _has_strength_reduction(project_file: Path) -> bool:
+    """Whether the project file has a strength-reduction stage (False when it cannot be read)."""
+    from projects.document import parse_toml
+    from projects.schema import ProjectError
+
+    try:
+        stages = parse_toml(project_file.read_text(encoding="utf-8")).get("stages") or []
+    except (OSError, ValueError, ProjectError):
+        return False
+    return any(isinstance(st, dict) and st.get("type") == "strength-reduction" for st in stages)
 
 
 def resume_run(
@@ -294,6 +313,7 @@ def resume_run(
     on_frame: Callable[[Frame], None] | None = None,
     on_progress: Callable[[Progress], None] | None = None,
     checkpoint: Checkpoint | None = None,
+    force: bool = False,
 ) -> RunResult:
     """Continue a killed, stopped or failed run from the last checkpoint in its results folder.
 
@@ -302,14 +322,16 @@ def resume_run(
     again. The frames are those of an uninterrupted run (bit for bit with the serial scatter).
 
     ``checkpoint`` is the folder's checkpoint as :func:`resumable` returned it (read from the
-    folder when not given).
+    folder when not given). The size limits are checked as for a new run, before anything is
+    allocated (the folder's project.toml may have been edited, or the run needed ``force``).
 
     Raises
     ------
     projects.results.ResultsError
         Not a results folder, no checkpoint, or a checkpoint of another run.
     projects.schema.ProjectError
-        The folder's ``project.toml`` is not a valid project.
+        The folder's ``project.toml`` is not a valid project, or beyond the size limits (without
+        ``force``).
     """
     from projects.document import dumps_project, load_project
     from projects.results import PROJECT_NAME
@@ -318,7 +340,9 @@ def resume_run(
     out_path = Path(results_dir).expanduser().absolute()
     if checkpoint is None:
         checkpoint = resumable(out_path)
-    resolved = check_project(load_project(out_path / PROJECT_NAME), arch=arch, force=True)
+    resolved = check_project(load_project(out_path / PROJECT_NAME), arch=arch, force=force)
+    checkpoint = _without_stop_frame(checkpoint, out_path, resolved.config.output.interval_s,
+                                     [st.name for st in resolved.config.structures])
     sim = _simulation(resolved)
     try:
         try:
@@ -332,6 +356,61 @@ def resume_run(
         return _run(sim, resolved, writer, started, cancel, on_frame, on_progress)
     finally:
         sim.close()
+
+
+def _without_stop_frame(checkpoint: Checkpoint, out_path: Path, interval_s: float,
+                        structures: list[str]) -> Checkpoint:
+    """The checkpoint of a stopped run as if its stop frame had not been written.
+
+    A stop (SIGTERM, Ctrl-C, the workbench's Stop) ends a run with one more frame at the stop
+    time, between two output times, and its checkpoint there. The uninterrupted run has no frame
+    at that time, so the resumed run writes the frames from the one before it on: the stop frame
+    and its rows are written over, and the impulse and peak force the stop frame reported go back
+    into the contact accumulators, so that the next row of ``contacts.csv`` gives the force over
+    the whole output interval, as the uninterrupted run does. Any other checkpoint (at an output
+    time, at a stage's early end, at the end of a stage) is returned as it is.
+    """
+    import dataclasses
+    import math
+
+    import numpy as np
+
+    from projects.results import open_results, read_contacts
+    from solver.config import SIDES
+
+    run, cursor = checkpoint.run, checkpoint.run.get("cursor", {})
+    t = float(run.get("time_s", 0.0))
+    previous_output_s = float(cursor.get("next_output_s", 0.0)) - interval_s
+    frames = int(cursor.get("frames", 0))
+    if (cursor.get("phase") != "loop" or cursor.get("reason") or frames < 2
+            or t <= previous_output_s + 1e-6 * interval_s):
+        return checkpoint
+    try:
+        times = open_results(out_path).series["time_s"]
+        contacts = read_contacts(out_path) if (out_path / "contacts.csv").is_file() else {}
+    except (OSError, ValueError, KeyError):
+        return checkpoint
+    if len(times) < frames or not math.isclose(float(times[frames - 1]), t, rel_tol=1e-12, abs_tol=1e-12):
+        return checkpoint
+    since_s = float(times[frames - 2])
+    arrays = dict(checkpoint.arrays)
+    if "contact_impulse" in arrays and "contact_peak" in arrays:
+        impulse = np.zeros_like(arrays["contact_impulse"])
+        peak = np.zeros_like(arrays["contact_peak"])
+        names = list(SIDES) + structures  # the engine's order of contacts
+        for c, name in enumerate(names[: len(impulse)]):
+            rows = contacts.get(name)
+            if rows is None or not len(rows["time_s"]):
+                continue
+            k = int(np.argmin(np.abs(rows["time_s"] - t)))
+            if not math.isclose(float(rows["time_s"][k]), t, rel_tol=1e-12, abs_tol=1e-12):
+                continue
+            impulse[c] = (rows["force_x_N_per_m"][k] * (t - since_s), rows["force_y_N_per_m"][k] * (t - since_s))
+            peak[c] = (rows["peak_force_N_per_m"][k], rows["peak_force_x_N_per_m"][k], rows["peak_force_y_N_per_m"][k])
+        arrays["contact_impulse"], arrays["contact_peak"] = impulse, peak
+    # last_output_step -1: a stop at a stage's last step still gets that stage's end frame
+    run = {**run, "contacts_since_s": since_s, "cursor": {**cursor, "frames": frames - 1, "last_output_step": -1}}
+    return dataclasses.replace(checkpoint, run=run, arrays=arrays)
 
 
 def run_resolved(
@@ -371,13 +450,43 @@ def _simulation(resolved: ResolvedRun) -> Any:
         raise _solver_rejects(f"{type(err).__name__}: {first_line}") from None
 
 
-def _start_from(sim: Any, checkpoint: Any, source: Any) -> None:
-    """Load another run's particle state into a fresh simulation (its own stages then run)."""
+def _start_from(sim: Any, checkpoint: Any, source: Any, resolved: ResolvedRun) -> None:
+    """Load another run's particle state into a fresh simulation (its own stages then run).
+
+    The other run must have this project's particles: as many, of the same materials and masses,
+    seeded at the same places (checked against its folder's project.toml where there is one), so
+    that a folder of another scene with as many particles is refused, not silently taken.
+    """
+    import numpy as np
+
+    from projects.build import resolve
+    from projects.document import load_project
+    from projects.schema import ProjectError
+
+    def refuse(why: str) -> ResultsError:
+        return ResultsError(f"cannot start from {source}: its particles are not this project's ({why})")
+
     arrays = {k: v for k, v in checkpoint.arrays.items() if k in sim.engine.PARTICLE_STATE and k != "band"}
+    own = sim.engine.state(("mat", "m"))
+    if "mat" in arrays and np.shape(arrays["mat"]) == np.shape(own["mat"]):
+        if not np.array_equal(arrays["mat"], own["mat"]):
+            raise refuse("other materials")
+        if "m" in arrays and not np.allclose(arrays["m"], own["m"], rtol=1e-5, atol=0.0):
+            raise refuse("other masses: another density or particle volume")
+    folder = Path(source)
+    folder = folder if folder.is_dir() else folder.parent
+    try:
+        theirs = resolve(load_project(folder / "project.toml")).seeded().particles
+    except (OSError, ProjectError, ValueError):
+        theirs = None  # a bare checkpoint file: the engine's checks below
+    if theirs is not None and len(theirs.positions_m) == len(resolved.particles.positions_m):
+        size = max(resolved.project.domain.size_m)
+        if not np.allclose(theirs.positions_m, resolved.particles.positions_m, rtol=0.0, atol=1e-9 * size):
+            raise refuse("seeded at other places")
     try:
         sim.engine.load_state(arrays)
     except ValueError as err:
-        raise ResultsError(f"cannot start from {source}: {err} (its particles are not this project's)") from None
+        raise refuse(str(err)) from None
 
 
 def _meta(resolved: ResolvedRun, sim: Any, project_path: Path | None) -> dict[str, Any]:

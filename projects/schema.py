@@ -410,8 +410,9 @@ _VERSION_MESSAGE = f"unsupported schema version; this Runout reads schema versio
 
 
 def _boundary_input(value: Any) -> Any:
-    if isinstance(value, str):
-        if value in ("fixed", "slip", "open", "periodic"):
+    # a value that is neither a word nor a table is told the words too, not only "must be a table"
+    if not isinstance(value, Mapping):
+        if isinstance(value, str) and value in ("fixed", "slip", "open", "periodic"):
             return {"type": value}
         raise _fail('must be "fixed", "slip", "open", "periodic" (left and right together) or a table '
                     '{type = "friction", friction_angle_deg = ...}')
@@ -486,8 +487,8 @@ class Body(_Model):
 
 
 def _contact_input(value: Any) -> Any:
-    if isinstance(value, str):
-        if value in ("fixed", "slip"):
+    if not isinstance(value, Mapping):
+        if isinstance(value, str) and value in ("fixed", "slip"):
             return {"type": value}
         raise _fail('must be "fixed", "slip" or a table {type = "friction", friction_angle_deg = ...}')
     return value

@@ -66,10 +66,15 @@ class Envelopes:
         Its particle fields ``x``, ``v``, ``m``, ``rho`` and ``active`` are read, never written.
     config : solver.config.EnvelopeConfig
     grid : solver.config.Grid
-        The raster covers the grid box from its origin.
+        The raster covers the grid box from its origin, in the engine's coordinates.
+    offset_m : (2,) float, m
+        Where the engine's coordinate origin lies in the project's (the grid origin when the
+        engine works relative to it, as :class:`solver.simulation.Simulation` does). The targets
+        and ``config.ground_m`` are given in the project's coordinates, and :meth:`snapshot`
+        returns positions and heights in them; inside, everything is in the engine's.
     """
 
-    def __init__(self, engine, config: EnvelopeConfig, grid: Grid):
+    def __init__(self, engine, config: EnvelopeConfig, grid: Grid, offset_m=(0.0, 0.0)):
         if config.cell_size_m <= 0:
             raise ValueError(f"envelope cell size must be > 0, got {config.cell_size_m}")
         if config.every_steps < 1:
@@ -79,6 +84,7 @@ class Envelopes:
         self.n = engine.n
         self.cell_size_m = float(config.cell_size_m)
         self.origin_m = (float(grid.origin_m[0]), float(grid.origin_m[1]))
+        self.offset_m = (float(offset_m[0]), float(offset_m[1]))
         width = grid.cells[0] * grid.cell_size_m
         height = grid.cells[1] * grid.cell_size_m
         self.shape = (max(1, math.ceil(width / self.cell_size_m - 1e-9)),
@@ -120,12 +126,12 @@ class Envelopes:
             g = np.asarray(config.ground_m, dtype=float)
             if g.shape != (nx,):
                 raise ValueError(f"ground_m must have {nx} values (one per raster column), got {g.shape}")
-            floor = np.maximum(floor, g)
+            floor = np.maximum(floor, g - self.offset_m[1])
         self._floor = floor.astype(engine.np_float)
         xy = np.zeros((nt, 2))
         point = np.zeros(nt, np.int32)
         for k, t in enumerate(self.targets):
-            xy[k] = (t.x_m, t.y_m if t.y_m is not None else 0.0)
+            xy[k] = (t.x_m - self.offset_m[0], t.y_m - self.offset_m[1] if t.y_m is not None else 0.0)
             point[k] = t.y_m is not None
         self._io.write({"floor": self._floor, "t_xy": xy.astype(engine.np_float), "t_point": point})
         self.reset()
@@ -231,30 +237,35 @@ class Envelopes:
         edge_hi = np.where(empty, np.nan, col("edge_hi"))
         edge_lo = np.where(empty, np.nan, col("edge_lo"))
         t_arr = col("t_arrival")[:nt]
+        ox, oy = self.offset_m  # back to the project's coordinates
+
+        def moved(state):
+            return {**state, "positions_m": state["positions_m"] + np.asarray(self.offset_m)} if state else {}
+
         return {
-            "origin_m": self.origin_m,
+            "origin_m": (self.origin_m[0] + ox, self.origin_m[1] + oy),
             "cell_size_m": self.cell_size_m,
             "shape": self.shape,
-            "floor_m": col("floor"),
-            "ground_m": col("ground"),
-            "surface_m": surface,
-            "edge_hi_m": edge_hi,
-            "edge_lo_m": edge_lo,
+            "floor_m": col("floor") + oy,
+            "ground_m": col("ground") + oy,
+            "surface_m": surface + oy,
+            "edge_hi_m": edge_hi + ox,
+            "edge_lo_m": edge_lo + ox,
             "peak_height_m": col("peak_height"),
             "arrival_s": np.where(arrival < 0, np.nan, arrival),
             "max_speed_m_s": col("max_speed"),
             "max_energy_J_m3": col("max_energy"),
             "max_pressure_pa": col("max_pressure"),
             "cell_arrival_s": np.where(cell_arrival < 0, np.nan, cell_arrival),
-            "front_hi_m": float(front[0]) if front[0] > -0.5 * _BIG else float("nan"),
-            "front_lo_m": float(front[1]) if front[1] < 0.5 * _BIG else float("nan"),
-            "target_ground_m": col("t_ground")[:nt],
+            "front_hi_m": float(front[0]) + ox if front[0] > -0.5 * _BIG else float("nan"),
+            "front_lo_m": float(front[1]) + ox if front[1] < 0.5 * _BIG else float("nan"),
+            "target_ground_m": col("t_ground")[:nt] + oy,
             "target_max": col("t_max")[:nt],
             "target_arrival_s": np.where(t_arr < 0, np.nan, t_arr),
             "series": self.series(),
             "series_columns": self.series_columns(),
-            "initial": {k: v.copy() for k, v in self.initial.items()},
-            "current": self._particles(),
+            "initial": moved({k: v.copy() for k, v in self.initial.items()}),
+            "current": moved(self._particles()),
             "release_time_s": self.release_time_s,
             "time_s": self.time_s,
             "steps": self.steps,

@@ -222,7 +222,8 @@ class Simulation:
         if config.envelopes is not None:
             from solver.envelopes import Envelopes
 
-            self.envelopes = Envelopes(self.engine, config.envelopes, config.grid)
+            # on the engine's grid (relative to the origin); targets and results in the project's coordinates
+            self.envelopes = Envelopes(self.engine, config.envelopes, local_grid, offset_m=self.origin_m)
         self._closed = False
         self.cursor = _Cursor()
         #: ``time.perf_counter()`` at the end of this process's first step (None before it)

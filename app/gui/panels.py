@@ -670,7 +670,7 @@ class PolygonPanel(Panel):
         value = parse_number(item.text())
         row, col = item.row(), item.column()
         if value is None:
-            self.show_message(f"vertex {row}: {'x' if col == 0 else 'y'} must be a number")
+            self.show_message(f"vertex {row + 1}: {'x' if col == 0 else 'y'} must be a number")  # the table's row
             self._fill()
             return
         self.set_vertex(sel, row, col, value)
@@ -691,7 +691,8 @@ class PolygonPanel(Panel):
         def mutate(d: dict[str, Any]) -> None:
             d[kind][index]["polygon_m"][row][col] = float(value)
 
-        self.doc.edit(f"move vertex {row} of {self._items()[index].get('name', index)}", mutate)
+        # numbered as the table's rows (1, 2, ...), not by the list index
+        self.doc.edit(f"move vertex {row + 1} of {self._items()[index].get('name', index)}", mutate)
 
     def delete_item(self) -> None:
         sel, kind = self.selected, self.KIND

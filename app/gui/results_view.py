@@ -36,7 +36,7 @@ from PySide6.QtWidgets import (
 
 from app.gui.curves import ContactCurves, HistoryCurve, MonitorCurves, ProfileCurve, SeriesCurves, write_curves_csv
 from app.gui.document import parse_number
-from app.render import FIELDS, field_info, field_values, value_range
+from app.render import FIELDS, bar_format, field_info, field_values, value_range
 
 logger = logging.getLogger(__name__)
 
@@ -228,7 +228,7 @@ class ParticleScene(QWidget):
             self.actor = self.plotter.add_mesh(cloud, cmap="tab10", clim=clim, n_colors=count, categories=True,
                                                annotations=annotations, scalar_bar_args=bar, **kwargs)
         else:
-            bar.update(fmt="%.3g", n_labels=5)
+            bar.update(fmt=bar_format(*clim), n_labels=5)
             self.actor = self.plotter.add_mesh(cloud, cmap=self.cmap, clim=clim, scalar_bar_args=bar, **kwargs)
 
     def _set_caption(self, text: str) -> None:

@@ -26,7 +26,7 @@ from PySide6.QtCore import QEvent, QObject, QPointF, Qt, QTimer, Signal
 from PySide6.QtGui import QKeyEvent, QMouseEvent
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
-from app.gui.document import POLYGON_KINDS, ProjectDocument
+from app.gui.document import POLYGON_KINDS, ProjectDocument, format_number
 from app.gui.object_panels import STRUCTURE_COLOR, TARGET_COLOR, contact_text
 from app.gui.panels import material_color
 
@@ -325,7 +325,7 @@ class SceneView(QWidget):
                         pickable=False, render=False, lighting=False)
             text = kind
             if kind == "friction" and isinstance(boundary, dict):
-                text = f"friction {boundary.get('friction_angle_deg', '?')}°"
+                text = f"friction {format_number(boundary.get('friction_angle_deg', '?'))}°"  # as the structures'
             mid = (a + b) / 2 + np.array(offsets[side])
             labels.append(text)
             points.append([mid[0], mid[1], 0.01])
@@ -809,7 +809,7 @@ class SceneView(QWidget):
             d[kind][body]["polygon_m"][vertex] = [x, y]
 
         name = self.doc.get(f"{kind}.{body}.name", body)
-        self.doc.edit(f"move vertex {vertex} of {name}", mutate, merge_key)
+        self.doc.edit(f"move vertex {vertex + 1} of {name}", mutate, merge_key)  # as the panel's table rows
 
     def delete_selected_vertex(self) -> None:
         sel = self.doc.selection

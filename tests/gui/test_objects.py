@@ -63,6 +63,9 @@ def test_structure_through_its_panel_is_saved_and_undone(window, tiny_file, tmp_
     # a vertex typed in the table; a rename in the name field
     panel.table.item(2, 1).setText("0.15")
     assert doc.get("structures.0.polygon_m")[2] == [0.34, 0.15]
+    # the undo names the vertex by the row number the table shows (1, 2, 3, ...)
+    assert panel.table.verticalHeaderItem(2) is None or panel.table.verticalHeaderItem(2).text() == "3"
+    assert doc.undo_stack.undoText() == "move vertex 3 of barrier"
     panel.name.set_text("dam")
     assert doc.get("structures.0.name") == "dam"
     # saved as [[structures]]: the file loads back with the same structure

@@ -7,6 +7,8 @@
   cell, and the envelopes are never below the values of any output frame.
 - A killed run keeps the hazard files of its last frames, complete and readable; a kill between
   the files leaves them read as of hazard.json (written last).
+- The block scene moved far from the origin (real-world coordinates) gives the same measures,
+  moved; on a platform structure its floor is the structure's top (flow height = its height).
 """
 
 from __future__ import annotations
@@ -255,3 +257,89 @@ def test_envelopes_survive_a_killed_run(tiny_project, tmp_path):
     assert min(abs(t - doc["time_s"]) for t in [*res.times, res.times[-1] + 0.01]) < 1e-6
     assert len(doc["series"]["time_s"]) >= 4 and doc["series"]["time_s"][-1] == pytest.approx(doc["time_s"])
     assert doc["max_speed_m_s"] > 0 and np.all(np.isfinite(doc["profile"]["peak_flow_height_m"]))
+
+
+def test_the_hazard_files_of_a_scene_far_from_the_origin_are_those_of_the_same_scene_at_it(tmp_path):
+    """Real-world coordinates (``domain.origin_m`` far from zero, docs/project-format.md): the
+    engine works relative to the grid's origin, and so must the envelopes; the hazard files give
+    the scene's measures in the project's coordinates, the same as for the scene at (0, 0) moved
+    by the origin (before: the raster was placed at the project's origin over the engine's relative
+    positions, so nothing was found on it: no flow height, no run-out, targets never reached)."""
+    from projects.schema import validate_project
+
+    shift = (1000.0, 200.0)
+    text = BLOCK.format(x0=0.05, x1=0.15, h=H, v=1.5, duration=0.2, every=4, near=0.3, far=0.4, window=0.35)
+    data = loads_project(text).to_dict()
+    data["domain"]["origin_m"] = list(shift)
+    data["bodies"][0]["polygon_m"] = [[x + shift[0], y + shift[1]] for x, y in data["bodies"][0]["polygon_m"]]
+    for target in data["targets"]:
+        if "x_m" in target:
+            target["x_m"] += shift[0]
+        else:
+            target["point_m"] = [target["point_m"][0] + shift[0], target["point_m"][1] + shift[1]]
+    docs = []
+    for name, project in (("at-origin", loads_project(text)), ("far", validate_project(data))):
+        result = run_project(project, tmp_path / name)
+        assert result.ok, result.message
+        docs.append(read_hazard(result.out_dir))
+    near, far = docs
+    assert near["runout_x_m"] is not None and near["max_flow_height_m"] == pytest.approx(H, rel=0.01)
+    for key in ("runout_x_m", "source_front_x_m", "runout_x_envelope_m"):
+        assert far[key] == pytest.approx(near[key] + shift[0], abs=1e-3), key
+    for key in ("runout_distance_m", "max_flow_height_m", "drop_height_m", "travel_length_m", "max_speed_m_s",
+                "mobilised_area_m2_per_m"):
+        assert far[key] == pytest.approx(near[key], rel=1e-3, abs=1e-4), key
+    for name, t in near["targets"].items():
+        assert far["targets"][name]["arrival_time_s"] == pytest.approx(t["arrival_time_s"], abs=1e-6), name
+        assert far["targets"][name]["max_height_m"] == pytest.approx(t["max_height_m"], rel=1e-3), name
+    for column, offset in (("x_m", shift[0]), ("floor_m", shift[1]), ("ground_m", shift[1]), ("surface_m", shift[1])):
+        np.testing.assert_allclose(far["profile"][column], near["profile"][column] + offset, atol=1e-3, err_msg=column)
+    np.testing.assert_allclose(far["profile"]["peak_flow_height_m"], near["profile"]["peak_flow_height_m"], atol=1e-3)
+
+
+def test_the_floor_under_a_structure_is_its_top(tmp_path):
+    """A block sliding on a structure (bedrock, a platform: issue 11's rigid sliding surface) flows
+    over the structure's top, not over the grid's bottom: its flow height is its own height and
+    it drops nothing (before: flow heights and drop measured from the grid's bottom under the
+    structure, here 0.12 m instead of 0.06 m)."""
+    from projects.schema import validate_project
+
+    base = 0.06  # the platform's top: 3 cells, on a node line
+    text = BLOCK.format(x0=0.05, x1=0.15, h=H, v=1.5, duration=0.2, every=4, near=0.3, far=0.4, window=0.35)
+    data = loads_project(text).to_dict()
+    data["bodies"][0]["polygon_m"] = [[x, y + base] for x, y in data["bodies"][0]["polygon_m"]]
+    data["targets"][2]["point_m"][1] += base
+    data["structures"] = [{"name": "platform", "polygon_m": [[0.0, 0.0], [1.0, 0.0], [1.0, base], [0.0, base]],
+                           "contact": "slip"}]
+    result = run_project(validate_project(data), tmp_path / "platform")
+    assert result.ok, result.message
+    doc = read_hazard(result.out_dir)
+    prof = doc["profile"]
+    np.testing.assert_allclose(prof["floor_m"], base, atol=1e-9)
+    passed = (prof["x_lo_m"] >= 0.15 - 1e-9) & (prof["x_hi_m"] <= 0.35 + 1e-9)
+    np.testing.assert_allclose(prof["peak_flow_height_m"][passed], H, rtol=0.01)
+    assert doc["max_flow_height_m"] == pytest.approx(H, rel=0.01)
+    assert doc["drop_height_m"] == pytest.approx(H, abs=1e-3)  # from its top to the platform
+    assert doc["runout_distance_m"] == pytest.approx(1.5 * 0.2, abs=1e-3)
+    for name in ("near", "far"):
+        assert doc["targets"][name]["max_height_m"] == pytest.approx(H, rel=0.01), name
+
+
+def test_the_floor_of_each_raster_column_is_the_top_of_the_structures_at_its_centre():
+    from projects.hazard import structure_floor_m
+    from projects.schema import validate_project
+
+    data = loads_project(BLOCK.format(x0=0.05, x1=0.15, h=H, v=1.5, duration=0.2, every=4, near=0.3, far=0.4,
+                                      window=0.35)).to_dict()
+    # a ramp falling from 0.1 m at x = 0.2 to 0 at x = 0.6, and a wall from 0.7 to 0.76, 0.15 high
+    data["structures"] = [{"name": "ramp", "polygon_m": [[0.2, 0.0], [0.6, 0.0], [0.2, 0.1]]},
+                          {"name": "wall", "polygon_m": [[0.7, 0.0], [0.76, 0.0], [0.76, 0.15], [0.7, 0.15]]}]
+    project = validate_project(data)
+    floor = structure_floor_m(project, 0.02)
+    assert floor.shape == (50,)  # 1.0 m of 0.02 m columns
+    x = (np.arange(50) + 0.5) * 0.02
+    expected = np.where((x > 0.2) & (x < 0.6), 0.1 * (0.6 - x) / 0.4, 0.0)
+    expected = np.where((x > 0.7) & (x < 0.76), 0.15, expected)
+    np.testing.assert_allclose(floor, expected, atol=1e-12)
+    assert structure_floor_m(validate_project(loads_project(BLOCK.format(
+        x0=0.05, x1=0.15, h=H, v=1.5, duration=0.2, every=4, near=0.3, far=0.4, window=0.35)).to_dict()), 0.02) is None

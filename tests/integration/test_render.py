@@ -156,3 +156,34 @@ def test_structures_are_drawn_in_pictures(tmp_path):
                                                      tmp_path / f"{name}.png", size=SMALL))
     grey = lambda img: np.all(np.abs(img[..., :3].astype(int) - 180) <= 3, axis=-1)  # noqa: E731 - fill #b4b4b4
     assert grey(pictures["with"]).sum() > grey(pictures["without"]).sum() + 300
+
+
+@pytest.mark.parametrize("bounds", [(0.0, 1.2, 0.0, 0.8), (0.0, 0.8, 0.0, 0.15), (0.0, 12.0, -3.0, 0.5),
+                                    (100.0, 101.3, 0.0, 0.02), (0.0, 0.6, 0.0, 0.3)])
+def test_every_axis_label_reads_as_its_tick(bounds):
+    """One label format serves both axes: it must have the decimals of the finer-written step
+    (x every 0.25 m and y every 0.2 m: "%.2f", not "%.1f", which printed 0.25 as "0.2" and 0.75
+    as "0.8")."""
+    from app.render import _view
+
+    view = _view(bounds, (1600, 900))
+    x0, x1, y0, y1 = view.bounds
+    for lo, hi, n in ((x0, x1, view.labels[0]), (y0, y1, view.labels[1])):
+        for tick in np.linspace(lo, hi, n):
+            assert float(view.label_format % tick) == pytest.approx(tick, abs=1e-9 * max(1.0, abs(tick))), (
+                view.label_format, tick)
+
+
+@pytest.mark.parametrize("lo, hi", [(0.0, 4.54), (0.08169, 0.08181), (2.2, 4.54), (101325.0, 101331.0),
+                                    (-1e-6, 1e-6), (0.0, 1.0)])
+def test_the_colour_bar_labels_are_distinct(lo, hi):
+    """Five colour-bar labels that read differently: a narrow range (a block that moved as one,
+    displacements 0.08169 to 0.08181 m) printed "0.0818, 0.0818, 0.0817, 0.0817, 0.0817" with 3
+    significant digits; the digits grow until each label differs, 3 where they suffice."""
+    from app.render import bar_format
+
+    fmt = bar_format(lo, hi)
+    labels = [fmt % v for v in np.linspace(lo, hi, 5)]
+    assert len(set(labels)) == 5, labels
+    if (lo, hi) == (0.0, 4.54):
+        assert fmt == "%.3g"

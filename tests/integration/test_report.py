@@ -80,15 +80,29 @@ def test_report_renders_headless_and_every_picture_is_non_blank(collapse, tmp_pa
     assert "apic-affine" in text and "wall time" in text
 
 
-def test_report_lists_structure_forces_when_contacts_csv_exists(collapse, tmp_path):
+def test_report_lists_the_contact_forces_of_contacts_csv(collapse, tmp_path):
+    """The force on each side and structure, from contacts.csv as runs write it (one row per contact
+    and output time, docs/project-format.md): the largest single-step force with its components
+    and the largest interval mean, each with its time. (The table used to read a wide file no run
+    writes, and showed nothing for a real one.)"""
     from app.report import write_report
+    from projects.results import CONTACT_COLUMNS
 
     folder = tmp_path / "with_contacts.results"
     shutil.copytree(collapse, folder)
-    (folder / "contacts.csv").write_text("time_s,wall:force_x_N_per_m,wall:force_y_N_per_m\n"
-                                         "0.0,0.0,0.0\n0.1,-35.5,12.0\n0.2,20.0,3.0\n")
+    rows = [",".join(CONTACT_COLUMNS),
+            "0.0,bottom,0.0,0.0,0.0,0.0,0.0,0.0,0.0", "0.0,wall,0.0,0.0,,,0.0,0.0,0.0",
+            "0.1,bottom,1.0,-50.0,50.0,1.0,80.0,2.0,-79.9", "0.1,wall,-35.5,12.0,,,61.25,-60.0,12.3",
+            "0.2,bottom,2.0,-49.0,49.0,2.0,70.0,1.0,-69.9", "0.2,wall,20.0,3.0,,,25.0,24.0,7.0"]
+    (folder / "contacts.csv").write_text("\n".join(rows) + "\n")
     text = write_report(folder).read_text()
-    assert "Structures (contacts.csv)" in text and "wall:force_x_N_per_m" in text and "-35.5" in text
+    assert "Forces on the sides and structures (contacts.csv)" in text
+    body = re.sub(r"<[^>]+>", "|", text[text.index("Forces on the sides"):])
+    cells = [c.strip() for c in body.split("|") if c.strip()]
+    wall = cells[cells.index("wall"):][:5]
+    assert wall == ["wall", "61.25 N/m (-60, 12.3)", "0.1 s", "37.47 N/m", "0.1 s"], wall
+    bottom = cells[cells.index("bottom"):][:5]
+    assert bottom == ["bottom", "80 N/m (2, -79.9)", "0.1 s", "50.01 N/m", "0.1 s"], bottom
 
 
 def test_report_without_hazard_files_is_a_one_line_error(collapse, tmp_path):

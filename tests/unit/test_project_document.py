@@ -307,6 +307,20 @@ def test_boundary_string_becomes_a_table_when_a_key_inside_is_set(project):
     assert changed.domain.boundaries.bottom.friction_angle_deg == 15.0
 
 
+def test_structure_contact_string_becomes_a_table_when_a_key_inside_is_set(project):
+    data = project.to_dict()
+    data["structures"] = [{"name": "wall", "polygon_m": [[0.5, 0.0], [0.55, 0.0], [0.55, 0.1], [0.5, 0.1]]}]
+    changed = apply_overrides(data, ["structures.0.contact.type=friction",
+                                     "structures.0.contact.friction_angle_deg=25"])
+    assert changed.structures[0].contact.type == "friction"
+    assert changed.structures[0].contact.friction_angle_deg == 25.0
+    data["structures"][0]["contact"] = "fixed"
+    with pytest.raises(ProjectError) as info:  # the angle alone: the type the file gave stays
+        apply_overrides(data, ["structures.0.contact.friction_angle_deg=25"])
+    assert [str(p) for p in info.value.problems] == [
+        'structures.0.contact.friction_angle_deg = 25: only allowed with type "friction"']
+
+
 def test_overrides_on_raw_data_do_not_modify_it():
     data = document.parse_toml(MINIMAL)
     before = copy.deepcopy(data)
@@ -322,6 +336,9 @@ def test_overrides_on_raw_data_do_not_modify_it():
         ("bodies.3.name=x", "bodies.3: no such item; bodies has indices 0 to 0"),
         ("bodies.first.name=x", "bodies.first: no such item; bodies has indices 0 to 0"),
         ("bodies.-1.name=x", "bodies.-1: no such item; bodies has indices 0 to 0"),
+        # a list the file does not have: no items (was "structures is a value, not a table")
+        ("structures.0.name=x", "structures.0: no such item; structures has no items"),
+        ("targets.0.x_m=1", "targets.0: no such item; targets has no items"),
         ("materials.bars.cohesion_pa=0", "materials.bars: no such material; defined: sand"),
         ("domain.cell_size_m.x=1", "domain.cell_size_m.x: domain.cell_size_m is a value, not a table"),
         ("domain.origin_m.0=1", "domain.origin_m.0: domain.origin_m is a value, not a table"),

@@ -248,6 +248,12 @@ GOLDEN = [
         'domain.boundaries.left = "slp": must be "fixed", "slip", "open", "periodic" (left and right together) or a table '
         '{type = "friction", friction_angle_deg = ...}',
     ),
+    (  # neither a word nor a table: the words allowed are named, not just "a table"
+        "domain.boundaries.left",
+        3,
+        'domain.boundaries.left = 3: must be "fixed", "slip", "open", "periodic" (left and right together) or a table '
+        '{type = "friction", friction_angle_deg = ...}',
+    ),
     (
         "domain.boundaries.bottom",
         {"type": "friction"},

@@ -42,6 +42,8 @@ def test_structures_are_optional_and_round_trip_through_toml():
 
 @pytest.mark.parametrize("structure, expected", [
     ({**WALL, "contact": "open"}, 'structures.0.contact = "open": must be "fixed", "slip" or a table'),
+    ({**WALL, "contact": 3}, 'structures.0.contact = 3: must be "fixed", "slip" or a table {type = "friction"'),
+    ({**WALL, "contact": ["slip"]}, 'structures.0.contact = ["slip"]: must be "fixed", "slip" or a table'),
     ({**WALL, "contact": {"type": "friction"}}, 'structures.0.contact.friction_angle_deg: required for type "friction"'),
     ({**WALL, "contact": {"type": "slip", "friction_angle_deg": 10.0}},
      'structures.0.contact.friction_angle_deg = 10.0: only allowed with type "friction"'),
@@ -86,6 +88,8 @@ def test_contacts_csv_rows_and_peaks_in_the_summary(tmp_path):
     summary = writer.close("completed")
     header = (tmp_path / "r" / "contacts.csv").read_text().splitlines()[0]
     assert tuple(header.split(",")) == CONTACT_COLUMNS
+    # no "-0.0" for a contact that carries nothing (the first row's -2 * 0.0)
+    assert ",-0.0," not in (tmp_path / "r" / "contacts.csv").read_text()
     table = read_contacts(tmp_path / "r")
     np.testing.assert_allclose(table["bottom"]["time_s"], [0.0, 0.1, 0.2])
     np.testing.assert_allclose(table["bottom"]["force_y_N_per_m"], [0.0, -20.0, -10.0])
@@ -120,6 +124,22 @@ def test_a_structure_thinner_than_3_cells_is_warned_about(thickness_cells, warne
         assert structure_thickness_m(leaning["polygon_m"]) == pytest.approx(thickness_cells * dx, rel=1e-3)
 
 
+@pytest.mark.parametrize("polygon_cells", [
+    [[250, 0], [253, 0], [253, 50], [250, 50]],  # a wall exactly 3 cells thick, 50 high
+    [[50, 0], [350, 0], [350, 3], [50, 3]],  # a slab exactly 3 cells thick, 300 long
+    [[0, 0], [400, 0], [400, 3], [0, 3]],  # the whole domain's width
+    [[250, 0], [265, 0], [265, 60], [250, 60]]])  # 15 cells thick: its thickness to 1e-6
+def test_a_structure_exactly_3_cells_thick_is_not_warned_about(polygon_cells):
+    from projects.checks import structure_thickness_m
+
+    dx = BASE["domain"]["cell_size_m"]
+    polygon = [[i * dx, j * dx] for i, j in polygon_cells]
+    assert _warnings({**WALL, "polygon_m": polygon}) == []
+    xs, ys = zip(*polygon_cells)
+    thick = min(max(xs) - min(xs), max(ys) - min(ys)) * dx
+    assert structure_thickness_m(polygon) == pytest.approx(thick, rel=1e-6)
+
+
 @pytest.mark.parametrize("offset_cells, scheme, warned", [
     (0.0, "mpm", False), (0.25, "apic", False), (0.3, "mpm", True), (0.5, "apic", True), (0.7, "mpm", True),
     (0.8, "apic", False), (0.3, "apic-affine", False), (0.45, "apic-affine", True), (0.55, "apic-affine", True),
@@ -134,3 +154,52 @@ def test_an_axis_aligned_face_far_from_the_node_lines_is_warned_about(offset_cel
         assert len(lines) == 1 and lines[0].startswith("structures.0 ('wall') has a face at x = ")
         assert f"{offset_cells:.2f} cells off the grid's node lines" in lines[0]
         assert f'scheme "{scheme}"' in lines[0]
+
+
+def test_a_resumed_folder_takes_its_contact_peaks_from_the_rows_it_keeps(tmp_path):
+    """A resume writes over the frames after its checkpoint (and a stop's frame): the run's peaks in
+    summary.json must come from the contacts.csv rows kept, not from the earlier summary, which
+    also counted the rows written over."""
+    from projects.results import ResultsWriter
+
+    out = tmp_path / "r"
+    writer = ResultsWriter(out, "", {"particles": 1})
+    pos = np.zeros((1, 2), np.float32)
+
+    def frame(i, fx, peak):
+        diag = Diagnostics(0.1 * i, "s", 0, 0.1 * i, i, 1e-3, 0, 0, 0, 0, 0, 0, 1.0, 0)
+        contacts = (ContactForce("bottom", fx, -2 * fx, 2 * fx, fx, peak, peak / 2, -peak),)
+        return Frame(diag, {"positions": pos, "active": np.ones(1, bool)}, contacts)
+
+    for i, (fx, peak) in enumerate([(0.0, 0.0), (5.0, 12.0), (10.0, 40.0)]):
+        writer.write_frame(frame(i, fx, peak))
+    assert writer.close("stopped")["contacts"]["bottom"]["peak_force_N_per_m"] == 40.0
+    resumed = ResultsWriter(out, "", {"particles": 1}, keep_frames=2)
+    assert resumed.summary["contacts"]["bottom"]["peak_force_N_per_m"] == 12.0
+    assert resumed.summary["contacts"]["bottom"]["max_mean_force_N_per_m"] == pytest.approx(math.hypot(5.0, 10.0))
+    resumed.write_frame(frame(2, 8.0, 30.0))
+    peaks = resumed.close("completed")["contacts"]["bottom"]
+    assert peaks["peak_force_N_per_m"] == 30.0 and peaks["peak_time_s"] == pytest.approx(0.2)
+    assert json.loads((out / "summary.json").read_text())["contacts"]["bottom"] == peaks
+
+
+@pytest.mark.parametrize("gap_cells, warned", [(0.0, False), (0.01, False), (0.3, True), (0.9, True), (1.5, False),
+                                               (-2.0, False)])
+@pytest.mark.parametrize("where", ["beside", "above"])
+def test_a_body_within_a_cell_of_a_structure_is_warned_about_as_near_a_wall(gap_cells, warned, where):
+    """As for a closed side: a body less than a cell from a structure without touching it drops or
+    slides onto it at the start (issue 11: structures act like walls). Overlapping (the structure
+    takes its part) or touching is fine, to 2 % of a cell (a body laid on an inclined structure with
+    rounded coordinates)."""
+    from projects.checks import project_warnings
+
+    dx = BASE["domain"]["cell_size_m"]
+    g = gap_cells * dx  # the block is [0, 0.2] x [0, 0.1]
+    polygon = ([[0.2 + g, 0.0], [0.26 + g, 0.0], [0.26 + g, 0.1], [0.2 + g, 0.1]] if where == "beside"
+               else [[0.0, 0.1 + g], [0.3, 0.1 + g], [0.3, 0.14], [0.0, 0.14]])
+    lines = [w for w in project_warnings(validate_project(with_structures({**WALL, "polygon_m": polygon})))
+             if "without touching" in w]
+    assert bool(lines) == warned, lines
+    if warned:
+        assert lines[0].startswith(f"bodies.0 ('block') is {g:.3g} m from structures.0 ('wall') without touching it")
+        assert "\n" not in lines[0]

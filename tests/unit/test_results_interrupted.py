@@ -115,3 +115,51 @@ def test_run_killed_with_sigkill_reads_up_to_its_last_frame(tmp_path):
         assert arrays["positions"].shape == (800, 2)
         assert np.isfinite(arrays["stress"]).all()
     assert len(res.series["time_s"]) >= len(res)
+
+
+@pytest.mark.parametrize("damage", ["truncated", "empty", "text", "no-run"])
+def test_a_damaged_checkpoint_is_a_one_line_results_error(tmp_path, damage):
+    """``--resume`` and ``--start-from`` on a folder whose checkpoint.npz was cut short (a full disk,
+    a copy interrupted) or replaced: a ResultsError naming the file, never a traceback."""
+    import io
+
+    from projects.results import CHECKPOINT_NAME, ResultsError, read_checkpoint
+
+    buffer = io.BytesIO()
+    np.savez(buffer, **{"state/x": np.zeros((4, 2)), "fingerprint": np.frombuffer(b"abc", np.uint8)},
+             **({} if damage == "no-run" else {"run": np.frombuffer(b"{}", np.uint8)}))
+    good = buffer.getvalue()
+    data = {"truncated": good[: len(good) // 2], "empty": b"", "text": b"hello\n", "no-run": good}[damage]
+    (tmp_path / CHECKPOINT_NAME).write_bytes(data)
+    with pytest.raises(ResultsError, match="cannot read the checkpoint") as err:
+        read_checkpoint(tmp_path)
+    assert "\n" not in str(err.value)
+
+
+def test_resume_of_a_folder_a_live_run_is_writing_names_the_run(tmp_path):
+    """`runout run --resume` on the folder of a run that is still going: the folder is in use (one
+    line naming the process), not "no checkpoint" (it may not have written one yet)."""
+    from projects.results import ResultsError
+    from projects.runner import resumable
+
+    writer = ResultsWriter(tmp_path / "live", "", dict(SYNTHETIC_META))
+    try:
+        with pytest.raises(ResultsError, match=f"in use by another run \\(process {os.getpid()}\\)"):
+            resumable(tmp_path / "live")
+    finally:
+        writer.close("completed")
+
+
+def test_resume_of_a_strength_reduction_run_says_why_it_cannot(tmp_path):
+    """A strength-reduction run keeps its search in memory and writes no checkpoint part-way
+    (docs/project-format.md): resuming a stopped one says so and what to do, not only "no
+    checkpoint"."""
+    from projects.results import ResultsError
+    from projects.runner import resumable
+    from tests.conftest import EXAMPLES
+
+    writer = ResultsWriter(tmp_path / "fos", (EXAMPLES / "slope_fos.toml").read_text(), dict(SYNTHETIC_META))
+    writer.close("stopped")
+    with pytest.raises(ResultsError, match="strength-reduction run cannot be resumed") as err:
+        resumable(tmp_path / "fos")
+    assert "run it again" in str(err.value) and "\n" not in str(err.value)
