@@ -40,7 +40,7 @@ from solver.config import SIDES, Boundary, Grid, Material, Structure
 from solver.fieldio import FieldIO
 from solver.materials import MaterialTable
 from solver.scatter import BIG, SCATTER_STATE, make_scatter
-from solver.structures import node_contacts, segments
+from solver.structures import node_contacts, segments, through_sides
 
 PAD = 2
 BOUNDARY_CODES = {"fixed": 0, "slip": 1, "friction": 2, "open": 3, "periodic": 4}
@@ -153,7 +153,11 @@ class Engine:
         ns = max(1, self.n_structures)
         self.st_kind = ti.field(ti.i32, ns)
         self.st_mu = ti.field(float, ns)
-        edges = [segments(st.polygon_m) for st in self.structures]
+        # a structure standing on a side continues through it (solver.structures.through_sides)
+        crossable = (not self.periodic, not self.periodic, True, True)
+        self.solid_polygons = tuple(through_sides(st.polygon_m, self.origin, self.upper, PAD * self.dx, crossable)
+                                    for st in self.structures)
+        edges = [segments(polygon) for polygon in self.solid_polygons]
         n_edges = max(1, sum(len(a) for a, _ in edges))
         self.edge_a = ti.Vector.field(2, float, n_edges)
         self.edge_b = ti.Vector.field(2, float, n_edges)
@@ -234,7 +238,7 @@ class Engine:
         f = self.np_float
         counts = np.array([len(a) for a, _ in edges], np.int32)
         xs, ys = self._node_coordinates()
-        index, normal = node_contacts([st.polygon_m for st in self.structures], xs, ys, self.dx)
+        index, normal = node_contacts(self.solid_polygons, xs, ys, self.dx)
         self._io.write({
             "edge_a": np.concatenate([a for a, _ in edges]).astype(f),
             "edge_b": np.concatenate([b for _, b in edges]).astype(f),
@@ -487,8 +491,13 @@ class Engine:
         Contact nodes of a closed side: the nodes on its line and beyond (ghost layers); normal the
         side's inward axis. Of a structure: the nodes whose cell reaches into it
         (:func:`solver.structures.node_contacts`); normal its outward normal there.
-        A node on a side and in a structure meets both, side first.
+        A node on a side and in a structure meets both, side first; the impulse they give it
+        together is recorded split along their two normals.
         """
+        v_in = v
+        held_by = -1  # the side that holds the node (the last, at a corner of the box)
+        sides_holding = 0
+        side_n = ti.Vector.zero(float, 2)
         for side in ti.static(range(4)):
             axis = ti.static(side // 2)
             low = ti.static(side % 2 == 0)
@@ -501,6 +510,9 @@ class Engine:
                 if ti.static(record):
                     self._record(side, mass * (new - v))
                 v = new
+                held_by = side
+                sides_holding += 1
+                side_n = n
         if ti.static(self.n_structures > 0):
             s = self.node_struct[I]
             if s >= 0:
@@ -510,7 +522,19 @@ class Engine:
                 kind = self.st_kind[s] if n.dot(n) > 0.25 else FIXED
                 new = self._contact_law(v, n, kind, self.st_mu[s])
                 if ti.static(record):
-                    self._record(4 + s, mass * (new - v))
+                    det = side_n[0] * n[1] - side_n[1] * n[0]
+                    if sides_holding == 1 and ti.abs(det) > 0.5:
+                        # a node held by a side and a structure (the foot of a wall standing on the
+                        # grid's bottom): the side acted first and may have taken everything (a
+                        # fixed side), so the whole impulse is split along the two normals, each
+                        # contact taking its own normal reaction (and the friction along the other's)
+                        total = mass * (new - v_in)
+                        a = (total[0] * n[1] - total[1] * n[0]) / det
+                        b = (side_n[0] * total[1] - side_n[1] * total[0]) / det
+                        self._record(held_by, a * side_n - mass * (v - v_in))
+                        self._record(4 + s, b * n)
+                    else:
+                        self._record(4 + s, mass * (new - v))
                 v = new
         return v
 

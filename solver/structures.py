@@ -56,6 +56,30 @@ def signed_distance(points_m: np.ndarray, polygon_m: Sequence[Sequence[float]]) 
     return np.where(inside, -dist, dist).reshape(pts.shape[:-1])
 
 
+def through_sides(polygon_m: Sequence[Sequence[float]], lower_m: Sequence[float], upper_m: Sequence[float],
+                  depth_m: float, sides: Sequence[bool] = (True, True, True, True)) -> tuple[tuple[float, float], ...]:
+    """The polygon with every vertex that lies on a side line of the box ``[lower_m, upper_m]`` moved
+    ``depth_m`` beyond it (sides in SIDES order: left, right, bottom, top; ``sides`` says which
+    may be crossed, not periodic ones).
+
+    A structure standing on a side (a wall on the grid's bottom) then continues through it, over
+    the side's ghost nodes, as if it stood on rock below: its foot has no surface along the side
+    line. With that surface, the particles next to both the side and the structure took mirror
+    images across the structure's foot corner, and a granular column at rest between a slip side
+    and a wall on a slip bottom pushed its at-rest thrust up by 11 % in 0.2 s (0.999 with the foot
+    continued). Vertices within 1e-9 of the box size of a side line count as on it.
+    """
+    p = np.array(polygon_m, dtype=np.float64).reshape(-1, 2)
+    lo, hi = np.asarray(lower_m, float), np.asarray(upper_m, float)
+    tol = 1e-9 * float(np.max(hi - lo))
+    for axis in (0, 1):
+        if sides[2 * axis]:
+            p[np.abs(p[:, axis] - lo[axis]) <= tol, axis] = lo[axis] - depth_m
+        if sides[2 * axis + 1]:
+            p[np.abs(p[:, axis] - hi[axis]) <= tol, axis] = hi[axis] + depth_m
+    return tuple((float(x), float(y)) for x, y in p)
+
+
 def cell_reach(normal: np.ndarray, cell_m: float) -> np.ndarray:
     """How far (m) a node's cell (the square of one cell centred on it) reaches along ``normal``
     (..., 2), unit vectors: ``cell_m / 2 (|n_x| + |n_y|)``; half a cell along a grid axis, 0.71 cells
