@@ -1,0 +1,292 @@
+"""Linear stability of the discrete step while a block slides on a frictional wall (issue 11;
+docs/validation.md, contact: "Is the chatter a linear instability of the step?").
+
+One block of :class:`studies.contact_scenes.WallIncline` on the bottom wall, settled and released as
+in the matrix. Then two copies of its state are stepped together, the second perturbed by a tiny
+random velocity field, and the difference is renormalised every ``--chunk`` steps (Benettin's
+method: a power iteration of the step's tangent map along the trajectory). Printed: the growth per
+step of the dominant perturbation (``rho``; ``ln rho / dt`` per second), averaged over the run and
+over its quarters, and the perturbation's shape at the end (the share of its energy in the particle
+rows next to the wall, normal against tangential velocity, its main wavelength along the wall).
+
+The norm is an energy: ``1/2 m |dv|^2 + 1/2 m dx^2/4 |dC|^2`` (APIC's affine part) ``+ 1/2 V
+|ds|^2 / E`` (about the elastic energy of a stress difference) ``+ 1/2 m (c_p / dx)^2 |dx_p|^2``.
+
+``--law``:
+
+- ``engine``: the engine's contact law (one-sided, stick/slip/separation switching).
+- ``linear``: the law linearised about a steady slide in which every wall node presses and slips
+  down the slope: at every contact node (wall line and ghost rows) the normal velocity is removed
+  whatever its sign, and the tangential velocity changes by ``mu vn`` along the slope (``vt +
+  mu vn s``, ``s`` the slope's direction; bilateral, no stick, sign fixed); the mirror walls'
+  ghost velocity always takes the mirror image, with friction ``mu dvn`` of its normal change
+  likewise. The step is then an affine map of the particle state (apart from the particles'
+  motion through the grid), so the growth measured is that of its amplification matrix.
+
+Also (``--slide``): the base trajectory alone, with its elastic (non-translational) kinetic energy
+and slip error over time, for either law.
+
+Usage::
+
+    PYTHONPATH=$PWD python -m benchmarks.contact_stability apic 5 38 36 [--law linear] [--cfl 0.5]
+        [--dx 2] [--youngs 1e8] [--aspect 8] [--time 0.3] [--chunk 10] [--slide] [--seed 1]
+"""
+
+
+
+import argparse
+import math
+import sys
+
+import numpy as np
+
+FIELDS = ("x", "v", "C", "s")
+
+
+def _linear_engine_class():
+    """An Engine whose contact law is the one linearised about a steady downslope slide (bottom
+    wall: slope +x, normal +y). A subclass, so that the engine's code is untouched."""
+    from solver.engine import FIXED, Engine
+    from solver.runtime import ti
+
+    @ti.data_oriented
+    class LinearLawEngine(Engine):
+        #: "linear": bilateral, always slipping down the slope (friction mu vn, any sign of vn);
+        #: "unilateral": separation as the engine's, but no stick (friction mu |vn| down the slope,
+        #: may reverse the tangential velocity); "bilateral": the normal velocity always removed,
+        #: Coulomb friction as the engine's (stick, never reversed) from the pressing part only
+        variant = "linear"
+
+        @ti.func
+        def _contact_law(self, v, n, kind, mu):
+            out = v
+            if kind == FIXED:
+                out = ti.Vector.zero(float, 2)
+            else:
+                vn = v.dot(n)
+                vt = v - vn * n
+                s = ti.Vector([n[1], -n[0]])  # the slope's direction (+x on the bottom wall)
+                if ti.static(self.variant == "linear"):
+                    out = vt + mu * vn * s  # vn < 0 pressing: friction mu |vn| against the slide
+                elif ti.static(self.variant == "unilateral"):
+                    if vn < 0.0:
+                        out = vt + mu * vn * s
+                else:  # bilateral
+                    speed = vt.norm()
+                    out = ti.Vector.zero(float, 2)
+                    if speed > 0.0:
+                        out = vt * (ti.max(speed - mu * ti.max(-vn, 0.0), 0.0) / speed)
+            return out
+
+        @ti.func
+        def _mirror_ghosts(self, old: ti.template(), record: ti.template()):
+            for axis in ti.static(range(2)):
+                ti.loop_config(serialize=self.plain)
+                for k in range(2 * self.nodes[1 - axis]):
+                    side, inward, ghost, mirror = self._wall_pairs(axis, k)
+                    kind = self.bc_kind[side]
+                    mass = self.g_mass[ghost]
+                    if self._closed(kind) and mass > 0.0 and self._in_box(ghost) and self._in_box(mirror):
+                        vm = self.g_v_old[mirror] if ti.static(old) else self.g_mom[mirror]
+                        vg = self.g_v_old[ghost] if ti.static(old) else self.g_mom[ghost]
+                        new = vg
+                        if kind == FIXED:
+                            new = -vm
+                        elif ti.static(self.variant == "linear"):
+                            new[axis] = -vm[axis]
+                            dvn = (new[axis] - vg[axis]) * inward
+                            # slope direction along the wall: +x for the bottom wall (the only one used)
+                            new[1 - axis] = vg[1 - axis] - self.bc_mu[side] * dvn
+                        elif ti.static(self.variant == "unilateral"):
+                            if vm[axis] * inward < 0.0:
+                                new[axis] = -vm[axis]
+                                dvn = (new[axis] - vg[axis]) * inward
+                                if dvn > 0.0:
+                                    new[1 - axis] = vg[1 - axis] - self.bc_mu[side] * dvn
+                        else:  # bilateral: the image always, the engine's friction on a pressing change
+                            new[axis] = -vm[axis]
+                            dvn = (new[axis] - vg[axis]) * inward
+                            if dvn > 0.0:
+                                vt = new[1 - axis]
+                                new[1 - axis] = ti.math.sign(vt) * ti.max(ti.abs(vt) - self.bc_mu[side] * dvn, 0.0)
+                        if ti.static(record):
+                            self._record(side, mass * (new - vg))
+                        if ti.static(old):
+                            self.g_v_old[ghost] = new
+                        else:
+                            self.g_mom[ghost] = new
+
+    return LinearLawEngine
+
+
+def _norm2(d: dict, m, vol, dx, youngs, cp) -> float:
+    e = 0.5 * (m * (d["v"] ** 2).sum(1)).sum()
+    e += 0.5 * (m * dx * dx / 4.0 * (d["C"] ** 2).sum((1, 2))).sum()
+    e += 0.5 * (vol * (d["s"] ** 2).sum(1)).sum() / youngs
+    e += 0.5 * (m * (cp / dx) ** 2 * (d["x"] ** 2).sum(1)).sum()
+    return float(e)
+
+
+def _shape(d: dict, m, x, dx, normal_axis=1):
+    """Where the perturbation lives: energy share by distance from the wall (rows of cells),
+    kinetic share normal / tangential, dominant wavelength along the wall (cells) of the normal
+    velocity of the lowest particle row."""
+    ke_n = 0.5 * (m * d["v"][:, normal_axis] ** 2).sum()
+    ke_t = 0.5 * (m * d["v"][:, 1 - normal_axis] ** 2).sum()
+    depth = x[:, normal_axis] / dx
+    rows = {}
+    ke = 0.5 * m * (d["v"] ** 2).sum(1)
+    for lo, hi in ((0, 1), (1, 2), (2, 4), (4, 1e9)):
+        rows[f"{lo}-{hi if hi < 1e8 else 'top'}"] = float(ke[(depth >= lo) & (depth < hi)].sum() / max(ke.sum(), 1e-300))
+    low = depth < 0.5
+    order = np.argsort(x[low, 1 - normal_axis])
+    sig = d["v"][low, normal_axis][order]
+    spec = np.abs(np.fft.rfft(sig - sig.mean())) ** 2
+    k = int(np.argmax(spec[1:]) + 1) if len(spec) > 1 else 0
+    along = (x[low, 1 - normal_axis].max() - x[low, 1 - normal_axis].min()) / dx
+    wavelength = along * len(sig) / (len(sig) - 1) / k if k else float("inf")
+    return dict(ke_normal=float(ke_n / max(ke_n + ke_t, 1e-300)), rows=rows, wavelength_cells=float(wavelength))
+
+
+def analyse(scheme: str, thickness: int, theta: float, delta: float, law: str = "engine", youngs: float = 1e8,
+            aspect: float = 8.0, time_factor: float = 0.3, chunk: int = 10, eps: float = 1e-6, seed: int = 1,
+            slide: bool = False, samples: int = 8, precision: str = "f64", seconds: float = 0.0) -> dict:
+    """One case on the bottom wall. Returns the growth per step over the run and its quarters (or,
+    with ``slide``, the base trajectory's elastic kinetic energy and slip over time)."""
+    from solver import runtime
+    from solver.config import Boundary, Grid
+    from studies import contact_scenes as cs
+
+    runtime.acquire("cpu", precision)
+    try:
+        sc = cs.WallIncline(scheme, precision, thickness, youngs, "bottom", aspect=aspect)
+        if law in ("linear", "unilateral", "bilateral"):
+            cls = _linear_engine_class()
+            cls.variant = law
+            sc.engine = cls(sc.grid, (sc.material,), len(sc.positions), scheme, sc.np_float, damping=True,
+                            scatter="serial")
+        elif law != "engine":
+            raise ValueError(f"law must be engine, linear, unilateral or bilateral, got {law!r}")
+        e = sc.engine
+
+        def contact(fixed: bool) -> None:
+            sides = sc._sides(math.radians(delta))
+            if fixed:
+                sides["bottom"] = Boundary("fixed")
+            e.set_boundaries(Grid(sc.grid.origin_m, sc.grid.size_m, sc.dx, **sides))
+
+        h = sc.dx / cs.PPC
+        e.load_particles(sc.positions, np.full(len(sc.positions), h * h), np.zeros(len(sc.positions), np.int32))
+        g = sc.gravity(theta)
+        stress = cs.slope_stress(sc.positions, sc.slope, sc.normal, 0.0, sc.thickness_m, theta, delta)
+        dt = cs.settle_and_release(e, sc.material, sc.dx, g, stress, contact, sc.length_m)
+        t_end = seconds if seconds > 0.0 else cs.run_time(theta, delta, sc.dx) * time_factor
+        steps = int(math.ceil(t_end / dt))
+        dt = t_end / steps
+        n = e.n
+        m = e.m.to_numpy()[:n].astype(np.float64)
+        vol = np.full(n, h * h)
+        cp = sc.material.p_wave_speed_m_s
+        x0 = e.x.to_numpy()[:n].astype(np.float64)
+        if slide:
+            out = []
+            every = max(1, steps // samples)
+            for k in range(steps):
+                e.step(dt, g)
+                if (k + 1) % every == 0 or k == steps - 1:
+                    v = e.v.to_numpy()[:n].astype(np.float64)
+                    vbar = (m[:, None] * v).sum(0) / m.sum()
+                    x = e.x.to_numpy()[:n].astype(np.float64)
+                    t = (k + 1) * dt
+                    slip = float(((x - x0)[sc.base_row] @ sc.slope).mean())
+                    an = cs.analytic_distance(theta, delta, t)
+                    out.append((t, 0.5 * float((m * ((v - vbar) ** 2).sum(1)).sum()), slip / an - 1.0 if an > 0 else slip))
+            return dict(dt=dt, steps=steps, slide=out)
+        rng = np.random.default_rng(seed)
+        base = e.state()
+        d = {k: np.zeros_like(base[k][:n], dtype=np.float64) for k in FIELDS}
+        d["v"] = rng.standard_normal((n, 2))
+        scale = math.sqrt(_norm2(d, m, vol, sc.dx, youngs, cp))
+        d = {k: v / scale for k, v in d.items()}  # unit energy
+        amp = eps * math.sqrt(0.5 * m.sum())  # perturbation energy of a velocity field of rms ``eps`` m/s
+        logs = []
+        done = 0
+        while done < steps:
+            K = min(chunk, steps - done)
+            pert = {k: np.array(v, copy=True) for k, v in base.items()}
+            for k in FIELDS:
+                pert[k] = pert[k].copy()
+                pert[k][:n] = (pert[k][:n].astype(np.float64) + amp * d[k].reshape(pert[k][:n].shape)).astype(pert[k].dtype)
+            e.load_state(base)
+            for _ in range(K):
+                e.step(dt, g)
+            base = e.state()
+            e.load_state(pert)
+            for _ in range(K):
+                e.step(dt, g)
+            after = e.state()
+            diff = {k: (after[k][:n].astype(np.float64) - base[k][:n].astype(np.float64)) / amp for k in FIELDS}
+            r = math.sqrt(_norm2(diff, m, vol, sc.dx, youngs, cp))
+            logs.append((K, math.log(max(r, 1e-300))))
+            d = {k: v / r for k, v in diff.items()}
+            done += K
+        xb = base["x"][:n].astype(np.float64)
+        shape = _shape(d, m, xb - np.array([0.0, 0.0]), sc.dx)
+    finally:
+        runtime.release()
+    K = np.array([k for k, _ in logs], float)
+    L = np.array([lg for _, lg in logs])
+    quarters = []
+    for q in range(4):
+        sel = slice(q * len(L) // 4, (q + 1) * len(L) // 4)
+        quarters.append(float(L[sel].sum() / max(K[sel].sum(), 1)))
+    lam = float(L.sum() / K.sum())
+    return dict(dt=dt, steps=steps, t_end=t_end, per_step=lam, rho=math.exp(lam), per_s=lam / dt,
+                quarters=quarters, shape=shape, factor=math.exp(L.sum()))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scheme")
+    ap.add_argument("thickness", type=int)
+    ap.add_argument("incline", type=float)
+    ap.add_argument("friction", type=float)
+    ap.add_argument("--law", default="engine", choices=("engine", "linear", "unilateral", "bilateral"))
+    ap.add_argument("--youngs", type=float, default=1e8)
+    ap.add_argument("--aspect", type=float, default=8.0)
+    ap.add_argument("--time", type=float, default=0.3, help="run time as a multiple of the matrix's")
+    ap.add_argument("--seconds", type=float, default=0.0, help="run time (s; overrides --time)")
+    ap.add_argument("--cfl", type=float, default=None, help="the scenes' 0.5")
+    ap.add_argument("--dx", type=float, default=None, help="cell size (m; the scenes': 2 for E >= 1e7 Pa)")
+    ap.add_argument("--chunk", type=int, default=10, help="steps between renormalisations")
+    ap.add_argument("--eps", type=float, default=1e-6, help="perturbation: rms velocity (m/s)")
+    ap.add_argument("--samples", type=int, default=8, help="--slide: samples over the run")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--slide", action="store_true", help="the base trajectory only: elastic energy and slip error")
+    a = ap.parse_args(argv)
+    from studies import contact_scenes as cs
+
+    if a.dx is not None:
+        cs.cell_size_for = lambda youngs_pa: a.dx
+    if a.cfl is not None:
+        cs.CFL = a.cfl
+    r = analyse(a.scheme, a.thickness, a.incline, a.friction, a.law, a.youngs, a.aspect, a.time, a.chunk, a.eps,
+                a.seed, a.slide, a.samples, seconds=a.seconds)
+    label = (f"{a.scheme} {a.thickness} cells {a.incline:g}/{a.friction:g} deg law={a.law} cfl {a.cfl or 0.5:g} "
+             f"dx {a.dx or cs.cell_size_for(a.youngs):g} E={a.youngs:g}")
+    if a.slide:
+        print(label, f"dt {r['dt']:.3e} s, {r['steps']} steps")
+        for t, ke, err in r["slide"]:
+            print(f"  t {t:8.3f} s  elastic KE {ke:10.3e} J/m  slip error {100 * err:+8.2f} %")
+        return 0
+    s = r["shape"]
+    print(f"{label}: dt {r['dt']:.3e} s, {r['steps']} steps; growth per step {r['rho']:.5f} "
+          f"({r['per_s']:+.2f} /s; x{r['factor']:.3g} over the run); quarters per step "
+          + " ".join(f"{math.exp(q):.5f}" for q in r["quarters"])
+          + f"; shape: KE normal {s['ke_normal']:.2f}, rows " + " ".join(f"{k}:{v:.2f}" for k, v in s["rows"].items())
+          + f", wavelength {s['wavelength_cells']:.1f} cells")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
