@@ -23,16 +23,27 @@ The norm is an energy: ``1/2 m |dv|^2 + 1/2 m dx^2/4 |dC|^2`` (APIC's affine par
   likewise. The step is then an affine map of the particle state (apart from the particles'
   motion through the grid), so the growth measured is that of its amplification matrix.
 
+- ``unilateral``: separation as the engine's, but no stick: friction ``mu |vn|`` against the
+  slope's direction while pressing (it may reverse a node's velocity along the wall).
+- ``bilateral``: the normal velocity always removed; friction as the engine's (stick, never
+  reversed) from the pressing part only.
+
+``--beta B`` (experiment, six-stage schemes; with ``--law engine`` the engine's law re-coded in the
+subclass): after each application of the law, the wall line's pressing nodes (normal velocity
+held at zero) relax their velocity along the wall by the fraction ``B`` towards their
+mass-weighted mean (a dashpot against the contact's mean slip; momentum unchanged). It acts on the
+whole wall line at once, so it would couple separate bodies on one wall: a probe of where the
+instability lives, not a law for the engine.
+
 Also (``--slide``): the base trajectory alone, with its elastic (non-translational) kinetic energy
-and slip error over time, for either law.
+and slip error over time (sticking cases: slip over the frictionless distance), for any law.
 
 Usage::
 
     PYTHONPATH=$PWD python -m benchmarks.contact_stability apic 5 38 36 [--law linear] [--cfl 0.5]
-        [--dx 2] [--youngs 1e8] [--aspect 8] [--time 0.3] [--chunk 10] [--slide] [--seed 1]
+        [--dx 2] [--youngs 1e8] [--aspect 8] [--time 0.3 | --seconds 1.3] [--chunk 10] [--slide]
+        [--samples 8] [--beta 0.2] [--seed 1]
 """
-
-
 
 import argparse
 import math
@@ -46,7 +57,7 @@ FIELDS = ("x", "v", "C", "s")
 def _linear_engine_class():
     """An Engine whose contact law is the one linearised about a steady downslope slide (bottom
     wall: slope +x, normal +y). A subclass, so that the engine's code is untouched."""
-    from solver.engine import FIXED, Engine
+    from solver.engine import FIXED, PAD, Engine
     from solver.runtime import ti
 
     @ti.data_oriented
@@ -56,6 +67,62 @@ def _linear_engine_class():
         #: may reverse the tangential velocity); "bilateral": the normal velocity always removed,
         #: Coulomb friction as the engine's (stick, never reversed) from the pressing part only
         variant = "linear"
+        #: experiment: each step the contact nodes' velocity along the wall relaxes by this fraction
+        #: towards the mass-weighted mean of the wall line's (a dashpot against the contact's mean slip)
+        beta = 0.0
+
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self.acc = ti.Vector.field(2, ti.f64, shape=())
+
+        @ti.func
+        def _grid_velocity(self):
+            lo = self.lo[None]
+            width = ti.max(self.hi[None] - lo, 0)
+            for k in range(width[0] * width[1]):
+                I = lo + ti.Vector([k // width[1], k % width[1]])
+                mass = self.g_mass[I]
+                v = ti.Vector.zero(float, 2)
+                if mass > 0.0:
+                    v = self._contact(I, self.g_mom[I] / mass, mass, True)
+                self.g_v_old[I] = v
+            if ti.static(self.beta > 0.0):
+                self._relax(self.g_v_old)
+
+        @ti.func
+        def _grid_update(self, dt, damping):
+            lo = self.lo[None]
+            width = ti.max(self.hi[None] - lo, 0)
+            for k in range(width[0] * width[1]):
+                I = lo + ti.Vector([k // width[1], k % width[1]])
+                mass = self.g_mass[I]
+                if mass > 0.0:
+                    v = self.g_v_old[I]
+                    f = self._damped(self.g_f[I], v, damping)
+                    self.g_mom[I] = self._contact(I, v + dt * f / mass, mass, True)
+                else:
+                    self.g_mom[I] = ti.Vector.zero(float, 2)
+            if ti.static(self.beta > 0.0):
+                self._relax(self.g_mom)
+
+        @ti.func
+        def _relax(self, vel: ti.template()):
+            """The wall line's pressing nodes (normal velocity held at zero by the law): velocity along
+            the wall relaxed by ``beta`` towards their mass-weighted mean (momentum unchanged)."""
+            lo = self.lo[None]
+            width = ti.max(self.hi[None] - lo, 0)
+            self.acc[None] = ti.Vector.zero(ti.f64, 2)
+            for k in range(width[0]):
+                I = ti.Vector([lo[0] + k, PAD])
+                mass = self.g_mass[I]
+                if mass > 0.0 and vel[I][1] == 0.0:
+                    self.acc[None] += ti.Vector([mass * vel[I][0], mass], ti.f64)
+            for k in range(width[0]):
+                I = ti.Vector([lo[0] + k, PAD])
+                mass = self.g_mass[I]
+                if mass > 0.0 and vel[I][1] == 0.0:
+                    vbar = ti.cast(self.acc[None][0] / self.acc[None][1], float)
+                    vel[I][0] -= ti.static(self.beta) * (vel[I][0] - vbar)
 
         @ti.func
         def _contact_law(self, v, n, kind, mu):
@@ -66,7 +133,13 @@ def _linear_engine_class():
                 vn = v.dot(n)
                 vt = v - vn * n
                 s = ti.Vector([n[1], -n[0]])  # the slope's direction (+x on the bottom wall)
-                if ti.static(self.variant == "linear"):
+                if ti.static(self.variant == "engine"):
+                    if vn < 0.0:
+                        speed = vt.norm()
+                        out = ti.Vector.zero(float, 2)
+                        if speed > 0.0:
+                            out = vt * (ti.max(speed - mu * (-vn), 0.0) / speed)
+                elif ti.static(self.variant == "linear"):
                     out = vt + mu * vn * s  # vn < 0 pressing: friction mu |vn| against the slide
                 elif ti.static(self.variant == "unilateral"):
                     if vn < 0.0:
@@ -92,6 +165,13 @@ def _linear_engine_class():
                         new = vg
                         if kind == FIXED:
                             new = -vm
+                        elif ti.static(self.variant == "engine"):
+                            if vm[axis] * inward < 0.0:
+                                new[axis] = -vm[axis]
+                                dvn = (new[axis] - vg[axis]) * inward
+                                if dvn > 0.0:
+                                    vt = new[1 - axis]
+                                    new[1 - axis] = ti.math.sign(vt) * ti.max(ti.abs(vt) - self.bc_mu[side] * dvn, 0.0)
                         elif ti.static(self.variant == "linear"):
                             new[axis] = -vm[axis]
                             dvn = (new[axis] - vg[axis]) * inward
@@ -150,7 +230,8 @@ def _shape(d: dict, m, x, dx, normal_axis=1):
 
 def analyse(scheme: str, thickness: int, theta: float, delta: float, law: str = "engine", youngs: float = 1e8,
             aspect: float = 8.0, time_factor: float = 0.3, chunk: int = 10, eps: float = 1e-6, seed: int = 1,
-            slide: bool = False, samples: int = 8, precision: str = "f64", seconds: float = 0.0) -> dict:
+            slide: bool = False, samples: int = 8, precision: str = "f64", seconds: float = 0.0,
+            beta: float = 0.0) -> dict:
     """One case on the bottom wall. Returns the growth per step over the run and its quarters (or,
     with ``slide``, the base trajectory's elastic kinetic energy and slip over time)."""
     from solver import runtime
@@ -160,9 +241,10 @@ def analyse(scheme: str, thickness: int, theta: float, delta: float, law: str = 
     runtime.acquire("cpu", precision)
     try:
         sc = cs.WallIncline(scheme, precision, thickness, youngs, "bottom", aspect=aspect)
-        if law in ("linear", "unilateral", "bilateral"):
+        if law in ("linear", "unilateral", "bilateral") or beta > 0.0:
             cls = _linear_engine_class()
             cls.variant = law
+            cls.beta = beta
             sc.engine = cls(sc.grid, (sc.material,), len(sc.positions), scheme, sc.np_float, damping=True,
                             scatter="serial")
         elif law != "engine":
@@ -200,7 +282,9 @@ def analyse(scheme: str, thickness: int, theta: float, delta: float, law: str = 
                     t = (k + 1) * dt
                     slip = float(((x - x0)[sc.base_row] @ sc.slope).mean())
                     an = cs.analytic_distance(theta, delta, t)
-                    out.append((t, 0.5 * float((m * ((v - vbar) ** 2).sum(1)).sum()), slip / an - 1.0 if an > 0 else slip))
+                    # sliding: slip / analytic - 1; sticking: slip / frictionless distance
+                    err = slip / an - 1.0 if an > 0 else slip / cs.analytic_distance(theta, 0.0, t)
+                    out.append((t, 0.5 * float((m * ((v - vbar) ** 2).sum(1)).sum()), err))
             return dict(dt=dt, steps=steps, slide=out)
         rng = np.random.default_rng(seed)
         base = e.state()
@@ -261,6 +345,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--chunk", type=int, default=10, help="steps between renormalisations")
     ap.add_argument("--eps", type=float, default=1e-6, help="perturbation: rms velocity (m/s)")
     ap.add_argument("--samples", type=int, default=8, help="--slide: samples over the run")
+    ap.add_argument("--beta", type=float, default=0.0,
+                    help="experiment: contact nodes' velocity along the wall relaxed by this fraction a step "
+                         "towards the wall line's mean (with --law engine: the engine's law in the subclass)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--slide", action="store_true", help="the base trajectory only: elastic energy and slip error")
     a = ap.parse_args(argv)
@@ -271,13 +358,14 @@ def main(argv: list[str] | None = None) -> int:
     if a.cfl is not None:
         cs.CFL = a.cfl
     r = analyse(a.scheme, a.thickness, a.incline, a.friction, a.law, a.youngs, a.aspect, a.time, a.chunk, a.eps,
-                a.seed, a.slide, a.samples, seconds=a.seconds)
-    label = (f"{a.scheme} {a.thickness} cells {a.incline:g}/{a.friction:g} deg law={a.law} cfl {a.cfl or 0.5:g} "
+                a.seed, a.slide, a.samples, seconds=a.seconds,
+                beta=a.beta)
+    label = (f"{a.scheme} {a.thickness} cells {a.incline:g}/{a.friction:g} deg law={a.law}{f' beta {a.beta:g}' if a.beta else ''} cfl {a.cfl or 0.5:g} "
              f"dx {a.dx or cs.cell_size_for(a.youngs):g} E={a.youngs:g}")
     if a.slide:
         print(label, f"dt {r['dt']:.3e} s, {r['steps']} steps")
         for t, ke, err in r["slide"]:
-            print(f"  t {t:8.3f} s  elastic KE {ke:10.3e} J/m  slip error {100 * err:+8.2f} %")
+            print(f"  t {t:8.3f} s  elastic KE {ke:10.3e} J/m  slip error {100 * err:+8.2f} % (sticking: of the frictionless distance)")
         return 0
     s = r["shape"]
     print(f"{label}: dt {r['dt']:.3e} s, {r['steps']} steps; growth per step {r['rho']:.5f} "
