@@ -70,10 +70,12 @@ def _linear_engine_class():
         #: experiment: each step the contact nodes' velocity along the wall relaxes by this fraction
         #: towards the mass-weighted mean of the wall line's (a dashpot against the contact's mean slip)
         beta = 0.0
+        radius = 0  #: cells each way over which the mean is taken (0: the whole wall line)
 
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)
             self.acc = ti.Vector.field(2, ti.f64, shape=())
+            self.tmp = ti.field(float, shape=self.nodes[0])
 
         @ti.func
         def _grid_velocity(self):
@@ -108,21 +110,46 @@ def _linear_engine_class():
         @ti.func
         def _relax(self, vel: ti.template()):
             """The wall line's pressing nodes (normal velocity held at zero by the law): velocity along
-            the wall relaxed by ``beta`` towards their mass-weighted mean (momentum unchanged)."""
+            the wall relaxed by ``beta`` towards their mass-weighted mean (momentum unchanged), or with
+            ``radius`` > 0 towards the mean over the pressing nodes within ``radius`` cells (binomial-like
+            triangle weights; momentum then only nearly unchanged)."""
             lo = self.lo[None]
             width = ti.max(self.hi[None] - lo, 0)
-            self.acc[None] = ti.Vector.zero(ti.f64, 2)
-            for k in range(width[0]):
-                I = ti.Vector([lo[0] + k, PAD])
-                mass = self.g_mass[I]
-                if mass > 0.0 and vel[I][1] == 0.0:
-                    self.acc[None] += ti.Vector([mass * vel[I][0], mass], ti.f64)
-            for k in range(width[0]):
-                I = ti.Vector([lo[0] + k, PAD])
-                mass = self.g_mass[I]
-                if mass > 0.0 and vel[I][1] == 0.0:
-                    vbar = ti.cast(self.acc[None][0] / self.acc[None][1], float)
-                    vel[I][0] -= ti.static(self.beta) * (vel[I][0] - vbar)
+            if ti.static(self.radius == 0):
+                self.acc[None] = ti.Vector.zero(ti.f64, 2)
+                for k in range(width[0]):
+                    I = ti.Vector([lo[0] + k, PAD])
+                    mass = self.g_mass[I]
+                    if mass > 0.0 and vel[I][1] == 0.0:
+                        self.acc[None] += ti.Vector([mass * vel[I][0], mass], ti.f64)
+                for k in range(width[0]):
+                    I = ti.Vector([lo[0] + k, PAD])
+                    mass = self.g_mass[I]
+                    if mass > 0.0 and vel[I][1] == 0.0:
+                        vbar = ti.cast(self.acc[None][0] / self.acc[None][1], float)
+                        vel[I][0] -= ti.static(self.beta) * (vel[I][0] - vbar)
+            else:
+                for k in range(width[0]):
+                    i = lo[0] + k
+                    I = ti.Vector([i, PAD])
+                    self.tmp[i] = vel[I][0]
+                    if self.g_mass[I] > 0.0 and vel[I][1] == 0.0:
+                        num = 0.0
+                        den = 0.0
+                        for d in range(-ti.static(self.radius), ti.static(self.radius) + 1):
+                            J = ti.Vector([i + d, PAD])
+                            if lo[0] <= J[0] < lo[0] + width[0]:
+                                mj = self.g_mass[J]
+                                if mj > 0.0 and vel[J][1] == 0.0:
+                                    w = (ti.static(self.radius) + 1.0 - ti.abs(d)) * mj
+                                    num += w * vel[J][0]
+                                    den += w
+                        self.tmp[i] = vel[I][0] - ti.static(self.beta) * (vel[I][0] - num / den)
+                for k in range(width[0]):
+                    i = lo[0] + k
+                    I = ti.Vector([i, PAD])
+                    if self.g_mass[I] > 0.0 and vel[I][1] == 0.0:
+                        vel[I][0] = self.tmp[i]
 
         @ti.func
         def _contact_law(self, v, n, kind, mu):
@@ -231,7 +258,7 @@ def _shape(d: dict, m, x, dx, normal_axis=1):
 def analyse(scheme: str, thickness: int, theta: float, delta: float, law: str = "engine", youngs: float = 1e8,
             aspect: float = 8.0, time_factor: float = 0.3, chunk: int = 10, eps: float = 1e-6, seed: int = 1,
             slide: bool = False, samples: int = 8, precision: str = "f64", seconds: float = 0.0,
-            beta: float = 0.0) -> dict:
+            beta: float = 0.0, radius: int = 0) -> dict:
     """One case on the bottom wall. Returns the growth per step over the run and its quarters (or,
     with ``slide``, the base trajectory's elastic kinetic energy and slip over time)."""
     from solver import runtime
@@ -245,6 +272,7 @@ def analyse(scheme: str, thickness: int, theta: float, delta: float, law: str = 
             cls = _linear_engine_class()
             cls.variant = law
             cls.beta = beta
+            cls.radius = radius
             sc.engine = cls(sc.grid, (sc.material,), len(sc.positions), scheme, sc.np_float, damping=True,
                             scatter="serial")
         elif law != "engine":
@@ -348,6 +376,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--beta", type=float, default=0.0,
                     help="experiment: contact nodes' velocity along the wall relaxed by this fraction a step "
                          "towards the wall line's mean (with --law engine: the engine's law in the subclass)")
+    ap.add_argument("--radius", type=int, default=0,
+                    help="experiment: --beta's mean over the pressing nodes within this many cells (0: all)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--slide", action="store_true", help="the base trajectory only: elastic energy and slip error")
     a = ap.parse_args(argv)
@@ -359,8 +389,8 @@ def main(argv: list[str] | None = None) -> int:
         cs.CFL = a.cfl
     r = analyse(a.scheme, a.thickness, a.incline, a.friction, a.law, a.youngs, a.aspect, a.time, a.chunk, a.eps,
                 a.seed, a.slide, a.samples, seconds=a.seconds,
-                beta=a.beta)
-    label = (f"{a.scheme} {a.thickness} cells {a.incline:g}/{a.friction:g} deg law={a.law}{f' beta {a.beta:g}' if a.beta else ''} cfl {a.cfl or 0.5:g} "
+                beta=a.beta, radius=a.radius)
+    label = (f"{a.scheme} {a.thickness} cells {a.incline:g}/{a.friction:g} deg law={a.law}{f' beta {a.beta:g} radius {a.radius}' if a.beta else ''} cfl {a.cfl or 0.5:g} "
              f"dx {a.dx or cs.cell_size_for(a.youngs):g} E={a.youngs:g}")
     if a.slide:
         print(label, f"dt {r['dt']:.3e} s, {r['steps']} steps")
