@@ -35,6 +35,10 @@ mass-weighted mean (a dashpot against the contact's mean slip; momentum unchange
 whole wall line at once, so it would couple separate bodies on one wall: a probe of where the
 instability lives, not a law for the engine.
 
+``--radius R`` (with ``--beta``): the mean over the pressing nodes within ``R`` cells instead.
+``--eta`` (experiment, mpm and apic): a Kelvin-Voigt viscosity of the block, stress ``2 eta D`` (Pa)
+added to the force (explicit: unstable above about ``rho dx^2 / (4 dt)``).
+
 Also (``--slide``): the base trajectory alone, with its elastic (non-translational) kinetic energy
 and slip error over time (sticking cases: slip over the frictionless distance), for any law.
 
@@ -42,7 +46,7 @@ Usage::
 
     PYTHONPATH=$PWD python -m benchmarks.contact_stability apic 5 38 36 [--law linear] [--cfl 0.5]
         [--dx 2] [--youngs 1e8] [--aspect 8] [--time 0.3 | --seconds 1.3] [--chunk 10] [--slide]
-        [--samples 8] [--beta 0.2] [--seed 1]
+        [--samples 8] [--beta 0.2 [--radius 10]] [--eta 4e5] [--seed 1]
 """
 
 import argparse
@@ -58,7 +62,7 @@ def _linear_engine_class():
     """An Engine whose contact law is the one linearised about a steady downslope slide (bottom
     wall: slope +x, normal +y). A subclass, so that the engine's code is untouched."""
     from solver.engine import FIXED, PAD, Engine
-    from solver.runtime import ti
+    from solver.runtime import mat_vec, ti, transpose
 
     @ti.data_oriented
     class LinearLawEngine(Engine):
@@ -72,8 +76,12 @@ def _linear_engine_class():
         beta = 0.0
         radius = 0  #: cells each way over which the mean is taken (0: the whole wall line)
 
+        #: experiment: a Kelvin-Voigt viscosity of the block, stress 2 eta D added to the force (Pa s)
+        eta = 0.0
+
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)
+            self.sv = ti.Vector.field(3, float, shape=max(1, self.n))
             self.acc = ti.Vector.field(2, ti.f64, shape=())
             self.tmp = ti.field(float, shape=self.nodes[0])
 
@@ -150,6 +158,27 @@ def _linear_engine_class():
                     I = ti.Vector([i, PAD])
                     if self.g_mass[I] > 0.0 and vel[I][1] == 0.0:
                         vel[I][0] = self.tmp[i]
+
+        @ti.func
+        def _stress_point(self, p, L, dt):
+            D = 0.5 * (L + transpose(L))
+            if ti.static(self.eta > 0.0):
+                self.sv[p] = 2.0 * ti.static(self.eta) * ti.Vector([D[0, 0], D[1, 1], D[0, 1]])
+            return Engine._stress_point(self, p, L, dt)
+
+        @ti.func
+        def _force_particle(self, p, vol, g):
+            base, fx, w, dw = self._stencil(self.x[p])
+            s = self.s[p]
+            sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
+            if ti.static(self.eta > 0.0):
+                sv = self.sv[p]
+                sig += ti.Matrix([[sv[0], sv[2]], [sv[2], sv[1]]])
+            m = self.m[p]
+            for i, j in ti.static(ti.ndrange(3, 3)):
+                weight = w[i][0] * w[j][1]
+                grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
+                self.to_grid.add(self.g_f, base + ti.Vector([i, j]), -vol * mat_vec(sig, grad) + weight * m * g)
 
         @ti.func
         def _contact_law(self, v, n, kind, mu):
@@ -258,7 +287,7 @@ def _shape(d: dict, m, x, dx, normal_axis=1):
 def analyse(scheme: str, thickness: int, theta: float, delta: float, law: str = "engine", youngs: float = 1e8,
             aspect: float = 8.0, time_factor: float = 0.3, chunk: int = 10, eps: float = 1e-6, seed: int = 1,
             slide: bool = False, samples: int = 8, precision: str = "f64", seconds: float = 0.0,
-            beta: float = 0.0, radius: int = 0) -> dict:
+            beta: float = 0.0, radius: int = 0, eta: float = 0.0) -> dict:
     """One case on the bottom wall. Returns the growth per step over the run and its quarters (or,
     with ``slide``, the base trajectory's elastic kinetic energy and slip over time)."""
     from solver import runtime
@@ -268,11 +297,12 @@ def analyse(scheme: str, thickness: int, theta: float, delta: float, law: str = 
     runtime.acquire("cpu", precision)
     try:
         sc = cs.WallIncline(scheme, precision, thickness, youngs, "bottom", aspect=aspect)
-        if law in ("linear", "unilateral", "bilateral") or beta > 0.0:
+        if law in ("linear", "unilateral", "bilateral") or beta > 0.0 or eta > 0.0:
             cls = _linear_engine_class()
             cls.variant = law
             cls.beta = beta
             cls.radius = radius
+            cls.eta = eta
             sc.engine = cls(sc.grid, (sc.material,), len(sc.positions), scheme, sc.np_float, damping=True,
                             scatter="serial")
         elif law != "engine":
@@ -378,6 +408,8 @@ def main(argv: list[str] | None = None) -> int:
                          "towards the wall line's mean (with --law engine: the engine's law in the subclass)")
     ap.add_argument("--radius", type=int, default=0,
                     help="experiment: --beta's mean over the pressing nodes within this many cells (0: all)")
+    ap.add_argument("--eta", type=float, default=0.0,
+                    help="experiment: Kelvin-Voigt viscosity of the block (Pa s; mpm, apic): stress 2 eta D added")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--slide", action="store_true", help="the base trajectory only: elastic energy and slip error")
     a = ap.parse_args(argv)
@@ -389,8 +421,8 @@ def main(argv: list[str] | None = None) -> int:
         cs.CFL = a.cfl
     r = analyse(a.scheme, a.thickness, a.incline, a.friction, a.law, a.youngs, a.aspect, a.time, a.chunk, a.eps,
                 a.seed, a.slide, a.samples, seconds=a.seconds,
-                beta=a.beta, radius=a.radius)
-    label = (f"{a.scheme} {a.thickness} cells {a.incline:g}/{a.friction:g} deg law={a.law}{f' beta {a.beta:g} radius {a.radius}' if a.beta else ''} cfl {a.cfl or 0.5:g} "
+                beta=a.beta, radius=a.radius, eta=a.eta)
+    label = (f"{a.scheme} {a.thickness} cells {a.incline:g}/{a.friction:g} deg law={a.law}{f' beta {a.beta:g} radius {a.radius}' if a.beta else ''}{f' eta {a.eta:g}' if a.eta else ''} cfl {a.cfl or 0.5:g} "
              f"dx {a.dx or cs.cell_size_for(a.youngs):g} E={a.youngs:g}")
     if a.slide:
         print(label, f"dt {r['dt']:.3e} s, {r['steps']} steps")
