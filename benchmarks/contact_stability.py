@@ -39,6 +39,9 @@ instability lives, not a law for the engine.
 ``--eta`` (experiment, mpm and apic): a Kelvin-Voigt viscosity of the block, stress ``2 eta D`` (Pa)
 added to the force (explicit: unstable above about ``rho dx^2 / (4 dt)``).
 
+``--fem``: the idealised problem as finite elements (:func:`fem_growth`; numpy only, no MPM), the
+block ``thickness`` x ``--aspect`` cells of ``--dx``, for comparison with the MPM growth.
+
 Also (``--slide``): the base trajectory alone, with its elastic (non-translational) kinetic energy
 and slip error over time (sticking cases: slip over the frictionless distance), for any law.
 
@@ -387,6 +390,59 @@ def analyse(scheme: str, thickness: int, theta: float, delta: float, law: str = 
                 quarters=quarters, shape=shape, factor=math.exp(L.sum()))
 
 
+def _q1_stiffness(h: float, youngs: float, poisson: float) -> np.ndarray:
+    """Plane-strain stiffness of a square bilinear element of side ``h`` (2 x 2 Gauss points)."""
+    lam = youngs * poisson / ((1 + poisson) * (1 - 2 * poisson))
+    shear = youngs / (2 * (1 + poisson))
+    D = np.array([[lam + 2 * shear, lam, 0], [lam, lam + 2 * shear, 0], [0, 0, shear]])
+    corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]])
+    K = np.zeros((8, 8))
+    g = 1 / math.sqrt(3)
+    for a in (-g, g):
+        for b in (-g, g):
+            dN = np.array([[c[0] * (1 + b * c[1]) / 4, c[1] * (1 + a * c[0]) / 4] for c in corners]) * 2 / h
+            B = np.zeros((3, 8))
+            for i in range(4):
+                B[0, 2 * i], B[1, 2 * i + 1] = dN[i, 0], dN[i, 1]
+                B[2, 2 * i], B[2, 2 * i + 1] = dN[i, 1], dN[i, 0]
+            K += B.T @ D @ B * (h / 2) ** 2
+    return K
+
+
+def fem_growth(thickness_m: float, length_m: float, h: float, mu: float, youngs: float = 1e8,
+               poisson: float = 0.3, density: float = 2000.0, slow_rad_s: float = 100.0) -> dict:
+    """An independent check of the idealised problem (not MPM): the elastic block as bilinear finite
+    elements (plane strain, lumped mass, square elements of side ``h``), its base held along the
+    normal (bilateral) with the Coulomb coupling of a steady downslope slide, friction ``mu`` times
+    the normal reaction against the slope (the base's tangential rows get ``mu`` times their normal
+    rows). Eigenvalues ``lambda`` of ``M^-1 K'``; a mode grows at ``|Im sqrt(lambda)|`` per second.
+    Returned: the fastest growth overall and among the modes slower than ``slow_rad_s`` (the body's
+    modes), with their angular frequencies. Dense: a few thousand degrees of freedom at most."""
+    nx, ny = int(round(length_m / h)), int(round(thickness_m / h))
+    n_nodes = (nx + 1) * (ny + 1)
+    K = np.zeros((2 * n_nodes, 2 * n_nodes))
+    M = np.zeros(2 * n_nodes)
+    ke = _q1_stiffness(h, youngs, poisson)
+    for j in range(ny):
+        for i in range(nx):
+            nodes = [j * (nx + 1) + i, j * (nx + 1) + i + 1, (j + 1) * (nx + 1) + i + 1, (j + 1) * (nx + 1) + i]
+            dofs = np.array([[2 * n, 2 * n + 1] for n in nodes]).ravel()
+            K[np.ix_(dofs, dofs)] += ke
+            M[dofs] += density * h * h / 4
+    coupled = K.copy()
+    for n in range(nx + 1):  # the base's nodes: tangential row + mu x the normal reaction's row
+        coupled[2 * n, :] += mu * K[2 * n + 1, :]
+    keep = np.ones(2 * n_nodes, bool)
+    keep[[2 * n + 1 for n in range(nx + 1)]] = False  # normal displacement held at the base
+    lam = np.linalg.eigvals(coupled[np.ix_(keep, keep)] / M[keep][:, None])
+    root = np.sqrt(lam.astype(complex))
+    grow, omega = np.abs(root.imag), np.abs(root.real)
+    fast = int(np.argmax(grow))
+    slow = int(np.argmax(np.where(omega < slow_rad_s, grow, -1.0)))
+    return dict(growth=float(grow[fast]), omega=float(omega[fast]), body_growth=float(grow[slow]),
+                body_omega=float(omega[slow]), omega_max=float(omega.max()))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scheme")
@@ -412,8 +468,21 @@ def main(argv: list[str] | None = None) -> int:
                     help="experiment: Kelvin-Voigt viscosity of the block (Pa s; mpm, apic): stress 2 eta D added")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--slide", action="store_true", help="the base trajectory only: elastic energy and slip error")
+    ap.add_argument("--fem", action="store_true",
+                    help="the idealised problem as finite elements instead (numpy; scheme ignored): the block "
+                         "thickness x --aspect cells of --dx, bilateral base with the Coulomb coupling")
     a = ap.parse_args(argv)
     from studies import contact_scenes as cs
+
+    if a.fem:
+        h = a.dx or cs.cell_size_for(a.youngs)
+        length = cs.block_length_cells(a.thickness, a.aspect) * h
+        r = fem_growth(a.thickness * h, length, h, math.tan(math.radians(a.friction)), a.youngs)
+        print(f"finite elements, block {a.thickness * h:g} m x {length:g} m, elements {h:g} m, mu "
+              f"{math.tan(math.radians(a.friction)):.3f}: fastest growth {r['growth']:.2f} /s at "
+              f"{r['omega']:.0f} rad/s (omega max {r['omega_max']:.0f}); body modes (below 100 rad/s) "
+              f"{r['body_growth']:.2f} /s at {r['body_omega']:.1f} rad/s")
+        return 0
 
     if a.dx is not None:
         cs.cell_size_for = lambda youngs_pa: a.dx
