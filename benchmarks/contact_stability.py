@@ -28,6 +28,11 @@ The norm is an energy: ``1/2 m |dv|^2 + 1/2 m dx^2/4 |dC|^2`` (APIC's affine par
 - ``bilateral``: the normal velocity always removed; friction as the engine's (stick, never
   reversed) from the pressing part only.
 
+- ``patch`` (experiment, six-stage schemes): the stick decided for the wall line as a whole: if the
+  approaching wall-line nodes' mean trial velocity along the wall exceeds their mean ``mu |vn|``,
+  every approaching contact node slips (friction ``mu |vn|`` against that mean, which may reverse
+  it), else the engine's law at each node.
+
 ``--beta B`` (experiment, six-stage schemes; with ``--law engine`` the engine's law re-coded in the
 subclass): after each application of the law, the wall line's pressing nodes (normal velocity
 held at zero) relax their velocity along the wall by the fraction ``B`` towards their
@@ -87,11 +92,31 @@ def _linear_engine_class():
             self.sv = ti.Vector.field(3, float, shape=max(1, self.n))
             self.acc = ti.Vector.field(2, ti.f64, shape=())
             self.tmp = ti.field(float, shape=self.nodes[0])
+            self.wall = ti.Vector.field(3, ti.f64, shape=())
+
+        @ti.func
+        def _slip_of_the_wall(self, dt, old: ti.template()):
+            """``patch`` variant: the wall line's approaching nodes' mass-weighted mean trial velocity
+            along the wall and mean friction allowance ``mu |vn|`` (into ``self.wall``)."""
+            lo = self.lo[None]
+            width = ti.max(self.hi[None] - lo, 0)
+            self.wall[None] = ti.Vector.zero(ti.f64, 3)
+            for k in range(width[0]):
+                I = ti.Vector([lo[0] + k, PAD])
+                mass = self.g_mass[I]
+                if mass > 0.0:
+                    v = self.g_mom[I] / mass
+                    if ti.static(not old):
+                        v = self.g_v_old[I] + dt * self.g_f[I] / mass
+                    if v[1] < 0.0:
+                        self.wall[None] += ti.Vector([mass * v[0], mass * self.bc_mu[2] * (-v[1]), mass], ti.f64)
 
         @ti.func
         def _grid_velocity(self):
             lo = self.lo[None]
             width = ti.max(self.hi[None] - lo, 0)
+            if ti.static(self.variant == "patch"):
+                self._slip_of_the_wall(0.0, True)
             for k in range(width[0] * width[1]):
                 I = lo + ti.Vector([k // width[1], k % width[1]])
                 mass = self.g_mass[I]
@@ -106,6 +131,8 @@ def _linear_engine_class():
         def _grid_update(self, dt, damping):
             lo = self.lo[None]
             width = ti.max(self.hi[None] - lo, 0)
+            if ti.static(self.variant == "patch"):
+                self._slip_of_the_wall(dt, False)
             for k in range(width[0] * width[1]):
                 I = lo + ti.Vector([k // width[1], k % width[1]])
                 mass = self.g_mass[I]
@@ -198,6 +225,18 @@ def _linear_engine_class():
                         out = ti.Vector.zero(float, 2)
                         if speed > 0.0:
                             out = vt * (ti.max(speed - mu * (-vn), 0.0) / speed)
+                elif ti.static(self.variant == "patch"):
+                    if vn < 0.0:
+                        acc = self.wall[None]
+                        mean_v = ti.cast(acc[0] / ti.max(acc[2], 1e-300), float)
+                        mean_a = ti.cast(acc[1] / ti.max(acc[2], 1e-300), float)
+                        if ti.abs(mean_v) > mean_a:  # the wall line slips as a whole: every node slips
+                            out = vt + mu * vn * ti.math.sign(mean_v) * s
+                        else:  # it sticks as a whole: the engine's law at each node
+                            speed = vt.norm()
+                            out = ti.Vector.zero(float, 2)
+                            if speed > 0.0:
+                                out = vt * (ti.max(speed - mu * (-vn), 0.0) / speed)
                 elif ti.static(self.variant == "linear"):
                     out = vt + mu * vn * s  # vn < 0 pressing: friction mu |vn| against the slide
                 elif ti.static(self.variant == "unilateral"):
@@ -224,7 +263,7 @@ def _linear_engine_class():
                         new = vg
                         if kind == FIXED:
                             new = -vm
-                        elif ti.static(self.variant == "engine"):
+                        elif ti.static(self.variant == "engine" or self.variant == "patch"):
                             if vm[axis] * inward < 0.0:
                                 new[axis] = -vm[axis]
                                 dvn = (new[axis] - vg[axis]) * inward
@@ -300,7 +339,7 @@ def analyse(scheme: str, thickness: int, theta: float, delta: float, law: str = 
     runtime.acquire("cpu", precision)
     try:
         sc = cs.WallIncline(scheme, precision, thickness, youngs, "bottom", aspect=aspect)
-        if law in ("linear", "unilateral", "bilateral") or beta > 0.0 or eta > 0.0:
+        if law in ("linear", "unilateral", "bilateral", "patch") or beta > 0.0 or eta > 0.0:
             cls = _linear_engine_class()
             cls.variant = law
             cls.beta = beta
@@ -309,7 +348,7 @@ def analyse(scheme: str, thickness: int, theta: float, delta: float, law: str = 
             sc.engine = cls(sc.grid, (sc.material,), len(sc.positions), scheme, sc.np_float, damping=True,
                             scatter="serial")
         elif law != "engine":
-            raise ValueError(f"law must be engine, linear, unilateral or bilateral, got {law!r}")
+            raise ValueError(f"law must be engine, linear, unilateral, bilateral or patch, got {law!r}")
         e = sc.engine
 
         def contact(fixed: bool) -> None:
@@ -449,7 +488,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("thickness", type=int)
     ap.add_argument("incline", type=float)
     ap.add_argument("friction", type=float)
-    ap.add_argument("--law", default="engine", choices=("engine", "linear", "unilateral", "bilateral"))
+    ap.add_argument("--law", default="engine", choices=("engine", "linear", "unilateral", "bilateral", "patch"))
     ap.add_argument("--youngs", type=float, default=1e8)
     ap.add_argument("--aspect", type=float, default=8.0)
     ap.add_argument("--time", type=float, default=0.3, help="run time as a multiple of the matrix's")
