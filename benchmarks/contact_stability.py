@@ -31,7 +31,8 @@ The norm is an energy: ``1/2 m |dv|^2 + 1/2 m dx^2/4 |dC|^2`` (APIC's affine par
 - ``patch`` (experiment, six-stage schemes): the stick decided for the wall line as a whole: if the
   approaching wall-line nodes' mean trial velocity along the wall exceeds their mean ``mu |vn|``,
   every approaching contact node slips (friction ``mu |vn|`` against that mean, which may reverse
-  it), else the engine's law at each node.
+  it), else the engine's law at each node. With ``--radius R``: the means over the wall-line nodes
+  within ``R`` cells of the node's column (bottom wall).
 
 ``--beta B`` (experiment, six-stage schemes; with ``--law engine`` the engine's law re-coded in the
 subclass): after each application of the law, the wall line's pressing nodes (normal velocity
@@ -93,6 +94,8 @@ def _linear_engine_class():
             self.acc = ti.Vector.field(2, ti.f64, shape=())
             self.tmp = ti.field(float, shape=self.nodes[0])
             self.wall = ti.Vector.field(3, ti.f64, shape=())
+            self.node_sums = ti.Vector.field(3, ti.f64, shape=self.nodes[0])
+            self.local_sums = ti.Vector.field(3, ti.f64, shape=self.nodes[0])
 
         @ti.func
         def _slip_of_the_wall(self, dt, old: ti.template()):
@@ -104,12 +107,23 @@ def _linear_engine_class():
             for k in range(width[0]):
                 I = ti.Vector([lo[0] + k, PAD])
                 mass = self.g_mass[I]
+                self.node_sums[I[0]] = ti.Vector.zero(ti.f64, 3)
                 if mass > 0.0:
                     v = self.g_mom[I] / mass
                     if ti.static(not old):
                         v = self.g_v_old[I] + dt * self.g_f[I] / mass
                     if v[1] < 0.0:
-                        self.wall[None] += ti.Vector([mass * v[0], mass * self.bc_mu[2] * (-v[1]), mass], ti.f64)
+                        here = ti.Vector([mass * v[0], mass * self.bc_mu[2] * (-v[1]), mass], ti.f64)
+                        self.wall[None] += here
+                        self.node_sums[I[0]] = here
+            if ti.static(self.radius > 0):  # the local version: sums over the nodes within radius cells
+                for k in range(width[0]):
+                    i = lo[0] + k
+                    acc = ti.Vector.zero(ti.f64, 3)
+                    for d in range(-ti.static(self.radius), ti.static(self.radius) + 1):
+                        if lo[0] <= i + d < lo[0] + width[0]:
+                            acc += self.node_sums[i + d]
+                    self.local_sums[i] = acc
 
         @ti.func
         def _grid_velocity(self):
@@ -188,6 +202,39 @@ def _linear_engine_class():
                     I = ti.Vector([i, PAD])
                     if self.g_mass[I] > 0.0 and vel[I][1] == 0.0:
                         vel[I][0] = self.tmp[i]
+
+        @ti.func
+        def _contact(self, I, v, mass, record: ti.template()):
+            out = v
+            if ti.static(self.variant == "patch" and self.radius > 0):
+                # the local patch (bottom wall only): the sums over the wall-line nodes within radius
+                # cells of this node's column decide slip or stick
+                if I[1] <= PAD and self._closed(self.bc_kind[2]):
+                    n = ti.Vector([0.0, 1.0])
+                    s = ti.Vector([1.0, 0.0])
+                    mu = self.bc_mu[2]
+                    vn = v.dot(n)
+                    new = v
+                    if self.bc_kind[2] == FIXED:
+                        new = ti.Vector.zero(float, 2)
+                    elif vn < 0.0:
+                        vt = v - vn * n
+                        acc = self.local_sums[I[0]]
+                        mean_v = ti.cast(acc[0] / ti.max(acc[2], 1e-300), float)
+                        mean_a = ti.cast(acc[1] / ti.max(acc[2], 1e-300), float)
+                        if ti.abs(mean_v) > mean_a:
+                            new = vt + mu * vn * ti.math.sign(mean_v) * s
+                        else:
+                            speed = vt.norm()
+                            new = ti.Vector.zero(float, 2)
+                            if speed > 0.0:
+                                new = vt * (ti.max(speed - mu * (-vn), 0.0) / speed)
+                    if ti.static(record):
+                        self._record(2, mass * (new - v))
+                    out = new
+            else:
+                out = Engine._contact(self, I, v, mass, record)
+            return out
 
         @ti.func
         def _stress_point(self, p, L, dt):
