@@ -362,7 +362,8 @@ def _shape(d: dict, m, x, dx, normal_axis=1):
     rows = {}
     ke = 0.5 * m * (d["v"] ** 2).sum(1)
     for lo, hi in ((0, 1), (1, 2), (2, 4), (4, 1e9)):
-        rows[f"{lo}-{hi if hi < 1e8 else 'top'}"] = float(ke[(depth >= lo) & (depth < hi)].sum() / max(ke.sum(), 1e-300))
+        share = ke[(depth >= lo) & (depth < hi)].sum() / max(ke.sum(), 1e-300)
+        rows[f"{lo}-{hi if hi < 1e8 else 'top'}"] = float(share)
     low = depth < 0.5
     order = np.argsort(x[low, 1 - normal_axis])
     sig = d["v"][low, normal_axis][order]
@@ -447,7 +448,8 @@ def analyse(scheme: str, thickness: int, theta: float, delta: float, law: str = 
             pert = {k: np.array(v, copy=True) for k, v in base.items()}
             for k in FIELDS:
                 pert[k] = pert[k].copy()
-                pert[k][:n] = (pert[k][:n].astype(np.float64) + amp * d[k].reshape(pert[k][:n].shape)).astype(pert[k].dtype)
+                moved = pert[k][:n].astype(np.float64) + amp * d[k].reshape(pert[k][:n].shape)
+                pert[k][:n] = moved.astype(pert[k].dtype)
             e.load_state(base)
             for _ in range(K):
                 e.step(dt, g)
@@ -577,12 +579,14 @@ def main(argv: list[str] | None = None) -> int:
     r = analyse(a.scheme, a.thickness, a.incline, a.friction, a.law, a.youngs, a.aspect, a.time, a.chunk, a.eps,
                 a.seed, a.slide, a.samples, seconds=a.seconds,
                 beta=a.beta, radius=a.radius, eta=a.eta)
-    label = (f"{a.scheme} {a.thickness} cells {a.incline:g}/{a.friction:g} deg law={a.law}{f' beta {a.beta:g} radius {a.radius}' if a.beta else ''}{f' eta {a.eta:g}' if a.eta else ''} cfl {a.cfl or 0.5:g} "
-             f"dx {a.dx or cs.cell_size_for(a.youngs):g} E={a.youngs:g}")
+    probes = (f" beta {a.beta:g} radius {a.radius}" if a.beta else "") + (f" eta {a.eta:g}" if a.eta else "")
+    label = (f"{a.scheme} {a.thickness} cells {a.incline:g}/{a.friction:g} deg law={a.law}{probes} "
+             f"cfl {a.cfl or 0.5:g} dx {a.dx or cs.cell_size_for(a.youngs):g} E={a.youngs:g}")
     if a.slide:
         print(label, f"dt {r['dt']:.3e} s, {r['steps']} steps")
         for t, ke, err in r["slide"]:
-            print(f"  t {t:8.3f} s  elastic KE {ke:10.3e} J/m  slip error {100 * err:+8.2f} % (sticking: of the frictionless distance)")
+            print(f"  t {t:8.3f} s  elastic KE {ke:10.3e} J/m  slip error {100 * err:+8.2f} % "
+                  "(sticking: of the frictionless distance)")
         return 0
     s = r["shape"]
     print(f"{label}: dt {r['dt']:.3e} s, {r['steps']} steps; growth per step {r['rho']:.5f} "
