@@ -8,10 +8,10 @@ workbench shows them):
   deformation;
 - a k0 stage where the ground slopes: geostatic stresses are no equilibrium under a slope
   (many particles yield at once); a gravity stage is the initial stress for sloping ground;
-- a structure thinner than 3 cells at its thickest: the at-rest thrust on it was up to 10-13 % off at 1
-  and 2 cells (nodes inside it are reached from both faces), up to 2.8 times under one cell, and
-  material thrown at an inclined one half a cell thick was ejected faster than the stability
-  guard allows (apic-affine);
+- a structure thinner than 2 cells at its thickest: the at-rest thrust on it was up to 17 % off at
+  1 cell (its nodes are reached by material at both faces and hold it from one side only), up to
+  2.8 times under one cell, and material thrown at an inclined one half a cell thick was ejected
+  faster than the stability guard allows (apic-affine); from 2 cells on it is within 3 %;
 - a vertical or horizontal structure face far from the grid's node lines (0.26 to 0.74 cells off
   with mpm and apic, 0.41 to 0.59 with apic-affine): the node the structure holds lies inside the
   material or the free node next to it close to the face, and the thrust on it drifts
@@ -42,7 +42,7 @@ STRUCTURE_TOUCH_CELLS = 0.02
 #: A gravity stage lasts this many fundamental periods ``4 H / c_s`` of the deposit.
 GRAVITY_STAGE_PERIODS = 3.0
 #: Structures thinner than this many cells at their thickest are warned about.
-STRUCTURE_MIN_CELLS = 3.0
+STRUCTURE_MIN_CELLS = 2.0
 #: Axis-aligned structure faces this far off the node lines (cells, per scheme) are warned about.
 FACE_OFFSET_BAND = {"mpm": (0.26, 0.74), "apic": (0.26, 0.74), "apic-affine": (0.41, 0.59)}
 
@@ -194,8 +194,8 @@ def structure_thickness_m(polygon_m, resolution: int = 100, max_points: int = 25
     Searched on a lattice across the bounding box (``resolution`` points along its longer side,
     and at least four across the polygon's mean width ``2 area / perimeter``, so that a long thin
     slab is not missed; at most ``max_points`` points), then on finer lattices around the best
-    point (each 10 times finer) down to 1e-7 of the box: to round-off for straight walls and slabs
-    (a structure exactly 3 cells thick is 3 cells thick)."""
+    point (each 10 times finer) down to 1e-9 of the box: to round-off for straight walls and slabs
+    (a structure exactly 2 cells thick is 2 cells thick)."""
     from solver.structures import signed_distance
 
     pts = np.asarray(polygon_m, dtype=np.float64)
@@ -218,7 +218,7 @@ def structure_thickness_m(polygon_m, resolution: int = 100, max_points: int = 25
         d = np.concatenate([signed_distance(chunk, pts) for chunk in np.array_split(grid, 1 + len(grid) // 20_000)])
         k = int(d.argmin())
         best = max(best, -float(d[k]))
-        if step < 1e-7 * extent:
+        if step < 1e-9 * extent:
             return 2.0 * best
         centre, half, step = grid[k], np.array([2 * step, 2 * step]), step / 10
 
@@ -228,12 +228,12 @@ def _thin_structures(project: Project) -> list[str]:
     warnings = []
     for index, structure in enumerate(project.structures):
         thick = structure_thickness_m(structure.polygon_m)
-        if thick < STRUCTURE_MIN_CELLS * dx * (1.0 - 1e-6):  # exactly 3 cells is enough
+        if thick < STRUCTURE_MIN_CELLS * dx * (1.0 - 1e-6):  # exactly the minimum is enough
             warnings.append(
-                f"structures.{index} ({structure.name!r}) is {thick:.3g} m thick at its thickest, less than 3 cells "
-                f"({3 * dx:g} m): the force on it is unreliable (the at-rest thrust was up to 13 % off at 1-2 cells) "
-                "and under one cell material thrown at it can be ejected; make it at least 3 cells thick or use "
-                "smaller cells"
+                f"structures.{index} ({structure.name!r}) is {thick:.3g} m thick at its thickest, less than "
+                f"{STRUCTURE_MIN_CELLS:g} cells ({STRUCTURE_MIN_CELLS * dx:g} m): the force on it is unreliable "
+                "(the at-rest thrust was up to 17 % off at 1 cell) and under one cell material thrown at it can be "
+                f"ejected; make it at least {STRUCTURE_MIN_CELLS:g} cells thick or use smaller cells"
             )
     return warnings
 

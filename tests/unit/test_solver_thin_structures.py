@@ -1,13 +1,13 @@
 """Thin rigid structures (issue 11): a block thrown at barriers 0.5 to 2 cells thick never ends
 inside one or beyond it, and mass is conserved.
 
-A structure thinner than 3 cells has nodes that material on either face reaches. After its move
+A structure thinner than 2 cells has nodes that material on either face reaches. After its move
 a particle found inside a structure goes back to the first crossing of its path with the outline,
 on the side it came from (``Engine._push_out``; before, to the nearest point of the surface, which
 for a particle past the middle of a thin wall is on the far face). Barriers vertical and leaning
 25 degrees, on a node line and 0.25 / 0.5 cells off it, slip and friction, every scheme: a covering
 design (each scheme meets every thickness, both leanings and both contact kinds). Known limits,
-warned about in the project (structures thinner than 3 cells): the thrust on thin structures, and
+warned about in the project (structures thinner than 2 cells): the thrust on thin structures, and
 apic-affine on a leaning wall half a cell thick on a node line, where 2 of the 320 particles
 splashed faster than the guard's bound and were removed (docs/validation.md, thrust).
 """
