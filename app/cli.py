@@ -737,6 +737,17 @@ def _interrupt(_signum: int, _frame: object) -> None:
     raise KeyboardInterrupt
 
 
+def _interrupt_swallowed(unraisable: object) -> None:
+    """``sys.unraisablehook``: a KeyboardInterrupt raised where Python cannot pass it on (a weakref
+    callback of the import system, a ``__del__``) would be printed as "Exception ignored" with a
+    traceback and the command would go on as if no Ctrl-C had come; the signal is sent again, to
+    be raised at the next ordinary point."""
+    if isinstance(getattr(unraisable, "exc_value", None), KeyboardInterrupt):
+        signal.raise_signal(signal.SIGINT)
+        return
+    sys.__unraisablehook__(unraisable)
+
+
 #: Whether the one line about a Ctrl-C has been printed (``python -m app`` prints none then).
 INTERRUPT_SHOWN = False
 
@@ -753,6 +764,7 @@ def main(argv: list[str] | None = None) -> None:
         # `run` turns Ctrl-C into a clean stop while it runs (stop_on_signals) and comes back
         # to this handler afterwards
         signal.signal(signal.SIGINT, _interrupt)
+        sys.unraisablehook = _interrupt_swallowed
     # Taichi prints a banner on import; keep standard output for results
     os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "0")
     # `run` redirects stdout around the solver; without this Taichi, imported meanwhile, would
