@@ -196,18 +196,34 @@ def test_a_wall_standing_on_the_grid_bottom_takes_the_at_rest_thrust(scheme, pre
 
 
 def test_a_structure_on_a_side_continues_through_it():
-    """through_sides moves the vertices on a side line beyond it, the others not; periodic sides are
-    not crossed."""
+    """through_sides continues the edges that lie on a side line beyond it and leaves the outline
+    inside the box as it was (an inclined face ending on the line keeps its slope); periodic sides
+    are not crossed."""
     from solver.structures import through_sides
 
-    poly = ((0.3, 0.0), (0.4, 0.0), (0.4, 0.4), (0.3, 0.4))
-    assert through_sides(poly, (0.0, 0.0), (0.8, 0.5), 0.04) == ((0.3, -0.04), (0.4, -0.04), (0.4, 0.4), (0.3, 0.4))
+    box = ((0.0, 0.0), (0.8, 0.5))
+    wall = ((0.3, 0.0), (0.4, 0.0), (0.4, 0.4), (0.3, 0.4))
+    assert through_sides(wall, *box, 0.04) == ((0.3, 0.0), (0.3, -0.04), (0.4, -0.04), (0.4, 0.0), (0.4, 0.4),
+                                                (0.3, 0.4))
+    ramp = ((0.3, 0.0), (0.42, 0.0), (0.42, 0.04))  # its inclined face ends on the bottom at (0.3, 0)
+    got = through_sides(ramp, *box, 0.04)
+    assert got == ((0.3, 0.0), (0.3, -0.04), (0.42, -0.04), (0.42, 0.0), (0.42, 0.04))
+    inside = np.array([[0.36, 0.01], [0.41, 0.035], [0.35, -0.02]])
+    outside = np.array([[0.33, 0.02], [0.29, -0.01]])  # above the inclined face; beside the strip
+    np.testing.assert_array_equal(_sides_of(got, inside), -1)
+    np.testing.assert_array_equal(_sides_of(got, outside), 1)
     corner = ((0.0, 0.3), (0.2, 0.3), (0.2, 0.5), (0.0, 0.5))  # in the top-left corner
-    assert through_sides(corner, (0.0, 0.0), (0.8, 0.5), 0.04) == ((-0.04, 0.3), (0.2, 0.3), (0.2, 0.54), (-0.04, 0.54))
-    assert through_sides(corner, (0.0, 0.0), (0.8, 0.5), 0.04, (False, False, True, True)) == (
-        (0.0, 0.3), (0.2, 0.3), (0.2, 0.54), (0.0, 0.54))
-    inside = ((0.3, 0.1), (0.4, 0.1), (0.35, 0.3))
-    assert through_sides(inside, (0.0, 0.0), (0.8, 0.5), 0.04) == inside
+    left_top = through_sides(corner, *box, 0.04)
+    assert (-0.04, 0.3) in left_top and (0.2, 0.54) in left_top
+    assert (-0.04, 0.3) not in through_sides(corner, *box, 0.04, (False, False, True, True))
+    floating = ((0.3, 0.1), (0.4, 0.1), (0.35, 0.3))
+    assert through_sides(floating, *box, 0.04) == floating
+
+
+def _sides_of(polygon, points):
+    from solver.structures import signed_distance
+
+    return np.sign(signed_distance(points, polygon))
 
 
 def test_the_host_return_map_is_the_kernels():
