@@ -1146,6 +1146,9 @@ class Engine:
     def _diagnostics(self, out: ti.types.ndarray(dtype=ti.f64, ndim=1)):
         for k in ti.static(range(8)):
             self.diag[k] = 0.0
+        # with the plain-add scatters (serial, split) the sums run in one thread, in particle
+        # order, so the energies and momenta of series.csv repeat bit for bit as the frames do
+        ti.loop_config(serialize=self.plain)
         for p in range(self.n):
             if self.active[p]:
                 m = self.m[p]
