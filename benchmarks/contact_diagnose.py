@@ -74,7 +74,6 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
     engine's law): after the grid update, the friction a stuck wall node left unused is applied to
     the node one cell inside it, never reversing that node's velocity along the wall."""
     from solver import runtime
-    from solver.config import Boundary, Grid
     from solver.engine import PAD
     from studies import contact_scenes as cs
 
@@ -84,17 +83,8 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
         sc = cs.WallIncline(scheme, precision, thickness, youngs, "bottom", aspect=aspect)
         e = sc.engine
 
-        def contact(fixed: bool) -> None:
-            sides = sc._sides(math.radians(delta))
-            if fixed:
-                sides["bottom"] = Boundary("fixed")
-            e.set_boundaries(Grid(sc.grid.origin_m, sc.grid.size_m, sc.dx, **sides))
-
-        h = sc.dx / cs.PPC
-        e.load_particles(sc.positions, np.full(len(sc.positions), h * h), np.zeros(len(sc.positions), np.int32))
         g = sc.gravity(theta)
-        stress = cs.slope_stress(sc.positions, sc.slope, sc.normal, 0.0, sc.thickness_m, theta, delta)
-        dt = cs.settle_and_release(e, sc.material, sc.dx, g, stress, contact, sc.length_m)
+        dt = sc.release(theta, delta)
         t_end = cs.run_time(theta, delta, sc.dx) * time_factor
         steps = int(math.ceil(t_end / dt))
         dt = t_end / steps

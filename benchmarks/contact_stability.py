@@ -259,87 +259,73 @@ def _linear_engine_class():
 
         @ti.func
         def _contact_law(self, v, n, kind, mu):
-            out = v
-            if kind == FIXED:
-                out = ti.Vector.zero(float, 2)
-            else:
-                vn = v.dot(n)
-                vt = v - vn * n
-                s = ti.Vector([n[1], -n[0]])  # the slope's direction (+x on the bottom wall)
-                if ti.static(self.variant == "engine"):
-                    if vn < 0.0:
+            # the engine's law itself; the variants replace its result where they differ
+            out = Engine._contact_law(self, v, n, kind, mu)
+            if ti.static(self.variant != "engine"):
+                if kind != FIXED:
+                    vn = v.dot(n)
+                    vt = v - vn * n
+                    s = ti.Vector([n[1], -n[0]])  # the slope's direction (+x on the bottom wall)
+                    if ti.static(self.variant == "patch"):
+                        if vn < 0.0:
+                            acc = self.wall[None]
+                            mean_v = ti.cast(acc[0] / ti.max(acc[2], 1e-300), float)
+                            mean_a = ti.cast(acc[1] / ti.max(acc[2], 1e-300), float)
+                            if ti.abs(mean_v) > mean_a:  # the wall line slips as a whole: every node slips
+                                out = vt + mu * vn * ti.math.sign(mean_v) * s
+                            # else it sticks as a whole: the engine's law at each node
+                    elif ti.static(self.variant == "linear"):
+                        out = vt + mu * vn * s  # vn < 0 pressing: friction mu |vn| against the slide
+                    elif ti.static(self.variant == "unilateral"):
+                        if vn < 0.0:
+                            out = vt + mu * vn * s
+                    else:  # bilateral
                         speed = vt.norm()
                         out = ti.Vector.zero(float, 2)
                         if speed > 0.0:
-                            out = vt * (ti.max(speed - mu * (-vn), 0.0) / speed)
-                elif ti.static(self.variant == "patch"):
-                    if vn < 0.0:
-                        acc = self.wall[None]
-                        mean_v = ti.cast(acc[0] / ti.max(acc[2], 1e-300), float)
-                        mean_a = ti.cast(acc[1] / ti.max(acc[2], 1e-300), float)
-                        if ti.abs(mean_v) > mean_a:  # the wall line slips as a whole: every node slips
-                            out = vt + mu * vn * ti.math.sign(mean_v) * s
-                        else:  # it sticks as a whole: the engine's law at each node
-                            speed = vt.norm()
-                            out = ti.Vector.zero(float, 2)
-                            if speed > 0.0:
-                                out = vt * (ti.max(speed - mu * (-vn), 0.0) / speed)
-                elif ti.static(self.variant == "linear"):
-                    out = vt + mu * vn * s  # vn < 0 pressing: friction mu |vn| against the slide
-                elif ti.static(self.variant == "unilateral"):
-                    if vn < 0.0:
-                        out = vt + mu * vn * s
-                else:  # bilateral
-                    speed = vt.norm()
-                    out = ti.Vector.zero(float, 2)
-                    if speed > 0.0:
-                        out = vt * (ti.max(speed - mu * ti.max(-vn, 0.0), 0.0) / speed)
+                            out = vt * (ti.max(speed - mu * ti.max(-vn, 0.0), 0.0) / speed)
             return out
 
         @ti.func
         def _mirror_ghosts(self, old: ti.template(), record: ti.template()):
-            for axis in ti.static(range(2)):
-                ti.loop_config(serialize=self.plain)
-                for k in range(2 * self.nodes[1 - axis]):
-                    side, inward, ghost, mirror = self._wall_pairs(axis, k)
-                    kind = self.bc_kind[side]
-                    mass = self.g_mass[ghost]
-                    if self._closed(kind) and mass > 0.0 and self._in_box(ghost) and self._in_box(mirror):
-                        vm = self.g_v_old[mirror] if ti.static(old) else self.g_mom[mirror]
-                        vg = self.g_v_old[ghost] if ti.static(old) else self.g_mom[ghost]
-                        new = vg
-                        if kind == FIXED:
-                            new = -vm
-                        elif ti.static(self.variant == "engine" or self.variant == "patch"):
-                            if vm[axis] * inward < 0.0:
+            if ti.static(self.variant == "engine" or self.variant == "patch"):
+                Engine._mirror_ghosts(self, old, record)
+            else:
+                for axis in ti.static(range(2)):
+                    ti.loop_config(serialize=self.plain)
+                    for k in range(2 * self.nodes[1 - axis]):
+                        side, inward, ghost, mirror = self._wall_pairs(axis, k)
+                        kind = self.bc_kind[side]
+                        mass = self.g_mass[ghost]
+                        if self._closed(kind) and mass > 0.0 and self._in_box(ghost) and self._in_box(mirror):
+                            vm = self.g_v_old[mirror] if ti.static(old) else self.g_mom[mirror]
+                            vg = self.g_v_old[ghost] if ti.static(old) else self.g_mom[ghost]
+                            new = vg
+                            if kind == FIXED:
+                                new = -vm
+                            elif ti.static(self.variant == "linear"):
+                                new[axis] = -vm[axis]
+                                dvn = (new[axis] - vg[axis]) * inward
+                                # slope direction along the wall: +x for the bottom wall (the only one used)
+                                new[1 - axis] = vg[1 - axis] - self.bc_mu[side] * dvn
+                            elif ti.static(self.variant == "unilateral"):
+                                if vm[axis] * inward < 0.0:
+                                    new[axis] = -vm[axis]
+                                    dvn = (new[axis] - vg[axis]) * inward
+                                    if dvn > 0.0:
+                                        new[1 - axis] = vg[1 - axis] - self.bc_mu[side] * dvn
+                            else:  # bilateral: the image always, the engine's friction on a pressing change
                                 new[axis] = -vm[axis]
                                 dvn = (new[axis] - vg[axis]) * inward
                                 if dvn > 0.0:
                                     vt = new[1 - axis]
                                     new[1 - axis] = ti.math.sign(vt) * ti.max(ti.abs(vt) - self.bc_mu[side] * dvn, 0.0)
-                        elif ti.static(self.variant == "linear"):
-                            new[axis] = -vm[axis]
-                            dvn = (new[axis] - vg[axis]) * inward
-                            # slope direction along the wall: +x for the bottom wall (the only one used)
-                            new[1 - axis] = vg[1 - axis] - self.bc_mu[side] * dvn
-                        elif ti.static(self.variant == "unilateral"):
-                            if vm[axis] * inward < 0.0:
-                                new[axis] = -vm[axis]
-                                dvn = (new[axis] - vg[axis]) * inward
-                                if dvn > 0.0:
-                                    new[1 - axis] = vg[1 - axis] - self.bc_mu[side] * dvn
-                        else:  # bilateral: the image always, the engine's friction on a pressing change
-                            new[axis] = -vm[axis]
-                            dvn = (new[axis] - vg[axis]) * inward
-                            if dvn > 0.0:
-                                vt = new[1 - axis]
-                                new[1 - axis] = ti.math.sign(vt) * ti.max(ti.abs(vt) - self.bc_mu[side] * dvn, 0.0)
-                        if ti.static(record):
-                            self._record(side, mass * (new - vg))
-                        if ti.static(old):
-                            self.g_v_old[ghost] = new
-                        else:
-                            self.g_mom[ghost] = new
+                            if ti.static(record):
+                                self._record(side, mass * (new - vg))
+                            if ti.static(old):
+                                self.g_v_old[ghost] = new
+                            else:
+                                self.g_mom[ghost] = new
 
     return LinearLawEngine
 
@@ -381,7 +367,6 @@ def analyse(scheme: str, thickness: int, theta: float, delta: float, law: str = 
     """One case on the bottom wall. Returns the growth per step over the run and its quarters (or,
     with ``slide``, the base trajectory's elastic kinetic energy and slip over time)."""
     from solver import runtime
-    from solver.config import Boundary, Grid
     from studies import contact_scenes as cs
 
     runtime.acquire("cpu", precision)
@@ -399,17 +384,9 @@ def analyse(scheme: str, thickness: int, theta: float, delta: float, law: str = 
             raise ValueError(f"law must be engine, linear, unilateral, bilateral or patch, got {law!r}")
         e = sc.engine
 
-        def contact(fixed: bool) -> None:
-            sides = sc._sides(math.radians(delta))
-            if fixed:
-                sides["bottom"] = Boundary("fixed")
-            e.set_boundaries(Grid(sc.grid.origin_m, sc.grid.size_m, sc.dx, **sides))
-
         h = sc.dx / cs.PPC
-        e.load_particles(sc.positions, np.full(len(sc.positions), h * h), np.zeros(len(sc.positions), np.int32))
         g = sc.gravity(theta)
-        stress = cs.slope_stress(sc.positions, sc.slope, sc.normal, 0.0, sc.thickness_m, theta, delta)
-        dt = cs.settle_and_release(e, sc.material, sc.dx, g, stress, contact, sc.length_m)
+        dt = sc.release(theta, delta)
         t_end = seconds if seconds > 0.0 else cs.run_time(theta, delta, sc.dx) * time_factor
         steps = int(math.ceil(t_end / dt))
         dt = t_end / steps

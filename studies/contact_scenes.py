@@ -157,8 +157,10 @@ class WallIncline:
         across = -G * math.cos(th) if self.side == "left" else G * math.cos(th)
         return (across, -G * math.sin(th))
 
-    def run(self, theta_deg: float, delta_deg: float, settled: bool = True) -> Outcome:
-        """One case; ``settled``: start from the equilibrium stress (:func:`slope_stress`), else stress free."""
+    def release(self, theta_deg: float, delta_deg: float, settled: bool = True) -> float:
+        """Load the block into ``self.engine``, give it the equilibrium stress (:func:`slope_stress`;
+        ``settled``, else stress free), settle it on the contact held fixed and switch to the
+        frictional one (:func:`settle_and_release`); the time step (s) of the run that follows."""
         e = self.engine
 
         def contact(fixed: bool) -> None:
@@ -172,8 +174,13 @@ class WallIncline:
         base = float(self.normal @ [self.base_m, 0.0])
         stress = slope_stress(self.positions, self.slope, self.normal, base, self.thickness_m, theta_deg,
                               delta_deg) if settled else None
-        return _advance(e, self.material, self.dx, self.gravity(theta_deg), theta_deg, delta_deg, self.slope,
-                        self.base_row, stress, contact, self.length_m)
+        return settle_and_release(e, self.material, self.dx, self.gravity(theta_deg), stress, contact, self.length_m)
+
+    def run(self, theta_deg: float, delta_deg: float, settled: bool = True) -> Outcome:
+        """One case; ``settled``: start from the equilibrium stress (:func:`slope_stress`), else stress free."""
+        dt = self.release(theta_deg, delta_deg, settled)
+        return _slide(self.engine, dt, self.gravity(theta_deg), theta_deg, delta_deg, self.slope, self.base_row,
+                      self.dx)
 
 
 class RampIncline:
@@ -237,8 +244,8 @@ class RampIncline:
         e.load_particles(self.positions, np.full(len(self.positions), h * h), np.zeros(len(self.positions), np.int32))
         stress = slope_stress(self.positions, self.slope, self.normal, self.surface_offset, self.thickness_m,
                               self.theta, delta_deg) if settled else None
-        return _advance(e, self.material, self.dx, (0.0, -G), self.theta, delta_deg, self.slope, self.base_row,
-                        stress, contact, self.length_m)
+        dt = settle_and_release(e, self.material, self.dx, (0.0, -G), stress, contact, self.length_m)
+        return _slide(e, dt, (0.0, -G), self.theta, delta_deg, self.slope, self.base_row, self.dx)
 
 
 def slope_stress(positions_m: np.ndarray, slope, normal, base_m: float, thickness_m: float, theta_deg: float,
@@ -283,11 +290,9 @@ def settle_and_release(e, material: Material, dx: float, gravity, stress, contac
     return dt
 
 
-def _advance(e, material: Material, dx: float, gravity, theta_deg: float, delta_deg: float, slope, base_row,
-             stress, contact, length_m: float) -> Outcome:
-    """Settle and release the block (:func:`settle_and_release`) and run it for :func:`run_time`;
-    the slip is measured from the release."""
-    dt = settle_and_release(e, material, dx, gravity, stress, contact, length_m)
+def _slide(e, dt: float, gravity, theta_deg: float, delta_deg: float, slope, base_row, dx: float) -> Outcome:
+    """Run the released block for :func:`run_time` (steps of about ``dt``); the slip of its lowest
+    particle row is measured from the release."""
     t_end = run_time(theta_deg, delta_deg, dx)
     steps = int(math.ceil(t_end / dt))
     dt = t_end / steps
