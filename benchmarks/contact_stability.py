@@ -127,35 +127,17 @@ def _linear_engine_class():
 
         @ti.func
         def _grid_velocity(self):
-            lo = self.lo[None]
-            width = ti.max(self.hi[None] - lo, 0)
             if ti.static(self.variant == "patch"):
                 self._slip_of_the_wall(0.0, True)
-            for k in range(width[0] * width[1]):
-                I = lo + ti.Vector([k // width[1], k % width[1]])
-                mass = self.g_mass[I]
-                v = ti.Vector.zero(float, 2)
-                if mass > 0.0:
-                    v = self._contact(I, self.g_mom[I] / mass, mass, True)
-                self.g_v_old[I] = v
+            Engine._grid_velocity(self)
             if ti.static(self.beta > 0.0):
                 self._relax(self.g_v_old)
 
         @ti.func
         def _grid_update(self, dt, damping):
-            lo = self.lo[None]
-            width = ti.max(self.hi[None] - lo, 0)
             if ti.static(self.variant == "patch"):
                 self._slip_of_the_wall(dt, False)
-            for k in range(width[0] * width[1]):
-                I = lo + ti.Vector([k // width[1], k % width[1]])
-                mass = self.g_mass[I]
-                if mass > 0.0:
-                    v = self.g_v_old[I]
-                    f = self._damped(self.g_f[I], v, damping)
-                    self.g_mom[I] = self._contact(I, v + dt * f / mass, mass, True)
-                else:
-                    self.g_mom[I] = ti.Vector.zero(float, 2)
+            Engine._grid_update(self, dt, damping)
             if ti.static(self.beta > 0.0):
                 self._relax(self.g_mom)
 
@@ -287,45 +269,29 @@ def _linear_engine_class():
             return out
 
         @ti.func
-        def _mirror_ghosts(self, old: ti.template(), record: ti.template()):
-            if ti.static(self.variant == "engine" or self.variant == "patch"):
-                Engine._mirror_ghosts(self, old, record)
-            else:
-                for axis in ti.static(range(2)):
-                    ti.loop_config(serialize=self.plain)
-                    for k in range(2 * self.nodes[1 - axis]):
-                        side, inward, ghost, mirror = self._wall_pairs(axis, k)
-                        kind = self.bc_kind[side]
-                        mass = self.g_mass[ghost]
-                        if self._closed(kind) and mass > 0.0 and self._in_box(ghost) and self._in_box(mirror):
-                            vm = self.g_v_old[mirror] if ti.static(old) else self.g_mom[mirror]
-                            vg = self.g_v_old[ghost] if ti.static(old) else self.g_mom[ghost]
-                            new = vg
-                            if kind == FIXED:
-                                new = -vm
-                            elif ti.static(self.variant == "linear"):
-                                new[axis] = -vm[axis]
-                                dvn = (new[axis] - vg[axis]) * inward
-                                # slope direction along the wall: +x for the bottom wall (the only one used)
-                                new[1 - axis] = vg[1 - axis] - self.bc_mu[side] * dvn
-                            elif ti.static(self.variant == "unilateral"):
-                                if vm[axis] * inward < 0.0:
-                                    new[axis] = -vm[axis]
-                                    dvn = (new[axis] - vg[axis]) * inward
-                                    if dvn > 0.0:
-                                        new[1 - axis] = vg[1 - axis] - self.bc_mu[side] * dvn
-                            else:  # bilateral: the image always, the engine's friction on a pressing change
-                                new[axis] = -vm[axis]
-                                dvn = (new[axis] - vg[axis]) * inward
-                                if dvn > 0.0:
-                                    vt = new[1 - axis]
-                                    new[1 - axis] = ti.math.sign(vt) * ti.max(ti.abs(vt) - self.bc_mu[side] * dvn, 0.0)
-                            if ti.static(record):
-                                self._record(side, mass * (new - vg))
-                            if ti.static(old):
-                                self.g_v_old[ghost] = new
-                            else:
-                                self.g_mom[ghost] = new
+        def _ghost_image(self, kind, axis: ti.template(), inward, vm, vg, mu):
+            new = Engine._ghost_image(self, kind, axis, inward, vm, vg, mu)  # engine and patch
+            if ti.static(self.variant == "linear" or self.variant == "unilateral" or self.variant == "bilateral"):
+                if kind != FIXED:
+                    new = vg
+                    if ti.static(self.variant == "linear"):
+                        new[axis] = -vm[axis]
+                        dvn = (new[axis] - vg[axis]) * inward
+                        # slope direction along the wall: +x for the bottom wall (the only one used)
+                        new[1 - axis] = vg[1 - axis] - mu * dvn
+                    elif ti.static(self.variant == "unilateral"):
+                        if vm[axis] * inward < 0.0:
+                            new[axis] = -vm[axis]
+                            dvn = (new[axis] - vg[axis]) * inward
+                            if dvn > 0.0:
+                                new[1 - axis] = vg[1 - axis] - mu * dvn
+                    else:  # bilateral: the image always, the engine's friction on a pressing change
+                        new[axis] = -vm[axis]
+                        dvn = (new[axis] - vg[axis]) * inward
+                        if dvn > 0.0:
+                            vt = new[1 - axis]
+                            new[1 - axis] = ti.math.sign(vt) * ti.max(ti.abs(vt) - mu * dvn, 0.0)
+            return new
 
     return LinearLawEngine
 

@@ -688,25 +688,31 @@ class Engine:
                 if self._closed(kind) and mass > 0.0 and self._in_box(ghost) and self._in_box(mirror):
                     vm = self.g_v_old[mirror] if ti.static(old) else self.g_mom[mirror]
                     vg = self.g_v_old[ghost] if ti.static(old) else self.g_mom[ghost]
-                    new = vg
-                    if kind == FIXED:
-                        new = -vm
-                    elif vm[axis] * inward < 0.0:
-                        new[axis] = -vm[axis]
-                        # the normal impulse this gives the ghost node is the wall's too: Coulomb
-                        # friction on it, as in the contact law (never reversing); without it a
-                        # sheet sliding on a 38 deg wall with 36 deg friction felt 0.42 % less than
-                        # mu N (docs/solver.md, contact)
-                        dvn = (new[axis] - vg[axis]) * inward
-                        if dvn > 0.0:
-                            vt = new[1 - axis]
-                            new[1 - axis] = ti.math.sign(vt) * ti.max(ti.abs(vt) - self.bc_mu[side] * dvn, 0.0)
+                    new = self._ghost_image(kind, axis, inward, vm, vg, self.bc_mu[side])
                     if ti.static(record):
                         self._record(side, mass * (new - vg))
                     if ti.static(old):
                         self.g_v_old[ghost] = new
                     else:
                         self.g_mom[ghost] = new
+
+    @ti.func
+    def _ghost_image(self, kind, axis: ti.template(), inward, vm, vg, mu):
+        """The ghost node's new velocity (see :meth:`_mirror_ghosts`) from the mirror node's ``vm``
+        and its own ``vg``, for a wall across ``axis`` whose material lies towards ``inward``."""
+        new = vg
+        if kind == FIXED:
+            new = -vm
+        elif vm[axis] * inward < 0.0:
+            new[axis] = -vm[axis]
+            # the normal impulse this gives the ghost node is the wall's too: Coulomb friction on
+            # it, as in the contact law (never reversing); without it a sheet sliding on a 38 deg
+            # wall with 36 deg friction felt 0.42 % less than mu N (docs/solver.md, contact)
+            dvn = (new[axis] - vg[axis]) * inward
+            if dvn > 0.0:
+                vt = new[1 - axis]
+                new[1 - axis] = ti.math.sign(vt) * ti.max(ti.abs(vt) - mu * dvn, 0.0)
+        return new
 
     @ti.func
     def _mirror_forces(self, dt, g, fused: ti.template()):
