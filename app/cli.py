@@ -599,7 +599,7 @@ def render(
             path = render_mechanism(res, output, size=width_height)
         else:
             path = render_frame(res, index, field, output, size=width_height)
-    except (ValueError, ResultsError) as exc:
+    except (ValueError, ResultsError, OSError) as exc:  # OSError: a read-only or full disk
         fail(str(exc))
     out.print(str(path), markup=False)
 
@@ -624,7 +624,7 @@ def report(
     res = _open_results(results)
     try:
         path = write_report(res.path, output)
-    except (ValueError, ResultsError) as exc:
+    except (ValueError, ResultsError, OSError) as exc:  # OSError: a read-only or full disk
         fail(str(exc))
     out.print(str(path), markup=False)
 

@@ -523,13 +523,12 @@ def render_frame(
     res = _as_results(results)
     field_info(field)
     j = _frame_index(res, frame)
-    from projects.results_folder import export_path
+    from projects.results_folder import check_writable, export_path
 
-    out = Path(path) if path is not None else export_path(res.path, f"{field}_{j:05d}")
+    out = check_writable(Path(path) if path is not None else export_path(res.path, f"{field}_{j:05d}"))
     scene = _scene_for(res, field, [j], size, cmap, clim)
     try:
         scene.show(j)
-        out.parent.mkdir(parents=True, exist_ok=True)
         scene.plotter.screenshot(str(out))
     finally:
         scene.close()
@@ -572,8 +571,10 @@ def animate(
     # H.264 in yuv420p needs even dimensions
     size = (int(size[0]) // 2 * 2, int(size[1]) // 2 * 2)
     frames = list(range(len(res)))
+    from projects.results_folder import check_writable
+
+    out = check_writable(out)  # before the writer: ffmpeg on a read-only disk prints pages of noise
     scene = _scene_for(res, field, frames, size, cmap, clim)
-    out.parent.mkdir(parents=True, exist_ok=True)
     if suffix == ".mp4":
         writer = imageio.get_writer(out, format="FFMPEG", fps=fps, codec="libx264",
                                     quality=8, macro_block_size=1, pixelformat="yuv420p")
@@ -602,7 +603,8 @@ def render_mechanism(results: Results | str | os.PathLike[str], path: str | os.P
     ----------
     results : Results or path-like
     path : path-like, optional
-        Output PNG. Default: ``<results>/mechanism.png``.
+        Output PNG. Default: beside the results folder, ``NAME_mechanism.png`` (never inside it,
+        a re-run may replace it: :func:`projects.results_folder.export_path`).
     size : (int, int)
         Image width and height, pixels.
 
@@ -627,7 +629,9 @@ def render_mechanism(results: Results | str | os.PathLike[str], path: str | os.P
     fos = summary.get("factor_of_safety")
     if not fos:
         raise ValueError(f"{res.path} holds no factor of safety (no strength-reduction stage ran)")
-    out = Path(path) if path is not None else res.path / "mechanism.png"
+    from projects.results_folder import check_writable, export_path
+
+    out = check_writable(Path(path) if path is not None else export_path(res.path, "mechanism"))
     frame = fos.get("mechanism_frame")
     fig, (ax, knee) = plt.subplots(1, 2, figsize=(size[0] / 100, size[1] / 100), dpi=100,
                                    gridspec_kw={"width_ratios": [2.2, 1]})
