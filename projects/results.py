@@ -59,6 +59,7 @@ from projects.results_folder import (
     ResultsError,
     ResultsExistError,
     ResultsLockedError,
+    clear_own_files,
     lock_folder,
     open_results_dir,
     read_marker,
@@ -702,6 +703,9 @@ class ResultsWriter:
             self._write_pvd()
             self._write_summary()
         except OSError as err:
+            if keep_frames is None:  # a new run that could not start (a full disk) leaves no results
+                with contextlib.suppress(OSError):  # folder behind, which the next run would refuse
+                    clear_own_files(self.out_dir, [*self._patterns, MARKER_NAME])
             self._abandon()
             raise ResultsError(f"cannot write results to {self.out_dir}: {err.strerror or err}") from err
         except BaseException:
