@@ -411,7 +411,10 @@ class _Controls(QWidget):
         self.lo = QLineEdit()
         self.hi = QLineEdit()
         for edit, tip in ((self.lo, "colour range minimum"), (self.hi, "colour range maximum")):
-            edit.setMaximumWidth(90)
+            # wide enough for a 4-digit value with its exponent (a range of 0.0002828 m showed
+            # its tail, "828", when the field was 90 px and scrolled to the end)
+            edit.setMinimumWidth(edit.fontMetrics().horizontalAdvance("-0.0002828") + 14)
+            edit.setMaximumWidth(max(90, edit.minimumWidth()))
             edit.setToolTip(tip)
             edit.setAccessibleName(tip)
             edit.setEnabled(False)
@@ -466,8 +469,9 @@ class _Controls(QWidget):
 
     def show_range(self, clim: tuple[float, float]) -> None:
         if self.auto.isChecked():
-            self.lo.setText(f"{clim[0]:.4g}")
-            self.hi.setText(f"{clim[1]:.4g}")
+            for edit, value in ((self.lo, clim[0]), (self.hi, clim[1])):
+                edit.setText(f"{value:.4g}")
+                edit.setCursorPosition(0)  # the number's start, never only its tail
 
     def _auto_toggled(self, on: bool) -> None:
         self.lo.setEnabled(not on)

@@ -135,3 +135,17 @@ def test_a_folder_that_is_not_results_is_refused_readably(window, tmp_path):
     window.show_error = lambda title, text: errors.append(text)
     assert not window.open_results(tmp_path)
     assert "is not a results folder" in errors[0]
+
+
+def test_the_auto_colour_range_shows_whole_numbers(window, make_results):
+    """The colour range fields show the number from its start, whole (a displacement range of
+    0.0002828 m read '828' in a 90-pixel field scrolled to its end). Found by the session-10
+    review under Xvfb."""
+    path = make_results(n_frames=2)
+    assert window.open_results(path)
+    controls = window.results_view.controls
+    controls.show_range((-0.0002828, 0.0002828))
+    for edit in (controls.lo, controls.hi):
+        assert edit.cursorPosition() == 0
+        room = edit.contentsRect().width() - 8  # the frame's and the text margins
+        assert edit.fontMetrics().horizontalAdvance(edit.text()) <= room, (edit.text(), room)
