@@ -252,12 +252,15 @@ class _JsonProgress:
 
     Events (key ``event``), in this order:
 
-    - ``started``: ``out_dir`` (the results folder), ``particles``, ``total_time_s``; sent once
-      the results folder exists (before the first progress or frame event);
+    - ``started``: ``out_dir`` (the results folder), ``particles``, ``total_time_s``,
+      ``first_frame`` (the number of the first frame this run writes: 0, or for ``--resume`` the
+      frame after the checkpoint's); sent once the results folder exists (before the first
+      progress or frame event);
     - ``progress``: ``time_s``, ``total_time_s`` (s), ``stage``, ``step``, ``steps_per_s``,
       ``particle_steps_per_s``; at most every :attr:`INTERVAL_S` seconds;
-    - ``frame``: ``index`` and ``time_s`` of a frame handed to the results writer (it is on disk,
-      listed in ``particles.pvd``, shortly after);
+    - ``frame``: ``index`` (its number in the folder, ``frames/frame_INDEX.vtp``) and ``time_s``
+      of a frame handed to the results writer (it is on disk, listed in ``particles.pvd``,
+      shortly after);
     - ``finished``: ``status`` ("completed", "stopped", "failed", or "error" when the run could
       not start: invalid project, refused folder), ``message``, ``out_dir`` and the final
       ``summary`` (absent for "error").
@@ -296,8 +299,11 @@ class _JsonProgress:
             summary = json.loads((self.out_dir / "summary.json").read_text(encoding="utf-8"))
         except (OSError, ValueError):
             pass
+        # a resumed run writes its frames from this number on (they replace those after the
+        # checkpoint): ``frame`` events carry the frame's number in the folder
+        self.frames = int(summary.get("resumed_at_frame") or 0)
         self.emit("started", out_dir=str(self.out_dir), particles=summary.get("particles"),
-                  total_time_s=summary.get("total_time_s"))
+                  total_time_s=summary.get("total_time_s"), first_frame=self.frames)
 
     def progress(self, p: Any) -> None:
         import time
