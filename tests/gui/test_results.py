@@ -149,3 +149,34 @@ def test_the_auto_colour_range_shows_whole_numbers(window, make_results):
         assert edit.cursorPosition() == 0
         room = edit.contentsRect().width() - 8  # the frame's and the text margins
         assert edit.fontMetrics().horizontalAdvance(edit.text()) <= room, (edit.text(), room)
+
+
+def test_results_in_real_world_coordinates_are_drawn_and_picked_where_they_are(window, tmp_path, qtbot):
+    """Frames in UTM-like coordinates (y ~ 4e6 m) are drawn relative to the grid's corner: in
+    float32, as VTK draws, the 800 particles of the synthetic block fell onto 0.25 m rows (a few
+    squares) and the structure's fill slid off its outline; picking adds the corner back.
+    Found by the session-10 review under Xvfb."""
+    from projects.results import ResultsWriter
+    from solver.config import Frame
+    from tests.conftest import SYNTHETIC_META, synthetic_frames
+
+    offset = np.array([500000.0, 4000000.0])
+    meta = {**SYNTHETIC_META, "domain": {**SYNTHETIC_META["domain"], "origin_m": list(offset)},
+            "structures": [{"name": "dam", "polygon_m": (np.array([[0.3, 0.0], [0.4, 0.0], [0.4, 0.05]]) + offset).tolist()}]}
+    writer = ResultsWriter(tmp_path / "utm.results", "", meta)
+    for frame in synthetic_frames(2, lose_last=0):
+        writer.write_frame(Frame(frame.diagnostics, {**frame.fields, "positions": frame.fields["positions"] + offset},
+                                 frame.contacts))
+    writer.close("completed")
+    assert window.open_results(tmp_path / "utm.results")
+    scene = window.results_view.scene
+    positions = window.results_view.results.frame(1)["positions"]
+    corner = getattr(scene, "offset", 0.0)
+    drawn = np.asarray(scene.cloud.points, dtype=float)[:, :2] + corner
+    assert np.abs(drawn - positions).max() < 1e-6  # float32 at 4e6 m: 0.25 m
+    fill = np.asarray(scene.plotter.actors["structures"].mapper.dataset.points, dtype=float)[:, :2] + corner
+    assert np.abs(fill - np.array(meta["structures"][0]["polygon_m"])[:, None, :]).sum(-1).min(0).max() < 1e-6
+    target = 123
+    pos = scene.widget_at(positions[target]).toPoint()
+    qtbot.mouseClick(scene.plotter, Qt.MouseButton.LeftButton, pos=pos)
+    assert scene.picked_id == target
