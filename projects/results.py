@@ -212,6 +212,8 @@ def read_checkpoint(path: str | os.PathLike[str]) -> Any:
     from solver.config import Checkpoint
 
     path = Path(path)
+    if not path.exists():  # a mistyped folder: name it, not its parent
+        raise ResultsError(f"no such results folder or checkpoint: {path}")
     if path.is_dir():
         path = path / CHECKPOINT_NAME
     if not path.is_file():

@@ -136,6 +136,18 @@ def test_a_damaged_checkpoint_is_a_one_line_results_error(tmp_path, damage):
     assert "\n" not in str(err.value)
 
 
+def test_a_missing_checkpoint_names_the_path_given(tmp_path):
+    """``--start-from`` with a mistyped folder names that folder (it said "no checkpoint in" its
+    parent, which the user never typed). Found by the session-10 review."""
+    from projects.results import ResultsError, read_checkpoint
+
+    with pytest.raises(ResultsError) as err:
+        read_checkpoint(tmp_path / "slope.reslts")
+    assert str(err.value) == f"no such results folder or checkpoint: {tmp_path / 'slope.reslts'}"
+    with pytest.raises(ResultsError, match=f"no checkpoint in {tmp_path}"):
+        read_checkpoint(tmp_path)  # a folder without one: as before
+
+
 def test_resume_of_a_folder_a_live_run_is_writing_names_the_run(tmp_path):
     """`runout run --resume` on the folder of a run that is still going: the folder is in use (one
     line naming the process), not "no checkpoint" (it may not have written one yet)."""
