@@ -287,6 +287,9 @@ def resumable(results_dir: str | os.PathLike[str]) -> Checkpoint:
     if not (out_path / CHECKPOINT_NAME).is_file() and _has_strength_reduction(out_path / PROJECT_NAME):
         raise ResultsError(f"{out_path}: a strength-reduction run cannot be resumed (its search lives in memory "
                            "and writes no checkpoint part-way); run it again")
+    if not (out_path / CHECKPOINT_NAME).is_file():
+        raise ResultsError(f"no checkpoint in {out_path}: the run ended before its first checkpoint; "
+                           "run the project again into it with --overwrite")
     checkpoint = read_checkpoint(out_path)
     if checkpoint.run["cursor"]["phase"] == "done":
         raise ResultsError(f"the run in {out_path} is complete: nothing to resume")
