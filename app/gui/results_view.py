@@ -768,9 +768,15 @@ class ResultsView(QWidget):
             return False
         return len(self.results) > before
 
-    def end_live(self) -> None:
-        """The followed run has ended: stop following (its folder stays open)."""
+    def end_live(self, how: str = "") -> None:
+        """The followed run has ended (``how``: its status and message): stop following (its
+        folder stays open). A run that ended before its first frame says so in the header, which
+        said "Running" until another folder was opened."""
         self.live = False
+        if self.results is None and self.live_path is not None:
+            self.header.setText(f"Ended: {self.live_title} — {self.live_path}   "
+                                f"[{how + '; ' if how else ''}no frame was written]")
+            self.controls.time_label.setText("no frame")
 
     # -- results folders ----------------------------------------------------------------------------
 
