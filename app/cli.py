@@ -252,6 +252,8 @@ class _JsonProgress:
 
     Events (key ``event``), in this order:
 
+    - ``warning``: ``message``, one per project warning (docs/project-format.md, "Warnings"),
+      before anything else (the results folder does not exist yet);
     - ``started``: ``out_dir`` (the results folder), ``particles``, ``total_time_s``,
       ``first_frame`` (the number of the first frame this run writes: 0, or for ``--resume`` the
       frame after the checkpoint's); sent once the results folder exists (before the first
