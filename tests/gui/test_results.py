@@ -180,3 +180,29 @@ def test_results_in_real_world_coordinates_are_drawn_and_picked_where_they_are(w
     pos = scene.widget_at(positions[target]).toPoint()
     qtbot.mouseClick(scene.plotter, Qt.MouseButton.LeftButton, pos=pos)
     assert scene.picked_id == target
+
+
+def test_curves_of_a_run_before_its_first_frame_show_no_axes_of_the_last_run(qtbot):
+    """The run curves and the contact forces, cleared for a run that has no frame yet (or never
+    gets one), show a plain 0-1 range, not the axes of the run shown before (a hidden time marker
+    at its last time held them: 0.0075-0.008 s). Found by the session-10 review under Xvfb."""
+    from app.gui.curves import ContactCurves, SeriesCurves
+
+    series = SeriesCurves()
+    contacts = ContactCurves()
+    qtbot.addWidget(series)
+    qtbot.addWidget(contacts)
+    times = np.array([0.0075, 0.0078, 0.008])
+    series.set_series({"time_s": times, **{k: np.array([1.0, 2.0, 3.0]) for k in
+                                           ("kinetic_energy_J_per_m", "momentum_x", "momentum_y", "max_speed_m_s")}})
+    contacts.set_contacts({"left": {"time_s": times, "force_x_N_per_m": np.ones(3), "force_y_N_per_m": np.ones(3),
+                                    "peak_force_N_per_m": np.ones(3)}})
+    for canvas in (series, contacts):
+        canvas.set_time(0.008)
+        canvas.redraw_now()
+        assert canvas.axes[0].get_xlim()[1] == pytest.approx(0.008, abs=1e-3)
+        canvas.clear()
+        canvas.set_time(None)
+        canvas.redraw_now()
+        for ax in canvas.axes:
+            assert ax.get_xlim() == (0.0, 1.0) and ax.get_ylim() == (0.0, 1.0)
