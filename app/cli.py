@@ -252,12 +252,17 @@ class _JsonProgress:
 
     Events (key ``event``), in this order:
 
-    - ``started``: ``out_dir`` (the results folder), ``particles``, ``total_time_s``; sent once
-      the results folder exists (before the first progress or frame event);
+    - ``warning``: ``message``, one per project warning (docs/project-format.md, "Warnings"),
+      before anything else (the results folder does not exist yet);
+    - ``started``: ``out_dir`` (the results folder), ``particles``, ``total_time_s``,
+      ``first_frame`` (the number of the first frame this run writes: 0, or for ``--resume`` the
+      frame after the checkpoint's); sent once the results folder exists (before the first
+      progress or frame event);
     - ``progress``: ``time_s``, ``total_time_s`` (s), ``stage``, ``step``, ``steps_per_s``,
       ``particle_steps_per_s``; at most every :attr:`INTERVAL_S` seconds;
-    - ``frame``: ``index`` and ``time_s`` of a frame handed to the results writer (it is on disk,
-      listed in ``particles.pvd``, shortly after);
+    - ``frame``: ``index`` (its number in the folder, ``frames/frame_INDEX.vtp``) and ``time_s``
+      of a frame handed to the results writer (it is on disk, listed in ``particles.pvd``,
+      shortly after);
     - ``finished``: ``status`` ("completed", "stopped", "failed", or "error" when the run could
       not start: invalid project, refused folder), ``message``, ``out_dir`` and the final
       ``summary`` (absent for "error").
@@ -296,8 +301,11 @@ class _JsonProgress:
             summary = json.loads((self.out_dir / "summary.json").read_text(encoding="utf-8"))
         except (OSError, ValueError):
             pass
+        # a resumed run writes its frames from this number on (they replace those after the
+        # checkpoint): ``frame`` events carry the frame's number in the folder
+        self.frames = int(summary.get("resumed_at_frame") or 0)
         self.emit("started", out_dir=str(self.out_dir), particles=summary.get("particles"),
-                  total_time_s=summary.get("total_time_s"))
+                  total_time_s=summary.get("total_time_s"), first_frame=self.frames)
 
     def progress(self, p: Any) -> None:
         import time
@@ -599,7 +607,7 @@ def render(
             path = render_mechanism(res, output, size=width_height)
         else:
             path = render_frame(res, index, field, output, size=width_height)
-    except (ValueError, ResultsError) as exc:
+    except (ValueError, ResultsError, OSError) as exc:  # OSError: a read-only or full disk
         fail(str(exc))
     out.print(str(path), markup=False)
 
@@ -624,7 +632,7 @@ def report(
     res = _open_results(results)
     try:
         path = write_report(res.path, output)
-    except (ValueError, ResultsError) as exc:
+    except (ValueError, ResultsError, OSError) as exc:  # OSError: a read-only or full disk
         fail(str(exc))
     out.print(str(path), markup=False)
 

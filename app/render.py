@@ -217,8 +217,9 @@ def _domain_box(results: Results) -> tuple[float, float, float, float] | None:
     return float(x0), float(x0) + float(w), float(y0), float(y0) + float(h)
 
 
-def _structures(results: Results) -> list[pyvista.PolyData]:
-    """The run's rigid structures (``summary.json`` ``structures``) as filled polygons at z = 0."""
+def _structures(results: Results, shift: np.ndarray | None = None) -> list[pyvista.PolyData]:
+    """The run's rigid structures (``summary.json`` ``structures``) as filled polygons at z = 0,
+    less ``shift`` (x, y)."""
     import pyvista as pv
 
     out = []
@@ -226,7 +227,7 @@ def _structures(results: Results) -> list[pyvista.PolyData]:
         pts = np.asarray(structure.get("polygon_m") or [], dtype=float).reshape(-1, 2)
         if len(pts) < 3:
             continue
-        points = np.c_[pts, np.zeros(len(pts))]
+        points = np.c_[pts - (0.0 if shift is None else shift), np.zeros(len(pts))]
         out.append(pv.PolyData(points, faces=np.r_[len(pts), np.arange(len(pts))]))
     return out
 
@@ -310,6 +311,10 @@ class _Scene:
         self._cmap = cmap or self.info.cmap
         self._font = max(8, round(self.size[1] / 56))
         self._text = None
+        # Everything is drawn relative to the view's lower-left corner, the axes labelled with the
+        # real coordinates: VTK draws in float32, which resolves 0.25 m at y = 4e6 m (UTM), so a
+        # scene in real-world coordinates collapsed onto a few rows of squares.
+        self._shift = np.array([view.bounds[0], view.bounds[2]], dtype=np.float64)
 
     def close(self) -> None:
         self.plotter.close()
@@ -318,9 +323,9 @@ class _Scene:
         import pyvista as pv
 
         active = np.asarray(arrays["active"], dtype=bool)
-        pos = np.asarray(arrays["positions"])[active]
+        pos = np.asarray(arrays["positions"], dtype=np.float64)[active]
         points = np.zeros((len(pos), 3), np.float32)
-        points[:, :2] = pos
+        points[:, :2] = pos - self._shift
         cloud = pv.PolyData(points)
         cloud.point_data["values"] = field_values(arrays, self.info.name)[active]
         return cloud
@@ -330,17 +335,19 @@ class _Scene:
 
         pl = self.plotter
         x0, x1, y0, y1 = self._view.bounds
+        sx, sy = self._shift
         domain = _domain_box(self.results)
         if domain is not None:
-            dx0, dx1, dy0, dy1 = domain
+            dx0, dx1, dy0, dy1 = domain[0] - sx, domain[1] - sx, domain[2] - sy, domain[3] - sy
             outline = [[dx0, dy0, 0], [dx1, dy0, 0], [dx1, dy1, 0], [dx0, dy1, 0], [dx0, dy0, 0]]
             pl.add_mesh(pv.MultipleLines(outline), color="#8c8c8c", line_width=1)
-        for structure in _structures(self.results):
+        for structure in _structures(self.results, self._shift):
             pl.add_mesh(structure.triangulate(), color="#b4b4b4", show_edges=False, lighting=False)
             ring = np.vstack([structure.points, structure.points[:1]])
             pl.add_mesh(pv.MultipleLines(ring), color="#505050", line_width=2)
         pl.show_bounds(
-            bounds=[x0, x1, y0, y1, 0.0, 0.0],
+            bounds=[x0 - sx, x1 - sx, y0 - sy, y1 - sy, 0.0, 0.0],
+            axes_ranges=[x0, x1, y0, y1, 0.0, 0.0],  # the labels in the project's coordinates
             xtitle="x (m)",
             ytitle="y (m)",
             ztitle="",
@@ -361,6 +368,7 @@ class _Scene:
 
     def _place_camera(self) -> None:
         x0, x1, y0, y1 = self._view.bounds
+        x0, x1, y0, y1 = x0 - self._shift[0], x1 - self._shift[0], y0 - self._shift[1], y1 - self._shift[1]
         ppm = self._view.pixels_per_m
         w, h = self.size
         cam = self.plotter.camera
@@ -523,13 +531,12 @@ def render_frame(
     res = _as_results(results)
     field_info(field)
     j = _frame_index(res, frame)
-    from projects.results_folder import export_path
+    from projects.results_folder import check_writable, export_path
 
-    out = Path(path) if path is not None else export_path(res.path, f"{field}_{j:05d}")
+    out = check_writable(Path(path) if path is not None else export_path(res.path, f"{field}_{j:05d}"))
     scene = _scene_for(res, field, [j], size, cmap, clim)
     try:
         scene.show(j)
-        out.parent.mkdir(parents=True, exist_ok=True)
         scene.plotter.screenshot(str(out))
     finally:
         scene.close()
@@ -572,8 +579,10 @@ def animate(
     # H.264 in yuv420p needs even dimensions
     size = (int(size[0]) // 2 * 2, int(size[1]) // 2 * 2)
     frames = list(range(len(res)))
+    from projects.results_folder import check_writable
+
+    out = check_writable(out)  # before the writer: ffmpeg on a read-only disk prints pages of noise
     scene = _scene_for(res, field, frames, size, cmap, clim)
-    out.parent.mkdir(parents=True, exist_ok=True)
     if suffix == ".mp4":
         writer = imageio.get_writer(out, format="FFMPEG", fps=fps, codec="libx264",
                                     quality=8, macro_block_size=1, pixelformat="yuv420p")
@@ -602,7 +611,8 @@ def render_mechanism(results: Results | str | os.PathLike[str], path: str | os.P
     ----------
     results : Results or path-like
     path : path-like, optional
-        Output PNG. Default: ``<results>/mechanism.png``.
+        Output PNG. Default: beside the results folder, ``NAME_mechanism.png`` (never inside it,
+        a re-run may replace it: :func:`projects.results_folder.export_path`).
     size : (int, int)
         Image width and height, pixels.
 
@@ -627,7 +637,9 @@ def render_mechanism(results: Results | str | os.PathLike[str], path: str | os.P
     fos = summary.get("factor_of_safety")
     if not fos:
         raise ValueError(f"{res.path} holds no factor of safety (no strength-reduction stage ran)")
-    out = Path(path) if path is not None else res.path / "mechanism.png"
+    from projects.results_folder import check_writable, export_path
+
+    out = check_writable(Path(path) if path is not None else export_path(res.path, "mechanism"))
     frame = fos.get("mechanism_frame")
     fig, (ax, knee) = plt.subplots(1, 2, figsize=(size[0] / 100, size[1] / 100), dpi=100,
                                    gridspec_kw={"width_ratios": [2.2, 1]})

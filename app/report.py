@@ -470,7 +470,9 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
         except ProjectError as err:
             logger.warning("the results' project.toml does not load: %s", err)
     out = Path(out_dir) if out_dir is not None else res.path / REPORT_DIR
-    out.mkdir(parents=True, exist_ok=True)
+    from projects.results_folder import check_writable
+
+    check_writable(out / "report.html")  # a read-only results folder: one line before any picture
 
     pictures: dict[str, Path | None] = {}
     if len(res):

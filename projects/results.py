@@ -59,6 +59,7 @@ from projects.results_folder import (
     ResultsError,
     ResultsExistError,
     ResultsLockedError,
+    clear_own_files,
     lock_folder,
     open_results_dir,
     read_marker,
@@ -211,6 +212,8 @@ def read_checkpoint(path: str | os.PathLike[str]) -> Any:
     from solver.config import Checkpoint
 
     path = Path(path)
+    if not path.exists():  # a mistyped folder: name it, not its parent
+        raise ResultsError(f"no such results folder or checkpoint: {path}")
     if path.is_dir():
         path = path / CHECKPOINT_NAME
     if not path.is_file():
@@ -702,6 +705,9 @@ class ResultsWriter:
             self._write_pvd()
             self._write_summary()
         except OSError as err:
+            if keep_frames is None:  # a new run that could not start (a full disk) leaves no results
+                with contextlib.suppress(OSError):  # folder behind, which the next run would refuse
+                    clear_own_files(self.out_dir, [*self._patterns, MARKER_NAME])
             self._abandon()
             raise ResultsError(f"cannot write results to {self.out_dir}: {err.strerror or err}") from err
         except BaseException:

@@ -478,3 +478,25 @@ def export_path(results_dir: str | os.PathLike[str], label: str, suffix: str = "
     folder = Path(results_dir).expanduser().absolute()
     stem = folder.name[: -len(".results")] if folder.name.endswith(".results") and folder.name != ".results" else folder.name
     return folder.parent / f"{stem}_{label}{suffix}"
+
+
+def check_writable(path: str | os.PathLike[str]) -> Path:
+    """Make the folder of the file ``path`` and check that a file can be created there, before any
+    work goes into what it will hold (a picture, a movie, a report on a read-only disk).
+
+    Raises
+    ------
+    OSError
+        With one line: ``cannot write PATH: REASON``.
+    """
+    import tempfile
+
+    out = Path(path).expanduser().absolute()
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as err:
+        raise OSError(f"cannot write {out}: {err.strerror or err}") from None
+    return out

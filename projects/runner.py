@@ -287,6 +287,9 @@ def resumable(results_dir: str | os.PathLike[str]) -> Checkpoint:
     if not (out_path / CHECKPOINT_NAME).is_file() and _has_strength_reduction(out_path / PROJECT_NAME):
         raise ResultsError(f"{out_path}: a strength-reduction run cannot be resumed (its search lives in memory "
                            "and writes no checkpoint part-way); run it again")
+    if not (out_path / CHECKPOINT_NAME).is_file():
+        raise ResultsError(f"no checkpoint in {out_path}: the run ended before its first checkpoint; "
+                           "run the project again into it with --overwrite")
     checkpoint = read_checkpoint(out_path)
     if checkpoint.run["cursor"]["phase"] == "done":
         raise ResultsError(f"the run in {out_path} is complete: nothing to resume")
@@ -483,10 +486,37 @@ def _start_from(sim: Any, checkpoint: Any, source: Any, resolved: ResolvedRun) -
         size = max(resolved.project.domain.size_m)
         if not np.allclose(theirs.positions_m, resolved.particles.positions_m, rtol=0.0, atol=1e-9 * size):
             raise refuse("seeded at other places")
+    _outside_structures(arrays, resolved, source)
     try:
         sim.engine.load_state(arrays)
     except ValueError as err:
         raise refuse(str(err)) from None
+
+
+def _outside_structures(arrays: dict[str, Any], resolved: ResolvedRun, source: Any) -> None:
+    """Refuse a state with particles inside this project's structures (a structure added where the
+    other run's material has moved to): the solver never leaves a particle inside a structure, and
+    one that starts inside has no path to push it back along (it would be pushed to the nearest
+    face, into a neighbouring structure or out of a thin one)."""
+    import numpy as np
+
+    from solver.engine import PUSH_OUT_CELLS
+    from solver.structures import signed_distance
+
+    project = resolved.project
+    if not project.structures or "x" not in arrays:
+        return
+    x = np.asarray(arrays["x"], dtype=np.float64).reshape(-1, 2) + np.asarray(project.domain.origin_m, float)
+    if "active" in arrays and np.size(arrays["active"]) == len(x):
+        x = x[np.asarray(arrays["active"]).reshape(-1) != 0]
+    # the solver leaves pushed-out particles PUSH_OUT_CELLS outside; half of it absorbs rounding
+    depth = 0.5 * PUSH_OUT_CELLS * project.domain.cell_size_m
+    for i, structure in enumerate(project.structures):
+        inside = int(np.count_nonzero(signed_distance(x, structure.polygon_m) < -depth))
+        if inside:
+            raise ResultsError(
+                f"cannot start from {source}: {inside} of its particles lie inside structures.{i} "
+                f"({structure.name!r}); move the structure or start without --start-from")
 
 
 def _meta(resolved: ResolvedRun, sim: Any, project_path: Path | None) -> dict[str, Any]:

@@ -73,8 +73,14 @@ class _Canvas(QWidget):
 
     def _redraw(self) -> None:
         for ax in self.axes:
-            ax.relim()
-            ax.autoscale_view()
+            # the visible lines only: a hidden time marker held the last run's time, so the empty
+            # curves of a run before its first frame kept that run's axes (0.0075-0.008 s)
+            ax.relim(visible_only=True)
+            if any(line.get_visible() and len(line.get_xdata()) for line in ax.lines):
+                ax.autoscale_view()
+            else:
+                ax.set_xlim(0.0, 1.0)
+                ax.set_ylim(0.0, 1.0)
         self.canvas.draw_idle()
         self.draws += 1
 

@@ -1016,10 +1016,12 @@ class MainWindow(QMainWindow):
         from projects.results import ResultsError
 
         self.actions_["cancel"].setEnabled(False)
-        self.results_view.end_live()
+        self.results_view.end_live(f"{outcome.status}: {outcome.message}")
         self.run_panel.show_result(outcome.status, outcome.message, outcome.summary)
         shown = False
-        if outcome.status != "error":
+        # a run that never reported its folder wrote no frame: what the folder holds (an earlier
+        # run's results it was to replace) is not shown as this run's
+        if outcome.status != "error" and run.started_event is not None:
             try:
                 self.results_view.open_results(outcome.out_dir)
                 self.settings.add_recent(outcome.out_dir, "results")

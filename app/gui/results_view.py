@@ -101,6 +101,9 @@ class ParticleScene(QWidget):
         self._auto_fit = True
         self.picked_id: int | None = None
         self.structure_count = 0
+        #: what is drawn is drawn less this (the grid's corner): VTK draws in float32, which
+        #: resolves 0.25 m at y = 4e6 m (real-world coordinates); picking adds it back
+        self.offset = np.zeros(2)
 
     def close_view(self) -> None:
         if self._closed:
@@ -130,9 +133,11 @@ class ParticleScene(QWidget):
         self.domain = box
         self.spacing_m = spacing_m
         self.material_names = list(material_names)
+        self.offset = np.array([box[0], box[2]], dtype=float) if box is not None else np.zeros(2)
         self.plotter.remove_actor("domain", render=False)
         if box is not None:
-            x0, x1, y0, y1 = box
+            x0, x1, y0, y1 = (box[0] - self.offset[0], box[1] - self.offset[0],
+                              box[2] - self.offset[1], box[3] - self.offset[1])
             outline = np.array([[x0, y0, 0], [x1, y0, 0], [x1, y1, 0], [x0, y1, 0], [x0, y0, 0]], float)
             self.plotter.add_mesh(pv.MultipleLines(outline), color="#9aa0a6", line_width=1, name="domain",
                                   render=False, reset_camera=False, pickable=False)
@@ -149,7 +154,7 @@ class ParticleScene(QWidget):
             pts = np.asarray(structure.get("polygon_m") or [], dtype=float).reshape(-1, 2)
             if len(pts) < 3:
                 continue
-            xyz = np.column_stack([pts, np.full(len(pts), -0.01)])
+            xyz = np.column_stack([pts - self.offset, np.full(len(pts), -0.01)])
             face = pv.PolyData(xyz, faces=np.r_[len(pts), np.arange(len(pts))])
             try:
                 face = face.triangulate()
@@ -184,7 +189,7 @@ class ParticleScene(QWidget):
             self.message = str(err)
         self.values = values
         points = np.zeros((len(positions), 3), np.float32)
-        points[:, :2] = positions
+        points[:, :2] = positions - self.offset
         cloud = pv.PolyData(points)
         cloud.point_data["values"] = values
         if info.categorical:
@@ -246,7 +251,7 @@ class ParticleScene(QWidget):
         if box is None:
             return
         x0, x1, y0, y1 = box
-        cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+        cx, cy = (x0 + x1) / 2 - self.offset[0], (y0 + y1) / 2 - self.offset[1]
         # the colour bar takes the right eighth of the view
         w, h = (x1 - x0) * 1.3, (y1 - y0) * 1.3
         aspect = max(1, self.plotter.width()) / max(1, self.plotter.height())
@@ -283,11 +288,11 @@ class ParticleScene(QWidget):
         r.SetDisplayPoint(pos.x() * s, (self.plotter.height() - pos.y() - 1) * s, 0.0)
         r.DisplayToWorld()
         wx, wy, _wz, w = r.GetWorldPoint()
-        return np.array([wx / (w or 1.0), wy / (w or 1.0)])
+        return np.array([wx / (w or 1.0), wy / (w or 1.0)]) + self.offset
 
     def widget_at(self, xy: Any) -> QPointF:
         r = self.plotter.renderer
-        r.SetWorldPoint(float(xy[0]), float(xy[1]), 0.0, 1.0)
+        r.SetWorldPoint(float(xy[0] - self.offset[0]), float(xy[1] - self.offset[1]), 0.0, 1.0)
         r.WorldToDisplay()
         dx, dy, _ = r.GetDisplayPoint()
         s = float(self.plotter.devicePixelRatioF())
@@ -316,6 +321,7 @@ class ParticleScene(QWidget):
         self.plotter.remove_actor("section", render=False)
         if section is not None:
             x0, y0, x1, y1 = section
+            (x0, y0), (x1, y1) = np.array([x0, y0]) - self.offset, np.array([x1, y1]) - self.offset
             self.plotter.add_mesh(pv.Line((x0, y0, 0.01), (x1, y1, 0.01)), color="#d93025", line_width=2,
                                   name="section", render=False, reset_camera=False, pickable=False)
         self.plotter.render()
@@ -330,7 +336,7 @@ class ParticleScene(QWidget):
         if not len(where):
             return
         p = np.zeros((1, 3))
-        p[0, :2] = self.positions[where[0]]
+        p[0, :2] = self.positions[where[0]] - self.offset
         p[0, 2] = 0.05
         self.plotter.add_mesh(pv.PolyData(p), color="#d93025", point_size=14, render_points_as_spheres=True,
                               name="pick", render=False, reset_camera=False, pickable=False)
@@ -411,7 +417,10 @@ class _Controls(QWidget):
         self.lo = QLineEdit()
         self.hi = QLineEdit()
         for edit, tip in ((self.lo, "colour range minimum"), (self.hi, "colour range maximum")):
-            edit.setMaximumWidth(90)
+            # wide enough for a 4-digit value with its exponent (a range of 0.0002828 m showed
+            # its tail, "828", when the field was 90 px and scrolled to the end)
+            edit.setMinimumWidth(edit.fontMetrics().horizontalAdvance("-0.0002828") + 14)
+            edit.setMaximumWidth(max(90, edit.minimumWidth()))
             edit.setToolTip(tip)
             edit.setAccessibleName(tip)
             edit.setEnabled(False)
@@ -466,8 +475,9 @@ class _Controls(QWidget):
 
     def show_range(self, clim: tuple[float, float]) -> None:
         if self.auto.isChecked():
-            self.lo.setText(f"{clim[0]:.4g}")
-            self.hi.setText(f"{clim[1]:.4g}")
+            for edit, value in ((self.lo, clim[0]), (self.hi, clim[1])):
+                edit.setText(f"{value:.4g}")
+                edit.setCursorPosition(0)  # the number's start, never only its tail
 
     def _auto_toggled(self, on: bool) -> None:
         self.lo.setEnabled(not on)
@@ -758,9 +768,15 @@ class ResultsView(QWidget):
             return False
         return len(self.results) > before
 
-    def end_live(self) -> None:
-        """The followed run has ended: stop following (its folder stays open)."""
+    def end_live(self, how: str = "") -> None:
+        """The followed run has ended (``how``: its status and message): stop following (its
+        folder stays open). A run that ended before its first frame says so in the header, which
+        said "Running" until another folder was opened."""
         self.live = False
+        if self.results is None and self.live_path is not None:
+            self.header.setText(f"Ended: {self.live_title} — {self.live_path}   "
+                                f"[{how + '; ' if how else ''}no frame was written]")
+            self.controls.time_label.setText("no frame")
 
     # -- results folders ----------------------------------------------------------------------------
 

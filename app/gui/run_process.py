@@ -283,7 +283,15 @@ class RunProcess(QObject):
             self.stderr_lines.append(self._stderr.decode("utf-8", "replace").rstrip())
             self._stderr = b""
         event = self.finished_event
-        if event is not None:
+        # Cancelled before the child reported its results folder: it ended on the SIGTERM during its
+        # start-up (before its handler was installed, or with "stopped ... before the run started").
+        # That is the stop the user asked for, not an abnormal end; this run wrote no frame.
+        early_stop = self.cancel_requested and self.started_event is None and (
+            (event is not None and event.get("status") == "error")
+            or (event is None and exit_status == QProcess.ExitStatus.CrashExit and int(exit_code) == signal.SIGTERM))
+        if early_stop:
+            outcome = RunOutcome("stopped", "cancelled before the run started", self.out_dir, {}, int(exit_code))
+        elif event is not None:
             outcome = RunOutcome(str(event.get("status", "failed")), str(event.get("message", "")),
                                  Path(event.get("out_dir") or self.out_dir), dict(event.get("summary") or {}),
                                  int(exit_code))

@@ -135,3 +135,74 @@ def test_a_folder_that_is_not_results_is_refused_readably(window, tmp_path):
     window.show_error = lambda title, text: errors.append(text)
     assert not window.open_results(tmp_path)
     assert "is not a results folder" in errors[0]
+
+
+def test_the_auto_colour_range_shows_whole_numbers(window, make_results):
+    """The colour range fields show the number from its start, whole (a displacement range of
+    0.0002828 m read '828' in a 90-pixel field scrolled to its end). Found by the session-10
+    review under Xvfb."""
+    path = make_results(n_frames=2)
+    assert window.open_results(path)
+    controls = window.results_view.controls
+    controls.show_range((-0.0002828, 0.0002828))
+    for edit in (controls.lo, controls.hi):
+        assert edit.cursorPosition() == 0
+        room = edit.contentsRect().width() - 8  # the frame's and the text margins
+        assert edit.fontMetrics().horizontalAdvance(edit.text()) <= room, (edit.text(), room)
+
+
+def test_results_in_real_world_coordinates_are_drawn_and_picked_where_they_are(window, tmp_path, qtbot):
+    """Frames in UTM-like coordinates (y ~ 4e6 m) are drawn relative to the grid's corner: in
+    float32, as VTK draws, the 800 particles of the synthetic block fell onto 0.25 m rows (a few
+    squares) and the structure's fill slid off its outline; picking adds the corner back.
+    Found by the session-10 review under Xvfb."""
+    from projects.results import ResultsWriter
+    from solver.config import Frame
+    from tests.conftest import SYNTHETIC_META, synthetic_frames
+
+    offset = np.array([500000.0, 4000000.0])
+    meta = {**SYNTHETIC_META, "domain": {**SYNTHETIC_META["domain"], "origin_m": list(offset)},
+            "structures": [{"name": "dam", "polygon_m": (np.array([[0.3, 0.0], [0.4, 0.0], [0.4, 0.05]]) + offset).tolist()}]}
+    writer = ResultsWriter(tmp_path / "utm.results", "", meta)
+    for frame in synthetic_frames(2, lose_last=0):
+        writer.write_frame(Frame(frame.diagnostics, {**frame.fields, "positions": frame.fields["positions"] + offset},
+                                 frame.contacts))
+    writer.close("completed")
+    assert window.open_results(tmp_path / "utm.results")
+    scene = window.results_view.scene
+    positions = window.results_view.results.frame(1)["positions"]
+    corner = getattr(scene, "offset", 0.0)
+    drawn = np.asarray(scene.cloud.points, dtype=float)[:, :2] + corner
+    assert np.abs(drawn - positions).max() < 1e-6  # float32 at 4e6 m: 0.25 m
+    fill = np.asarray(scene.plotter.actors["structures"].mapper.dataset.points, dtype=float)[:, :2] + corner
+    assert np.abs(fill - np.array(meta["structures"][0]["polygon_m"])[:, None, :]).sum(-1).min(0).max() < 1e-6
+    target = 123
+    pos = scene.widget_at(positions[target]).toPoint()
+    qtbot.mouseClick(scene.plotter, Qt.MouseButton.LeftButton, pos=pos)
+    assert scene.picked_id == target
+
+
+def test_curves_of_a_run_before_its_first_frame_show_no_axes_of_the_last_run(qtbot):
+    """The run curves and the contact forces, cleared for a run that has no frame yet (or never
+    gets one), show a plain 0-1 range, not the axes of the run shown before (a hidden time marker
+    at its last time held them: 0.0075-0.008 s). Found by the session-10 review under Xvfb."""
+    from app.gui.curves import ContactCurves, SeriesCurves
+
+    series = SeriesCurves()
+    contacts = ContactCurves()
+    qtbot.addWidget(series)
+    qtbot.addWidget(contacts)
+    times = np.array([0.0075, 0.0078, 0.008])
+    series.set_series({"time_s": times, **{k: np.array([1.0, 2.0, 3.0]) for k in
+                                           ("kinetic_energy_J_per_m", "momentum_x", "momentum_y", "max_speed_m_s")}})
+    contacts.set_contacts({"left": {"time_s": times, "force_x_N_per_m": np.ones(3), "force_y_N_per_m": np.ones(3),
+                                    "peak_force_N_per_m": np.ones(3)}})
+    for canvas in (series, contacts):
+        canvas.set_time(0.008)
+        canvas.redraw_now()
+        assert canvas.axes[0].get_xlim()[1] == pytest.approx(0.008, abs=1e-3)
+        canvas.clear()
+        canvas.set_time(None)
+        canvas.redraw_now()
+        for ax in canvas.axes:
+            assert ax.get_xlim() == (0.0, 1.0) and ax.get_ylim() == (0.0, 1.0)

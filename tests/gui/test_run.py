@@ -280,3 +280,30 @@ def test_a_run_stops_when_the_workbench_dies(long_file, tmp_path):
     status = json.loads((out / "summary.json").read_text())
     assert status["status"] == "stopped", status
     assert "SIGTERM" in status["message"]
+
+
+def test_cancel_during_the_run_process_start_up_is_a_stop_not_an_abnormal_end(window, tiny_file, long_file, qtbot):
+    """Run, then Cancel at once, while the child is still starting (its SIGTERM handler not yet
+    installed, or before it reported its folder): the run is "stopped", with no error dialog, and
+    the results folder it was to replace is not shown as its frames. Was: "The run process ended
+    abnormally: killed by SIGTERM after the cancel request ... Frames written until then are in
+    ..." over the earlier run's results. Found by the session-10 review under Xvfb."""
+    window.open_project(tiny_file)
+    assert window.start_run()
+    wait_for_runs(qtbot, window, 90.0)
+    assert window.last_result.status == "completed"
+    window.open_project(long_file)
+    window.ask_replace_results = lambda path: "replace"
+    window.run_panel.out_dir.setText(str(window.last_result.out_dir))  # the earlier run's folder
+    for _ in range(3):
+        assert window.start_run()
+        run = window.followed
+        qtbot.waitUntil(lambda: run.pid is not None and run.pid > 0, timeout=10_000)
+        run.cancel()  # show_error would fail the test (no dialog answered)
+        wait_for_runs(qtbot, window, 60.0)
+        result = window.last_result
+        assert result.status == "stopped", result.message
+        if run.started_event is None:  # the usual case: cancelled within the child's start-up
+            assert result.message == "cancelled before the run started"
+            assert window.results_view.results is None
+            assert "no frame was written" in window.results_view.header.text()

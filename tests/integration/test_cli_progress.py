@@ -56,3 +56,26 @@ def test_jsonl_reports_a_run_that_cannot_start(tiny_project, tmp_path):
     assert proc.returncode == 1
     assert events[0]["status"] == "error" and "materials.sand.density_kg_m3" in events[0]["message"]
     assert (occupied / "keep.txt").read_text() == "keep"
+
+
+def test_jsonl_of_a_resume_numbers_frames_as_the_folder_does(tiny_project, tmp_path):
+    """`runout run --resume RESULTS --progress jsonl`: the frame events carry the frames' numbers
+    in the folder (they were counted from 0 again, so a program following the run read frame 0
+    for frame_00003.vtp); `started` says the first. Found by the session-10 review."""
+    from projects.document import load_project
+    from projects.runner import run_project
+
+    out = tmp_path / "stopped.results"
+    sets = ["numerics.advanced.scatter=serial", "output.interval_s=0.005", "output.checkpoint_interval_s=0.01"]
+    frames_seen = []
+    stopped = run_project(load_project(tiny_project, sets), out, on_frame=frames_seen.append,
+                          cancel=lambda: len(frames_seen) >= 4)  # stops after its fourth frame
+    assert stopped.status == "stopped", stopped.message
+    proc, events = run_jsonl("--resume", str(out), cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    started = events[0]
+    frames = [e for e in events if e["event"] == "frame"]
+    results = Results(out)
+    assert started["event"] == "started" and 0 < started["first_frame"] < len(results)
+    assert [e["index"] for e in frames] == list(range(started["first_frame"], len(results)))
+    assert [e["time_s"] for e in frames] == list(results.times[started["first_frame"]:])

@@ -72,3 +72,24 @@ def test_help_lists_the_commands(tmp_path):
     assert proc.returncode == 0
     for command in ("run", "validate", "render", "animate", "gui"):
         assert command in proc.stdout
+
+
+def test_pictures_and_movies_where_nothing_can_be_written_are_one_line_errors(make_results, tmp_path):
+    """A picture or movie whose folder cannot be made or written (a read-only disk; here a
+    path through a plain file, which fails for root too) is one line, checked before any rendering
+    (was: a traceback from the screenshot or the report's folder; for a movie pages of ffmpeg
+    output or 'Exception ignored' from the writer; the report: tests/integration/test_report.py). Found by the session-10 review."""
+    folder = make_results(n_frames=2)
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("a file\n")
+    cases = [
+        ("render", str(folder), "-o", str(blocker / "a.png")),
+        ("animate", str(folder), "-o", str(blocker / "a.gif")),
+        ("animate", str(folder), "-o", str(blocker / "a.mp4")),
+    ]
+    for args in cases:
+        proc = runout(*args, cwd=tmp_path)
+        lines = [line for line in proc.stderr.splitlines() if line.strip()]
+        assert proc.returncode == 1, (args, proc.stderr)
+        assert len(lines) == 1 and lines[0].startswith(f"error: cannot write {blocker}"), (args, proc.stderr)
+    assert blocker.read_text() == "a file\n"

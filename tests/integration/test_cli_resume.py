@@ -172,3 +172,27 @@ def test_start_from_takes_the_particle_state_of_a_run_of_the_same_particles_only
             assert "not this project's" in str(err) and "\n" not in str(err), err
         else:
             raise AssertionError(f"{change}: started from the state of another scene")
+
+
+def test_start_from_refuses_a_state_with_particles_inside_a_structure_of_the_project(tmp_path):
+    """A project that adds a structure where the other run's material has moved to (not where it
+    was seeded: the particles are the same) would start with particles inside the structure, which
+    the solver then pushes to the nearest face (into a neighbouring structure, out of a thin one):
+    refused with one line naming the structure. Found by the session-10 review."""
+    from projects.results import ResultsError
+
+    source = tmp_path / "source"
+    assert run_project(load_project(TINY_PROJECT, SETS[:1] + ["stages.1.duration_s=0.2"]), source).ok
+    last = Results(source).frame(len(Results(source)) - 1)["positions"]
+    box = ((0.14, 0.0), (0.2, 0.04))  # right of the column as seeded (x <= 0.12); its toe runs into it
+    covered = ((last[:, 0] > box[0][0]) & (last[:, 0] < box[1][0]) & (last[:, 1] < box[1][1])).sum()
+    assert covered > 0, "the collapse no longer reaches the box: move it"
+    wall = ('structures=[{name="wall",polygon_m=[[0.14,0.0],[0.2,0.0],[0.2,0.04],[0.14,0.04]]}]')
+    try:
+        run_project(load_project(TINY_PROJECT, SETS[:1] + [wall]), tmp_path / "walled", start_from=source)
+    except ResultsError as err:
+        assert "inside structures.0 ('wall')" in str(err) and "\n" not in str(err), err
+        assert f"{covered} of its particles" in str(err), err
+    else:
+        raise AssertionError("started with particles inside a structure")
+    assert not (tmp_path / "walled").exists()  # refused before the results folder was made

@@ -187,3 +187,33 @@ def test_the_colour_bar_labels_are_distinct(lo, hi):
     assert len(set(labels)) == 5, labels
     if (lo, hi) == (0.0, 4.54):
         assert fmt == "%.3g"
+
+
+def test_a_scene_in_real_world_coordinates_is_drawn_as_at_the_origin(tmp_path):
+    """Frames in UTM-like coordinates (x ~ 5e5 m, y ~ 4e6 m: float64 in the file) draw the same
+    particles and structures as the scene at the origin; only the axis labels differ (VTK draws in
+    float32, 0.25 m apart at y = 4e6 m: the 200-particle block of a 0.2 m scene was drawn as one
+    row of eight squares and the structures' fills slid off their outlines). Found by the
+    session-10 review."""
+    shift = np.array([500000.0, 4000000.0])
+    structure = [[0.25, 0.0], [0.4, 0.0], [0.4, 0.06], [0.25, 0.06]]
+    pictures = {}
+    for name, offset in (("origin", np.zeros(2)), ("utm", shift)):
+        domain = {**SYNTHETIC_META["domain"], "origin_m": list(offset)}
+        meta = {**SYNTHETIC_META, "domain": domain,
+                "structures": [{"name": "dam", "polygon_m": (np.array(structure) + offset).tolist()}]}
+        writer = ResultsWriter(tmp_path / f"{name}.results", "", meta)
+        for frame in synthetic_frames(2, lose_last=0):
+            fields = {**frame.fields, "positions": frame.fields["positions"] + offset}
+            writer.write_frame(Frame(frame.diagnostics, fields, frame.contacts))
+        writer.close("completed")
+        pictures[name] = imageio.imread(render_frame(tmp_path / f"{name}.results", 0, "stress_yy",
+                                                     tmp_path / f"{name}.png", size=SMALL))[..., :3].astype(int)
+    # inside the axes only (the labels differ, and their anti-aliased edges hold greys)
+    h, w = SMALL[1], SMALL[0]
+    inside = (slice(int(0.3 * h), int(0.63 * h)), slice(int(0.12 * w), int(0.85 * w)))
+    coloured = {k: ((img.max(axis=-1) - img.min(axis=-1)) > 40)[inside] for k, img in pictures.items()}  # particles
+    grey = {k: np.all(np.abs(img - 180) <= 3, axis=-1)[inside] for k, img in pictures.items()}  # structure's fill
+    for masks in (coloured, grey):
+        assert masks["origin"].sum() > 300
+        assert (masks["origin"] != masks["utm"]).sum() <= 0.02 * masks["origin"].sum()

@@ -113,3 +113,15 @@ def test_report_without_hazard_files_is_a_one_line_error(collapse, tmp_path):
     assert proc.returncode == 1
     assert proc.stderr.strip().startswith("error: ") and "no hazard.json" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_report_where_nothing_can_be_written_is_a_one_line_error(collapse, tmp_path):
+    """A report whose folder cannot be made or written (a read-only results folder; here a path
+    through a plain file, which fails for root too) is one line before any picture is rendered
+    (was: a traceback from the folder's mkdir). Found by the session-10 review."""
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("a file\n")
+    proc = runout("report", str(collapse), "-o", str(blocker / "report"), cwd=tmp_path)
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert proc.returncode == 1, proc.stderr
+    assert lines == [f"error: cannot write {blocker / 'report' / 'report.html'}: Not a directory"], proc.stderr

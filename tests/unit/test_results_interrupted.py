@@ -136,6 +136,32 @@ def test_a_damaged_checkpoint_is_a_one_line_results_error(tmp_path, damage):
     assert "\n" not in str(err.value)
 
 
+def test_a_missing_checkpoint_names_the_path_given(tmp_path):
+    """``--start-from`` with a mistyped folder names that folder (it said "no checkpoint in" its
+    parent, which the user never typed). Found by the session-10 review."""
+    from projects.results import ResultsError, read_checkpoint
+
+    with pytest.raises(ResultsError) as err:
+        read_checkpoint(tmp_path / "slope.reslts")
+    assert str(err.value) == f"no such results folder or checkpoint: {tmp_path / 'slope.reslts'}"
+    with pytest.raises(ResultsError, match=f"no checkpoint in {tmp_path}"):
+        read_checkpoint(tmp_path)  # a folder without one: as before
+
+
+def test_resume_of_a_run_that_ended_before_its_first_checkpoint_says_what_to_do(tmp_path):
+    """A run killed during its start-up has a results folder but no checkpoint: the one line says
+    so and how to go on (it said only that a run writes checkpoint.npz at its checkpoints)."""
+    from projects.results import ResultsError, ResultsWriter
+    from projects.runner import resumable
+    from tests.conftest import SYNTHETIC_PROJECT
+
+    ResultsWriter(tmp_path / "r.results", SYNTHETIC_PROJECT, dict(SYNTHETIC_META)).close("failed", "killed")
+    with pytest.raises(ResultsError) as err:
+        resumable(tmp_path / "r.results")
+    assert str(err.value) == (f"no checkpoint in {tmp_path / 'r.results'}: the run ended before its first "
+                              "checkpoint; run the project again into it with --overwrite")
+
+
 def test_resume_of_a_folder_a_live_run_is_writing_names_the_run(tmp_path):
     """`runout run --resume` on the folder of a run that is still going: the folder is in use (one
     line naming the process), not "no checkpoint" (it may not have written one yet)."""
