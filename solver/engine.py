@@ -77,6 +77,9 @@ def _bspline_slope(f, i):
     return r
 
 
+DENSITY_FLOOR = 0.5
+
+
 @ti.data_oriented
 class Engine:
     """State and step kernels of one MPM run (needs an acquired runtime).
@@ -620,6 +623,7 @@ class Engine:
         self.eps_p[p] += deq
         self.yielded[p] = ti.cast(yielded, ti.i8)
         rho = self.rho[p] / (1.0 + (D[0, 0] + D[1, 1]) * dt)  # eq 24
+        rho = ti.max(rho, DENSITY_FLOOR * self.materials.rho0[self.mat[p]])
         self.rho[p] = rho
         return self.m[p] / rho
 
