@@ -36,6 +36,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ANGLES = "10:0,10:20,20:10,20:30,30:20,30:45,40:30,40:45"
+SLIDE_TOLERANCE = 0.03  # the issue's: |slip / analytic - 1|
+STICK_TOLERANCE = 0.001  # slip / frictionless distance
 COLUMNS = ("contact", "scheme", "precision", "thickness_cells", "youngs_pa", "incline_deg", "friction_deg", "slides",
            "slip_m", "analytic_m", "frictionless_m", "error", "steps", "wall_s", "aspect")
 
@@ -169,6 +171,15 @@ def summarise(rows) -> None:
         for k, name in ((0, "contact"), (1, "scheme"), (2, "precision"), (3, "thickness"), (4, "E")):
             parts = [f"{value}: {stats([r for r in sel if r[k] == value])}" for value in sorted({r[k] for r in sel}, key=str)]
             print(f"  by {name}: " + "; ".join(parts))
+        parts = [f"{t:g}/{d:g}: {stats([r for r in sel if (r[5], r[6]) == (t, d)])}"
+                 for t, d in sorted({(r[5], r[6]) for r in sel})]
+        print("  by angles: " + "; ".join(parts))
+    failed = [r for r in rows if abs(r[11]) > (SLIDE_TOLERANCE if r[7] else STICK_TOLERANCE)]
+    print(f"\noutside the tolerance (sliding {100 * SLIDE_TOLERANCE:g} %, sticking {100 * STICK_TOLERANCE:g} %): "
+          f"{len(failed)} of {len(rows)}")
+    for r in failed:
+        print(f"  {r[0]} {r[1]} {r[2]} {r[3]} cells E={r[4]:g} {r[5]:g}/{r[6]:g}: "
+              f"{'sliding' if r[7] else 'sticking'} {100 * r[11]:+.2f} %")
     print()
     print("| contact | scheme | precision | sliding: cases, max / mean error | sticking: cases, max / mean slip |")
     print("|---|---|---|---|---|")

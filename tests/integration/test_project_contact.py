@@ -25,25 +25,25 @@ SLIDE_TOL = 0.03
 STICK_TOL = 0.001
 
 # (contact, scheme, precision, thickness cells, E (Pa), incline, friction): every contact, scheme,
-# precision, thickness and stiffness, sliding and sticking; small blocks (a 20-cell block only at
-# 1e6 Pa: at 1e8 its 14,000 steps cost 17 s)
+# precision, thickness and stiffness, sliding and sticking. Small blocks (a 20-cell block only at
+# 1e6 Pa: at 1e8 its 14,000 steps cost 17 s), and few combinations of scheme, precision and contact
+# (each new one compiles its kernels: about 10 s the first time on a machine)
 CASES = [
-    # sliding
     ("bottom", "apic-affine", "f32", 5, 1e6, 30, 20),
-    ("bottom", "mpm", "f64", 1, 1e8, 20, 10),
-    ("bottom", "apic", "f32", 20, 1e6, 40, 30),
-    ("left", "apic", "f64", 5, 1e6, 20, 10),
-    ("right", "mpm", "f32", 1, 1e6, 40, 30),
-    ("ramp", "apic-affine", "f64", 5, 1e6, 10, 0),
-    ("ramp", "mpm", "f32", 1, 1e8, 30, 20),
-    # sticking
     ("bottom", "apic-affine", "f32", 5, 1e8, 20, 30),
-    ("bottom", "mpm", "f32", 20, 1e6, 30, 45),
-    ("bottom", "apic", "f64", 1, 1e6, 10, 20),
+    ("bottom", "apic-affine", "f32", 20, 1e6, 40, 30),
     ("left", "apic-affine", "f32", 1, 1e8, 40, 45),
-    ("right", "apic", "f64", 20, 1e6, 20, 30),
-    ("ramp", "apic", "f32", 5, 1e6, 30, 45),
-    ("ramp", "apic-affine", "f64", 5, 1e6, 20, 30),
+    ("left", "apic-affine", "f32", 5, 1e6, 20, 10),
+    ("ramp", "apic-affine", "f32", 5, 1e6, 30, 45),
+    ("ramp", "apic-affine", "f32", 1, 1e8, 30, 20),
+    ("bottom", "mpm", "f32", 20, 1e6, 30, 45),
+    ("bottom", "mpm", "f32", 1, 1e8, 20, 10),
+    ("bottom", "apic", "f32", 1, 1e6, 10, 20),
+    ("bottom", "apic", "f32", 20, 1e6, 40, 30),
+    ("bottom", "apic-affine", "f64", 5, 1e6, 10, 0),
+    ("right", "mpm", "f64", 20, 1e6, 20, 30),
+    ("ramp", "apic", "f64", 5, 1e6, 20, 10),
+    ("ramp", "apic", "f64", 1, 1e6, 10, 20),
 ]
 
 
@@ -72,6 +72,11 @@ LIMITS = [
         strict=True, reason="stress free (no initial-stress stage): the waves of the sudden loading make a sticking "
                             "block creep, 0.19-0.24 % of the frictionless distance measured (5 cells, 1e6 Pa); the "
                             "project warns (projects.checks)")),
+    pytest.param("bottom", "apic-affine", "f32", 20, 1e6, 40, 45, "gravity", marks=pytest.mark.xfail(
+        strict=True, reason="a 20-cell block at 40 deg on 45 deg friction slips +3.5 % of the frictionless distance "
+                            "(+3.5-3.7 % in every scheme at 1e6 Pa, +5.1-5.5 % at 1e8; 0.8-0.9 % after a 1 s "
+                            "gravity stage): the flutter of an undamped elastic block under Coulomb friction near "
+                            "the friction limit (docs/solver.md, contact)")),
 ]
 
 
@@ -108,7 +113,8 @@ def test_no_creep_warning_with_an_initial_stress_stage_or_where_it_would_not_cre
     assert _warnings(theta=30, delta=20) == []
     assert _warnings("ramp", theta=30, delta=20) == []
     # level ground (no direction to creep in) and a body that does not touch the contact
-    level = tomllib.loads(project_text("bottom", "apic-affine", "f32", 5, 1e6, 0.0, 30, start="free", duration_s=1.0).text)
+    level = tomllib.loads(project_text("bottom", "apic-affine", "f32", 5, 1e6, 0.0, 30, start="free",
+                                       duration_s=1.0).text)
     assert level["domain"]["gravity_m_s2"][0] == 0.0
     assert project_warnings(validate_project(level)) == []
     lifted = tomllib.loads(project_text("bottom", "apic-affine", "f32", 5, 1e6, 20, 30, start="free").text)
