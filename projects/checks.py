@@ -300,13 +300,21 @@ def _contact_faces(project: Project):
             boundary = getattr(domain.boundaries, side)
             if boundary.type == "friction" and (sign * (pts[:, axis] - wall)).min() <= TOUCH_TOLERANCE * dx:
                 found.append((index, f"the {side} wall", boundary.friction_angle_deg, normal))
-        # points along the body's outline, a quarter cell apart, against each structure face
-        closed = np.vstack([pts, pts[:1]])
-        samples = [pts]
-        for a, b in zip(closed[:-1], closed[1:]):
-            k = max(1, int(math.ceil(np.linalg.norm(b - a) / (0.25 * dx))))
-            samples.append(a + np.linspace(0.0, 1.0, k + 1)[1:-1, None] * (b - a))
-        samples = np.vstack(samples)
+        if not project.structures:
+            continue
+        # points along the body's outline, a quarter cell apart (at most 4096 an edge), each
+        # standing for its share of the outline's length, against each structure face
+        samples, spans = [], []
+        for a, b in zip(pts, np.roll(pts, -1, axis=0)):
+            length = float(np.linalg.norm(b - a))
+            if not math.isfinite(length):
+                continue
+            k = min(4096, max(1, math.ceil(length / (0.25 * dx))))
+            samples.append(a + ((np.arange(k) + 0.5) / k)[:, None] * (b - a))
+            spans.append(np.full(k, length / k))
+        if not samples:
+            continue
+        samples, spans = np.vstack(samples), np.concatenate(spans)
         for k, structure in enumerate(project.structures):
             if structure.contact.type != "friction":
                 continue
@@ -319,7 +327,7 @@ def _contact_faces(project: Project):
                 t = np.clip((samples - a) @ ab / length**2, 0.0, 1.0)
                 gap = np.linalg.norm(samples - (a + t[:, None] * ab), axis=1)
                 # touching along at least a cell (not at a corner)
-                if (gap <= STRUCTURE_TOUCH_CELLS * dx).sum() * 0.25 * dx >= dx * (1 - 1e-9):
+                if spans[gap <= STRUCTURE_TOUCH_CELLS * dx].sum() >= dx * (1 - 1e-6):
                     normal = np.array([ab[1], -ab[0]]) / length  # outward for a counter-clockwise outline
                     found.append((index, f"structures.{k} ({structure.name!r})",
                                   structure.contact.friction_angle_deg, normal))
