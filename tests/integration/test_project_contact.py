@@ -77,6 +77,11 @@ LIMITS = [
                             "(+3.5-3.7 % in every scheme at 1e6 Pa, +5.1-5.5 % at 1e8; 0.8-0.9 % after a 1 s "
                             "gravity stage): the flutter of an undamped elastic block under Coulomb friction near "
                             "the friction limit (docs/solver.md, contact)")),
+    pytest.param("ramp", "mpm", "f32", 1, 1e8, 40, 30, "gravity", marks=pytest.mark.xfail(
+        strict=True, reason="classic mpm, a stiff 1-cell sheet on the ramp structure slides short: -3.40 % at "
+                            "40/30 (-0.23, -0.92, -1.63 % at 10/0, 20/10, 30/20; apic -1.78 %, apic-affine -0.80 % "
+                            "at 40/30; -5.3 % for a 2-cell block 8 cells long, -6.3 % with 3 x 3 particles per "
+                            "cell)")),
 ]
 
 
