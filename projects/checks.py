@@ -15,7 +15,12 @@ workbench shows them):
 - a vertical or horizontal structure face far from the grid's node lines (0.26 to 0.74 cells off
   with mpm and apic, 0.41 to 0.59 with apic-affine): the node the structure holds lies inside the
   material or the free node next to it close to the face, and the thrust on it drifts
-  (docs/validation.md, thrust).
+  (docs/validation.md, thrust);
+- a body resting on an inclined frictional contact (a friction side or a friction structure face
+  it touches, inclined to gravity's level, its friction angle at least the incline) while the
+  first dynamic or strength-reduction stage has no initial-stress stage before it: it starts
+  stress free, is loaded at once, and the waves of that loading make it creep down the contact
+  where friction should hold it (docs/validation.md, contact through the project path).
 
 :func:`recommended_initial_stage` is the default initial-stress stage for a new project (the
 slope template): gravity loading where the ground slopes, k0 where it is level.
@@ -272,6 +277,93 @@ def _off_node_faces(project: Project) -> list[str]:
     return warnings
 
 
+def _contact_faces(project: Project):
+    """Every frictional contact face a body touches: ``(body index, where, friction angle (deg),
+    outward unit normal of the contact (into the material))``. ``where`` names the side
+    (``"the bottom wall"``) or the structure (``"structures.0 ('ramp')"``)."""
+    from geometry.polygons import counter_clockwise
+
+    domain = project.domain
+    dx = domain.cell_size_m
+    x0, y0 = domain.origin_m
+    ratios = [size / dx for size in domain.size_m]
+    if not all(math.isfinite(r) for r in ratios):
+        return []
+    cells = [max(1, math.ceil(r - 1e-9)) for r in ratios]
+    x1, y1 = x0 + cells[0] * dx, y0 + cells[1] * dx
+    sides = {"left": (np.array([1.0, 0.0]), 0, x0, 1.0), "right": (np.array([-1.0, 0.0]), 0, x1, -1.0),
+             "bottom": (np.array([0.0, 1.0]), 1, y0, 1.0), "top": (np.array([0.0, -1.0]), 1, y1, -1.0)}
+    found = []
+    for index, body in enumerate(project.bodies):
+        pts = np.asarray(body.polygon_m, dtype=np.float64)
+        for side, (normal, axis, wall, sign) in sides.items():
+            boundary = getattr(domain.boundaries, side)
+            if boundary.type == "friction" and (sign * (pts[:, axis] - wall)).min() <= TOUCH_TOLERANCE * dx:
+                found.append((index, f"the {side} wall", boundary.friction_angle_deg, normal))
+        if not project.structures:
+            continue
+        # points along the body's outline, a quarter cell apart (at most 4096 an edge), each
+        # standing for its share of the outline's length, against each structure face
+        samples, spans = [], []
+        for a, b in zip(pts, np.roll(pts, -1, axis=0)):
+            length = float(np.linalg.norm(b - a))
+            if not math.isfinite(length):
+                continue
+            k = min(4096, max(1, math.ceil(length / (0.25 * dx))))
+            samples.append(a + ((np.arange(k) + 0.5) / k)[:, None] * (b - a))
+            spans.append(np.full(k, length / k))
+        if not samples:
+            continue
+        samples, spans = np.vstack(samples), np.concatenate(spans)
+        for k, structure in enumerate(project.structures):
+            if structure.contact.type != "friction":
+                continue
+            poly = counter_clockwise(np.asarray(structure.polygon_m, dtype=np.float64))
+            for a, b in zip(poly, np.roll(poly, -1, axis=0)):
+                ab = b - a
+                length = float(np.linalg.norm(ab))
+                if not length > 0:
+                    continue
+                t = np.clip((samples - a) @ ab / length**2, 0.0, 1.0)
+                gap = np.linalg.norm(samples - (a + t[:, None] * ab), axis=1)
+                # touching along at least a cell (not at a corner)
+                if spans[gap <= STRUCTURE_TOUCH_CELLS * dx].sum() >= dx * (1 - 1e-6):
+                    normal = np.array([ab[1], -ab[0]]) / length  # outward for a counter-clockwise outline
+                    found.append((index, f"structures.{k} ({structure.name!r})",
+                                  structure.contact.friction_angle_deg, normal))
+    return found
+
+
+def _stress_free_on_friction(project: Project) -> list[str]:
+    """A body held by an inclined frictional contact, loaded at once by a first dynamic stage."""
+    first = next((i for i, stage in enumerate(project.stages) if stage.type in ("dynamic", "strength-reduction")), None)
+    if first is None or any(stage.type in ("k0", "gravity") for stage in project.stages[:first]):
+        return []
+    if not float(np.linalg.norm(project.domain.gravity_m_s2)) > 0:
+        return []
+    up = _up(project)
+    lo_cos = math.cos(math.radians(WALL_ANGLE_DEG))
+    hi_cos = math.cos(math.radians(SLOPE_TOLERANCE_DEG))
+    for index, where, friction, normal in _contact_faces(project):
+        carries = float(normal @ up)  # cosine of the contact's incline to gravity's level
+        if not lo_cos < carries < hi_cos:
+            continue  # level (no creep direction) or upright (carries no weight)
+        incline = math.degrees(math.acos(min(1.0, carries)))
+        if friction is None or friction < incline:
+            continue  # it slides anyway
+        stage = project.stages[first]
+        body = project.bodies[index]
+        duration = _gravity_stage(project)["duration_s"]
+        return [
+            f"stages.{first}.type = \"{stage.type}\" has no initial-stress stage before it, and bodies.{index} "
+            f"({body.name!r}) rests on {where} (friction {friction:g} degrees, inclined {incline:.3g} degrees): it "
+            "starts stress free and loaded at once, and the waves of that loading make it creep down the contact "
+            "where friction should hold it; add a gravity stage before it "
+            f"({{type = \"gravity\", duration_s = {duration:g}}} with local damping)"
+        ]
+    return []
+
+
 def project_warnings(project: Project) -> list[str]:
     """Everything about a valid project that probably is not what the engineer meant.
 
@@ -285,7 +377,8 @@ def project_warnings(project: Project) -> list[str]:
         One line each, naming the key and what to do.
     """
     with np.errstate(all="ignore"):  # absurd coordinates (1e300 m) are the size limits' business
-        return [*_wall_gaps(project), *_structure_gaps(project), *_k0_on_slope(project), *_thin_structures(project), *_off_node_faces(project)]
+        return [*_wall_gaps(project), *_structure_gaps(project), *_k0_on_slope(project), *_thin_structures(project), *_off_node_faces(project),
+                *_stress_free_on_friction(project)]
 
 
 def recommended_initial_stage(project: Project) -> dict[str, Any]:
@@ -308,6 +401,11 @@ def recommended_initial_stage(project: Project) -> dict[str, Any]:
     """
     if not sloping_faces(project):
         return {"name": "initial stress", "type": "k0"}
+    return _gravity_stage(project)
+
+
+def _gravity_stage(project: Project) -> dict[str, Any]:
+    """The gravity stage :func:`recommended_initial_stage` gives for sloping ground."""
     up = _up(project)
     heights = np.concatenate([np.asarray(b.polygon_m, dtype=np.float64) @ up for b in project.bodies])
     height = float(heights.max() - heights.min())

@@ -1,0 +1,134 @@
+"""Coulomb friction through the project path (issue 11): a block at rest on a frictional contact,
+written as a project file, run by ``projects.runner.run_project``, its slip read from the frames.
+
+The user's way, at a realistic scale (5 cm cells for both stiffnesses): a tilted
+``domain.gravity_m_s2`` with a friction side (bottom, left or right), or a ``[[structures]]`` ramp
+with a friction contact under vertical gravity; a 0.2 s ``gravity`` stage, then a ``dynamic`` stage
+until the analytic travel is 20 cells (``benchmarks.contact_matrix.project_text``). The slip is
+the mean displacement along the slope of the lowest particle row. Sliding: within 3 % of
+``1/2 g (sin th - tan d cos th) t^2``; sticking: under 0.1 % of the frictionless distance (the
+issue's tolerances). The whole matrix: ``python -m benchmarks.contact_matrix --path project``
+(docs/validation.md, contact through the project path).
+"""
+
+from __future__ import annotations
+
+import tomllib
+
+import pytest
+
+from benchmarks.contact_matrix import project_text, run_case
+from projects.checks import project_warnings
+from projects.schema import validate_project
+
+SLIDE_TOL = 0.03
+STICK_TOL = 0.001
+
+# (contact, scheme, precision, thickness cells, E (Pa), incline, friction): every contact, scheme,
+# precision, thickness and stiffness, sliding and sticking. Small blocks (a 20-cell block only at
+# 1e6 Pa: at 1e8 its 14,000 steps cost 17 s), and few combinations of scheme, precision and contact
+# (each new one compiles its kernels: about 10 s the first time on a machine)
+CASES = [
+    ("bottom", "apic-affine", "f32", 5, 1e6, 30, 20),
+    ("bottom", "apic-affine", "f32", 5, 1e8, 20, 30),
+    ("bottom", "apic-affine", "f32", 20, 1e6, 40, 30),
+    ("left", "apic-affine", "f32", 1, 1e8, 40, 45),
+    ("left", "apic-affine", "f32", 5, 1e6, 20, 10),
+    ("ramp", "apic-affine", "f32", 5, 1e6, 30, 45),
+    ("ramp", "apic-affine", "f32", 1, 1e8, 30, 20),
+    ("bottom", "mpm", "f32", 20, 1e6, 30, 45),
+    ("bottom", "mpm", "f32", 1, 1e8, 20, 10),
+    ("bottom", "apic", "f32", 1, 1e6, 10, 20),
+    ("bottom", "apic", "f32", 20, 1e6, 40, 30),
+    ("bottom", "apic-affine", "f64", 5, 1e6, 10, 0),
+    ("right", "mpm", "f64", 20, 1e6, 20, 30),
+    ("ramp", "apic", "f64", 5, 1e6, 20, 10),
+    ("ramp", "apic", "f64", 1, 1e6, 10, 20),
+]
+
+
+def _check(outcome) -> None:
+    if outcome.slides:
+        assert abs(outcome.error) < SLIDE_TOL, f"slip {outcome.distance_m:.4f} m against {outcome.analytic_m:.4f} m"
+    else:
+        assert outcome.error < STICK_TOL, (f"slip {outcome.distance_m:.3g} m, {100 * outcome.error:.3f} % of the "
+                                           f"frictionless {outcome.frictionless_m:.3f} m")
+
+
+@pytest.mark.parametrize("contact,scheme,precision,thickness,youngs,theta,delta", CASES,
+                         ids=[f"{c}-{s}-{p}-{n}cells-E{e:g}-{t}on{d}" for c, s, p, n, e, t, d in CASES])
+def test_a_block_slides_or_sticks_as_coulomb_says_through_the_project_path(
+        tmp_path, contact, scheme, precision, thickness, youngs, theta, delta):
+    case = project_text(contact, scheme, precision, thickness, youngs, theta, delta)
+    assert project_warnings(validate_project(tomllib.loads(case.text))) == []
+    outcome, result = run_case(case, tmp_path / "run")
+    assert outcome.slides == (delta < theta)
+    _check(outcome)
+
+
+# Known limits, measured (docs/validation.md, contact through the project path)
+LIMITS = [
+    pytest.param("bottom", "apic-affine", "f32", 5, 1e6, 20, 30, "free", marks=pytest.mark.xfail(
+        strict=True, reason="stress free (no initial-stress stage): the waves of the sudden loading make a sticking "
+                            "block creep, 0.19-0.24 % of the frictionless distance measured (5 cells, 1e6 Pa); the "
+                            "project warns (projects.checks)")),
+    pytest.param("bottom", "apic-affine", "f32", 20, 1e6, 40, 45, "gravity", marks=pytest.mark.xfail(
+        strict=True, reason="a 20-cell block at 40 deg on 45 deg friction slips +3.5 % of the frictionless distance "
+                            "(+3.5-3.7 % in every scheme at 1e6 Pa, +5.1-5.5 % at 1e8; 0.8-0.9 % after a 1 s "
+                            "gravity stage): the flutter of an undamped elastic block under Coulomb friction near "
+                            "the friction limit (docs/solver.md, contact)")),
+    pytest.param("ramp", "mpm", "f32", 1, 1e8, 40, 30, "gravity", marks=pytest.mark.xfail(
+        strict=True, reason="classic mpm, a stiff 1-cell sheet on the ramp structure slides short: -3.40 % at "
+                            "40/30 (-0.23, -0.92, -1.63 % at 10/0, 20/10, 30/20; apic -1.78 %, apic-affine -0.80 % "
+                            "at 40/30; -5.3 % for a 2-cell block 8 cells long, -6.3 % with 3 x 3 particles per "
+                            "cell)")),
+]
+
+
+@pytest.mark.parametrize("contact,scheme,precision,thickness,youngs,theta,delta,start", LIMITS)
+def test_known_limits_of_the_project_path(tmp_path, contact, scheme, precision, thickness, youngs, theta, delta,
+                                          start):
+    case = project_text(contact, scheme, precision, thickness, youngs, theta, delta, start=start)
+    outcome, _ = run_case(case, tmp_path / "run")
+    _check(outcome)
+
+
+# --- the warning for a body loaded at once on a frictional contact ---------------------------------
+
+def _warnings(contact="bottom", theta=20, delta=30, start="free", **kw):
+    case = project_text(contact, "apic-affine", "f32", 5, 1e6, theta, delta, start=start, **kw)
+    return project_warnings(validate_project(tomllib.loads(case.text)))
+
+
+@pytest.mark.parametrize("contact,where", [("bottom", "the bottom wall"), ("left", "the left wall"),
+                                           ("right", "the right wall"), ("ramp", "structures.0 ('ramp')")])
+def test_a_block_loaded_at_once_on_a_frictional_incline_is_a_warning(contact, where):
+    warnings = _warnings(contact)
+    assert len(warnings) == 1
+    assert warnings[0].startswith(f"stages.0.type = \"dynamic\" has no initial-stress stage before it, and bodies.0 "
+                                  f"('block') rests on {where} (friction 30 degrees, inclined 20 degrees)")
+    assert "creep" in warnings[0] and "gravity stage" in warnings[0]
+
+
+def test_no_creep_warning_with_an_initial_stress_stage_or_where_it_would_not_creep():
+    # an initial-stress stage first (k0 has its own warning under a slope, not this one)
+    assert _warnings(start="gravity") == []
+    assert [w for w in _warnings(start="k0") if "initial-stress" in w] == []
+    # friction below the incline: it slides anyway
+    assert _warnings(theta=30, delta=20) == []
+    assert _warnings("ramp", theta=30, delta=20) == []
+    # level ground (no direction to creep in) and a body that does not touch the contact
+    level = tomllib.loads(project_text("bottom", "apic-affine", "f32", 5, 1e6, 0.0, 30, start="free",
+                                       duration_s=1.0).text)
+    assert level["domain"]["gravity_m_s2"][0] == 0.0
+    assert project_warnings(validate_project(level)) == []
+    lifted = tomllib.loads(project_text("bottom", "apic-affine", "f32", 5, 1e6, 20, 30, start="free").text)
+    lifted["bodies"][0]["polygon_m"] = [[x, y + 0.2] for x, y in lifted["bodies"][0]["polygon_m"]]
+    assert project_warnings(validate_project(lifted)) == []
+    # a frictionless ramp (slip) holds nothing; neither does a fixed side
+    slip = tomllib.loads(project_text("ramp", "apic-affine", "f32", 5, 1e6, 20, 30, start="free").text)
+    slip["structures"][0]["contact"] = "slip"
+    assert project_warnings(validate_project(slip)) == []
+    fixed = tomllib.loads(project_text("bottom", "apic-affine", "f32", 5, 1e6, 20, 30, start="free").text)
+    fixed["domain"]["boundaries"]["bottom"] = "fixed"
+    assert project_warnings(validate_project(fixed)) == []
