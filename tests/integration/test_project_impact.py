@@ -17,7 +17,7 @@ Checks per run, all exact statements about a closed scene:
   impedance bound `rho c_p v h` (a 1D impact on a rigid face: c_p the P-wave speed,
   `sqrt(E (1 - nu) / ((1 + nu)(1 - 2 nu)) / rho)`), which no impact of speed v can exceed.
 
-The matrix these come from (42 runs over the three schemes, f32/f64, slip/fixed/friction
+The matrix these come from (65 runs over the three schemes, f32/f64, slip/fixed/friction
 contacts, 2 and 3 particles per cell, cfl 0.3-0.7, phi 25-40 deg, c 0-500 Pa, elastic E 1e6-1e7)
 all passed; the measured figures are in docs/validation.md.
 """
