@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, NoReturn
 
 import typer
-from rich.console import Console
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from projects.runner import RunResult, StopRequest
@@ -56,8 +55,45 @@ cli = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-out = Console(soft_wrap=True, highlight=False)
-err = Console(stderr=True, soft_wrap=True, highlight=False)
+
+
+class _LazyConsole:
+    """A rich ``Console`` made at its first use: importing rich costs about 20 ms, which every
+    ``runout run`` would pay before its first step (docs/performance.md, start-up)."""
+
+    def __init__(self, **options: Any):
+        self._options = options
+        self._console: Any = None
+
+    def get(self) -> Any:
+        """The console itself (for rich objects that take one)."""
+        if self._console is None:
+            from rich.console import Console
+
+            self._console = Console(**self._options)
+        return self._console
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.get(), name)
+
+
+out = _LazyConsole(soft_wrap=True, highlight=False)
+err = _LazyConsole(stderr=True, soft_wrap=True, highlight=False)
+
+
+class _RichLogHandler(logging.Handler):
+    """Log records through rich's handler on ``err``, made at the first record (see _LazyConsole)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._rich: logging.Handler | None = None
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if self._rich is None:
+            from rich.logging import RichHandler
+
+            self._rich = RichHandler(console=err.get(), show_time=False, show_path=False, markup=False)
+        self._rich.handle(record)
 
 
 class Arch(str, Enum):
@@ -122,13 +158,10 @@ def _in_main_thread() -> bool:
 
 
 def _setup_logging(verbose: bool, quiet: bool = False) -> None:
-    from rich.logging import RichHandler
-
     level = logging.DEBUG if verbose else logging.ERROR if quiet else logging.WARNING
     root = logging.getLogger()
-    if not any(isinstance(h, RichHandler) for h in root.handlers):
-        handler = RichHandler(console=err, show_time=False, show_path=False, markup=False)
-        root.addHandler(handler)
+    if not any(isinstance(h, _RichLogHandler) for h in root.handlers):
+        root.addHandler(_RichLogHandler())
     root.setLevel(level)
 
 
@@ -209,7 +242,7 @@ class _RunProgress:
             TextColumn("{task.fields[rate]}"),
             TextColumn("ETA"),
             TimeRemainingColumn(),
-            console=err,
+            console=err.get(),
         )
         self.task = self.bar.add_task("preparing", total=None, rate="", clock="")
 
@@ -659,7 +692,7 @@ def animate(
         width_height = _parse_size(size)
     res = _open_results(results)
     try:
-        with Progress(console=err, transient=True) as bar:
+        with Progress(console=err.get(), transient=True) as bar:
             task = bar.add_task("rendering", total=len(res))
             path = make_movie(
                 res, output, field, fps, size=width_height,

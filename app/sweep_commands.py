@@ -35,7 +35,7 @@ class _Bar:
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
         self.bar = Progress(TextColumn(what), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[info]}"),
-                            TimeElapsedColumn(), TextColumn("ETA {task.fields[eta]}"), console=_cli().err)
+                            TimeElapsedColumn(), TextColumn("ETA {task.fields[eta]}"), console=_cli().err.get())
         self.task = self.bar.add_task(what, total=None, info="", eta="-")
 
     def __enter__(self) -> _Bar:
