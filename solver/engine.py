@@ -77,6 +77,9 @@ def _bspline_slope(f, i):
     return r
 
 
+#: The particle density never falls below this fraction of its material's (docs/solver.md, schemes:
+#: eq 24 alone let grains torn off a cohesionless mass expand without bound and, landing, be
+#: stiffer per mass than the time step allows)
 DENSITY_FLOOR = 0.5
 
 

@@ -326,7 +326,7 @@ def test_a_particle_pulled_apart_keeps_at_least_half_its_material_density(scheme
     free at the cone's apex) would otherwise grow without bound (53 times its volume in the
     dropped-block scene of docs/validation.md) and be that much stiffer per mass when it lands
     again (the wave speed goes as 1 / sqrt(rho)): the density stops at DENSITY_FLOOR of the
-    material's (docs/solver.md, time step and the stability guard)."""
+    material's (docs/solver.md, schemes: density)."""
     from solver.engine import DENSITY_FLOOR, Engine
 
     grid = Grid((0.0, 0.0), (2.0, 2.0), 0.1)
