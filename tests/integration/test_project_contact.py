@@ -81,9 +81,8 @@ LIMITS = [
         strict=True, reason="classic mpm, a stiff 1-cell sheet on the ramp structure slides short: -3.40 % at "
                             "40/30 (-0.23, -0.92, -1.63 % at 10/0, 20/10, 30/20; apic -1.78 %, apic-affine -0.80 % "
                             "at 40/30; -5.3 % for a 2-cell block 8 cells long, -6.3 % with 3 x 3 particles per "
-                            "cell); it starts one cell below the ramp's convex top vertex, whose contact nodes "
-                            "brake its upslope end: started 2 cells further down it is +0.009 % "
-                            "(docs/validation.md)")),
+                            "cell); it starts one cell below the ramp's top vertex: started 2 cells further down "
+                            "it is +0.009 % (docs/validation.md)")),
 ]
 
 
