@@ -108,16 +108,21 @@ def main(argv: list[str] | None = None) -> int:
                             if None not in scenes:
                                 scenes[None] = WallIncline(scheme, precision, thickness, youngs, contact, aspect=args.aspect)
                             o = scenes[None].run(theta, delta, settled)
-                        row = (contact, scheme, precision, thickness, youngs, theta, delta, o.slides, o.distance_m,
-                               o.analytic_m, o.frictionless_m, o.error, o.steps, time.perf_counter() - t0, args.aspect)
-                        rows.append(row)
-                        out.writerow(row)
-                        fh.flush()
-                        print(" ".join(str(v) for v in row), flush=True)
+                        _record(rows, out, fh, (contact, scheme, precision, thickness, youngs, theta, delta), o,
+                                time.perf_counter() - t0, args.aspect)
             finally:
                 runtime.release()
     summarise(rows)
     return 0
+
+
+def _record(rows: list, out, fh, case: tuple, o, wall_s: float, aspect: float) -> None:
+    """One case's row (:data:`COLUMNS`): kept for the summary, written and flushed, printed."""
+    row = (*case, o.slides, o.distance_m, o.analytic_m, o.frictionless_m, o.error, o.steps, wall_s, aspect)
+    rows.append(row)
+    out.writerow(row)
+    fh.flush()
+    print(" ".join(str(v) for v in row), flush=True)
 
 
 def _project_matrix(args, angles) -> int:
@@ -144,12 +149,8 @@ def _project_matrix(args, angles) -> int:
                 except RuntimeError as err:  # a failed run (e.g. the stability guard) is a row, not the end
                     print(f"FAILED {err}", flush=True)
                     continue
-                row = (contact, scheme, precision, thickness, youngs, theta, delta, o.slides, o.distance_m,
-                       o.analytic_m, o.frictionless_m, o.error, o.steps, time.perf_counter() - t0, args.aspect)
-                rows.append(row)
-                out.writerow(row)
-                fh.flush()
-                print(" ".join(str(v) for v in row), flush=True)
+                _record(rows, out, fh, (contact, scheme, precision, thickness, youngs, theta, delta), o,
+                        time.perf_counter() - t0, args.aspect)
     summarise(rows)
     return 0
 

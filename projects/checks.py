@@ -118,16 +118,25 @@ def ground_slope_deg(project: Project) -> float:
     return max((f.angle_deg for f in faces), default=0.0)
 
 
+def _grid_box(domain) -> tuple[float, float, float, float] | None:
+    """The grid's sides ``(x0, y0, x1, y1)``: the grid has whole cells, so its right and top walls
+    lie where the last cell ends; None for a grid beyond any size (the size limits report it)."""
+    dx = domain.cell_size_m
+    x0, y0 = domain.origin_m
+    ratios = [size / dx for size in domain.size_m]
+    if not all(math.isfinite(r) for r in ratios):
+        return None
+    cells = [max(1, math.ceil(r - 1e-9)) for r in ratios]
+    return x0, y0, x0 + cells[0] * dx, y0 + cells[1] * dx
+
+
 def _wall_gaps(project: Project) -> list[str]:
     domain = project.domain
     dx = domain.cell_size_m
-    x0, y0 = domain.origin_m
-    # the grid has whole cells: its right and top walls lie where the last cell ends
-    ratios = [size / dx for size in domain.size_m]
-    if not all(math.isfinite(r) for r in ratios):
-        return []  # a grid beyond any size: the size limits report it
-    cells = [max(1, math.ceil(r - 1e-9)) for r in ratios]
-    x1, y1 = x0 + cells[0] * dx, y0 + cells[1] * dx
+    box = _grid_box(domain)
+    if box is None:
+        return []
+    x0, y0, x1, y1 = box
     warnings = []
     for index, body in enumerate(project.bodies):
         pts = np.asarray(body.polygon_m, dtype=np.float64)
@@ -285,12 +294,10 @@ def _contact_faces(project: Project):
 
     domain = project.domain
     dx = domain.cell_size_m
-    x0, y0 = domain.origin_m
-    ratios = [size / dx for size in domain.size_m]
-    if not all(math.isfinite(r) for r in ratios):
+    box = _grid_box(domain)
+    if box is None:
         return []
-    cells = [max(1, math.ceil(r - 1e-9)) for r in ratios]
-    x1, y1 = x0 + cells[0] * dx, y0 + cells[1] * dx
+    x0, y0, x1, y1 = box
     sides = {"left": (np.array([1.0, 0.0]), 0, x0, 1.0), "right": (np.array([-1.0, 0.0]), 0, x1, -1.0),
              "bottom": (np.array([0.0, 1.0]), 1, y0, 1.0), "top": (np.array([0.0, -1.0]), 1, y1, -1.0)}
     found = []
@@ -377,8 +384,8 @@ def project_warnings(project: Project) -> list[str]:
         One line each, naming the key and what to do.
     """
     with np.errstate(all="ignore"):  # absurd coordinates (1e300 m) are the size limits' business
-        return [*_wall_gaps(project), *_structure_gaps(project), *_k0_on_slope(project), *_thin_structures(project), *_off_node_faces(project),
-                *_stress_free_on_friction(project)]
+        return [*_wall_gaps(project), *_structure_gaps(project), *_k0_on_slope(project),
+                *_thin_structures(project), *_off_node_faces(project), *_stress_free_on_friction(project)]
 
 
 def recommended_initial_stage(project: Project) -> dict[str, Any]:
