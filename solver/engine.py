@@ -248,7 +248,8 @@ class Engine:
         counts = np.array([len(a) for a, _ in edges], np.int32)
         xs, ys = self._node_coordinates()
         index, normal = node_contacts(self.solid_polygons, xs, ys, self.dx)
-        normal, normal_b = corner_normals(self.solid_polygons, xs, ys, index, normal, self.dx)
+        normal, normal_b = corner_normals(self.solid_polygons, xs, ys, index, normal, self.dx,
+                                          (self.origin, self.upper))
         self._io.write({
             "edge_a": np.concatenate([a for a, _ in edges]).astype(f),
             "edge_b": np.concatenate([b for _, b in edges]).astype(f),

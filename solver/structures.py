@@ -185,7 +185,8 @@ def _outward_normals(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def corner_normals(polygons: Sequence[Sequence[Sequence[float]]], node_x_m: np.ndarray, node_y_m: np.ndarray,
-                   index: np.ndarray, normal: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray]:
+                   index: np.ndarray, normal: np.ndarray, cell_m: float,
+                   box_m: tuple[Sequence[float], Sequence[float]] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The two normals of every contact node: the faces of a convex corner at a node near one,
     the node's own normal twice elsewhere.
 
@@ -201,12 +202,16 @@ def corner_normals(polygons: Sequence[Sequence[Sequence[float]]], node_x_m: np.n
     and the engine applies the contact law with the one the node's velocity moves least into
     (``Engine._structure_normal``): the material meets the corner's solid only when it moves into
     both faces. Where several convex vertices qualify the nearest counts; held nodes (zero normal,
-    the medial axis) and concave corners keep their normal.
+    the medial axis) and concave corners keep their normal. A vertex beyond a side of the grid box
+    ``box_m`` (lower and upper corner) is no corner for the material, which stays in the box: the
+    foot of a wall that reaches below the grid's bottom is the wall going on (with it, the ghost
+    node at that foot let a granular column's push into the wall through along the foot's face).
 
     Parameters
     ----------
     polygons, node_x_m, node_y_m, cell_m : as for :func:`node_contacts`
     index, normal : what :func:`node_contacts` returned for them
+    box_m : the grid box (lower, upper corner, m); None: no vertex is beyond it
 
     Returns
     -------
@@ -228,7 +233,12 @@ def corner_normals(polygons: Sequence[Sequence[Sequence[float]]], node_x_m: np.n
         turn = e[prev, 0] * e[:, 1] - e[prev, 1] * e[:, 0]
         orient = 1.0 if float(np.sum(a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1])) > 0.0 else -1.0
         lengths = np.linalg.norm(e, axis=-1)
-        convex = np.flatnonzero(orient * turn > 1e-9 * lengths[prev] * lengths)
+        convex = orient * turn > 1e-9 * lengths[prev] * lengths
+        if box_m is not None:
+            slack = TIE_CELLS * cell_m
+            convex &= np.all((a >= np.asarray(box_m[0], float) - slack) & (a <= np.asarray(box_m[1], float) + slack),
+                             axis=-1)
+        convex = np.flatnonzero(convex)
         if len(convex) == 0:
             continue
         q = pts[mine]

@@ -226,17 +226,17 @@ def test_a_node_at_a_convex_corner_takes_the_normals_of_both_faces(reverse):
     """corner_normals: the node on a ramp's convex top vertex (its signed-distance normal the
     bisector), the node inside on the bisector of a square corner and the nodes whose cell holds a
     convex vertex off the node lines get the two faces' outward normals; nodes on one face, the
-    concave foot and the middle of a wall two cells thick (as near to a third face) keep theirs.
-    Either orientation of the polygon."""
+    concave foot, the middle of a wall two cells thick (as near to a third face) and the foot of a
+    wall below the grid box keep theirs. Either orientation of the polygon."""
     h = 0.1
     xs = ys = np.arange(0.0, 2.0001, h)
     th = math.radians(40.0)
     up, down = np.array([0.0, 1.0]), np.array([math.sin(th), math.cos(th)])  # top face, ramp face
 
-    def normals(polygon):
+    def normals(polygon, box=None):
         polygon = polygon[::-1] if reverse else polygon
         index, normal = node_contacts([polygon], xs, ys, h)
-        a, b = corner_normals([polygon], xs, ys, index, normal, h)
+        a, b = corner_normals([polygon], xs, ys, index, normal, h, box)
         at = lambda x, y: (round(x / h), round(y / h))  # noqa: E731
         return index, normal, a, b, at
 
@@ -262,6 +262,10 @@ def test_a_node_at_a_convex_corner_takes_the_normals_of_both_faces(reverse):
     # a wall two cells thick: the node one cell below the middle of its top is as near to three faces
     index, normal, a, b, at = normals([(0.4, 0.0), (0.6, 0.0), (0.6, 0.8), (0.4, 0.8)])
     np.testing.assert_array_equal(a[at(0.5, 0.7)], b[at(0.5, 0.7)])
+    # a wall from one cell below the grid's bottom (y = 0.1): its foot's corners are not the material's
+    index, normal, a, b, at = normals([(0.4, 0.0), (0.6, 0.0), (0.6, 0.8), (0.4, 0.8)], ((0.0, 0.1), (2.0, 2.0)))
+    np.testing.assert_array_equal(a[at(0.4, 0.0)], b[at(0.4, 0.0)])
+    assert pair(a, b, at(0.4, 0.8)) == [(-1.0, 0.0), (0.0, 1.0)]
     # a V-shaped valley: its concave corner keeps the gradient's normal
     index, normal, a, b, at = normals([(0.0, 0.0), (2.0, 0.0), (2.0, 1.5), (1.0, 0.5), (0.0, 1.5)])
     np.testing.assert_array_equal(a[at(1.0, 0.5)], b[at(1.0, 0.5)])
