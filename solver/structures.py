@@ -5,7 +5,9 @@ node the structure that overlaps its cell (the square of one cell centred on the
 outward normal there, the gradient of the polygon's signed distance. Inside a polygon the
 gradient points from the node to the nearest point of the surface, outward; just outside, away
 from it; on the surface it is the edge's outward normal (the mean of the two at a vertex), so
-inclined and curved surfaces get their own normals, not grid axes.
+inclined and curved surfaces get their own normals, not grid axes. Near a convex corner a node
+carries the two faces' normals instead (:func:`corner_normals`), and the engine takes the one the
+material moves least into.
 
 Why the cell and not the node alone: a closed side lies on a node line, so its contact nodes are
 on the surface. An inclined surface crosses the node lines; constraining only the nodes on or
