@@ -247,7 +247,7 @@ def _f(value: float) -> str:
 def project_text(contact: str, scheme: str, precision: str, thickness_cells: int, youngs_pa: float,
                  theta_deg: float, delta_deg: float, *, cell_m: float = PROJECT_CELL_M, start: str = "gravity",
                  aspect: float = 4.0, duration_s: float | None = None, gravity_s: float = GRAVITY_STAGE_S,
-                 per_cell: int = 2) -> ProjectCase:
+                 per_cell: int = 2, start_cells: float = 1.0) -> ProjectCase:
     """A block at rest on a frictional contact as a project file.
 
     ``contact``: ``"bottom"``, ``"left"`` or ``"right"`` (a friction side, the incline made by
@@ -255,7 +255,8 @@ def project_text(contact: str, scheme: str, precision: str, thickness_cells: int
     ``start``: ``"gravity"`` (a damped gravity stage of ``gravity_s`` first), ``"k0"`` or
     ``"free"`` (the dynamic stage only). The dynamic stage lasts ``duration_s`` (default: the
     analytic travel of 20 cells plus 5 %, :func:`studies.contact_scenes.run_time`); one frame at
-    its end.
+    its end. ``start_cells``: on the ramp, how far down the face from the ramp's convex top vertex
+    the block's upslope end starts (cells).
     """
     import numpy as np
 
@@ -300,7 +301,7 @@ def project_text(contact: str, scheme: str, precision: str, thickness_cells: int
         foot = top + run_along * t_hat
         below = 0.0
         ramp = [(top[0] - 2 * dx, top[1]), tuple(top), tuple(foot), (foot[0], below), (top[0] - 2 * dx, below)]
-        a = top + dx * t_hat
+        a = top + start_cells * dx * t_hat
         block = [tuple(a), tuple(a + length * dx * t_hat), tuple(a + length * dx * t_hat + n * dx * n_hat),
                  tuple(a + n * dx * n_hat)]
         lo = np.array([0.0, below - 2 * dx])

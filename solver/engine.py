@@ -40,7 +40,7 @@ from solver.config import SIDES, Boundary, Grid, Material, Structure
 from solver.fieldio import FieldIO
 from solver.materials import MaterialTable
 from solver.scatter import BIG, SCATTER_STATE, make_scatter
-from solver.structures import node_contacts, segments, through_sides
+from solver.structures import corner_normals, node_contacts, segments, through_sides
 
 PAD = 2
 BOUNDARY_CODES = {"fixed": 0, "slip": 1, "friction": 2, "open": 3, "periodic": 4}
@@ -172,6 +172,9 @@ class Engine:
         has = self.n_structures > 0
         self.node_struct = ti.field(ti.i32, self.nodes if has else (1, 1))
         self.node_normal = ti.Vector.field(2, float, self.nodes if has else (1, 1))
+        # near a convex corner the normals of its two faces (solver.structures.corner_normals);
+        # elsewhere node_normal_b is node_normal
+        self.node_normal_b = ti.Vector.field(2, float, self.nodes if has else (1, 1))
         # impulse on the material in this step (N s/m), impulse on the contact since the last read,
         # and the largest force of one step since then (|F|, Fx, Fy; N/m): in f64 whatever the precision
         self.contact_step = ti.Vector.field(2, ti.f64, self.n_contacts)
@@ -215,7 +218,7 @@ class Engine:
     #: the set-up); the scatter strategy's ``STATE`` fields are moved with them.
     HOST_FIELDS = PARTICLE_STATE + COUNTER_STATE + (
         "contact_step", "speed_bound", "bc_kind", "bc_mu", "st_kind", "st_mu", "edge_a", "edge_b",
-        "st_edges", "st_box", "node_struct", "node_normal")
+        "st_edges", "st_box", "node_struct", "node_normal", "node_normal_b")
 
     def set_boundaries(self, grid: Grid) -> None:
         """The kinds and friction of the four sides (data: no recompilation; whether the left and
@@ -245,6 +248,8 @@ class Engine:
         counts = np.array([len(a) for a, _ in edges], np.int32)
         xs, ys = self._node_coordinates()
         index, normal = node_contacts(self.solid_polygons, xs, ys, self.dx)
+        normal, normal_b = corner_normals(self.solid_polygons, xs, ys, index, normal, self.dx,
+                                          (self.origin, self.upper))
         self._io.write({
             "edge_a": np.concatenate([a for a, _ in edges]).astype(f),
             "edge_b": np.concatenate([b for _, b in edges]).astype(f),
@@ -252,6 +257,7 @@ class Engine:
             "st_box": np.array([[*a.min(axis=0), *a.max(axis=0)] for a, _ in edges]).astype(f),
             "node_struct": index,
             "node_normal": normal.astype(f),
+            "node_normal_b": normal_b.astype(f),
         })
 
     @property
@@ -522,7 +528,7 @@ class Engine:
         if ti.static(self.n_structures > 0):
             s = self.node_struct[I]
             if s >= 0:
-                n = self.node_normal[I]
+                n = self._structure_normal(I, v)
                 # a node on the structure's medial axis (the middle node line of a wall an even
                 # number of cells thick) has no outward direction (zero normal): it is held
                 kind = self.st_kind[s] if n.dot(n) > 0.25 else FIXED
@@ -543,6 +549,23 @@ class Engine:
                         self._record(4 + s, mass * (new - v))
                 v = new
         return v
+
+    @ti.func
+    def _structure_normal(self, I, v):
+        """The normal of structure contact node I for its trial velocity ``v``: its one normal, or
+        near a convex corner, of the corner's two faces the one ``v`` moves least into (the
+        material meets the corner's solid only when it moves into both faces; sliding along
+        either face away from the corner moves into neither; solver.structures.corner_normals),
+        their mean where it moves into both alike."""
+        n = self.node_normal[I]
+        nb = self.node_normal_b[I]
+        va = v.dot(n)
+        vb = v.dot(nb)
+        if vb > va:
+            n = nb
+        elif vb == va and (nb - n).norm_sqr() > 0.0:
+            n = (n + nb).normalized()
+        return n
 
     @ti.func
     def _held(self, I):

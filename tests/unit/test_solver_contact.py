@@ -57,7 +57,7 @@ from solver import runtime
 from solver.config import (Boundary, Grid, Material, Numerics, Output, Particles, SimulationConfig, Stage,
                            Structure)
 from solver.simulation import Simulation
-from solver.structures import node_contacts, signed_distance
+from solver.structures import corner_normals, node_contacts, signed_distance
 from studies.contact_scenes import RampIncline, WallIncline
 
 SLIDE_TOL = 0.03
@@ -219,6 +219,56 @@ def test_structure_contact_nodes_are_those_whose_cell_reaches_into_it(angle_deg)
     if angle_deg == 0.0:  # a surface on a node line: its nodes and those below, nothing above
         assert np.array_equal(index == 0, Y <= 0.5 + 1e-9)
 
+
+
+@pytest.mark.parametrize("reverse", [False, True])
+def test_a_node_at_a_convex_corner_takes_the_normals_of_both_faces(reverse):
+    """corner_normals: the node on a ramp's convex top vertex (its signed-distance normal the
+    bisector), the node inside on the bisector of a square corner and the nodes whose cell holds a
+    convex vertex off the node lines get the two faces' outward normals; nodes on one face, the
+    concave foot, the middle of a wall two cells thick (as near to a third face) and the foot of a
+    wall below the grid box keep theirs. Either orientation of the polygon."""
+    h = 0.1
+    xs = ys = np.arange(0.0, 2.0001, h)
+    th = math.radians(40.0)
+    up, down = np.array([0.0, 1.0]), np.array([math.sin(th), math.cos(th)])  # top face, ramp face
+
+    def normals(polygon, box=None):
+        polygon = polygon[::-1] if reverse else polygon
+        index, normal = node_contacts([polygon], xs, ys, h)
+        a, b = corner_normals([polygon], xs, ys, index, normal, h, box)
+        at = lambda x, y: (round(x / h), round(y / h))  # noqa: E731
+        return index, normal, a, b, at
+
+    def pair(a, b, ij):
+        return sorted([tuple(np.round(a[ij], 9)), tuple(np.round(b[ij], 9))])
+
+    # a ramp: top face from (0, 1.5) to the vertex (0.5, 1.5), then down at 40 deg to the ground
+    foot = np.array([0.5, 1.5]) + 1.4 * np.array([math.cos(th), -math.sin(th)])
+    ramp = [(0.0, 1.5), (0.5, 1.5), tuple(foot), (foot[0], 0.0), (0.0, 0.0)]
+    index, normal, a, b, at = normals(ramp)
+    np.testing.assert_allclose(normal[at(0.5, 1.5)], (up + down) / np.linalg.norm(up + down), atol=1e-6)
+    assert pair(a, b, at(0.5, 1.5)) == pair(np.array([up]), np.array([down]), 0)
+    for x, y in ((0.3, 1.5), (0.7, 1.4), (0.8, 1.2), (0.5, 1.4)):  # on or next to one face
+        assert index[at(x, y)] == 0
+        np.testing.assert_array_equal(a[at(x, y)], normal[at(x, y)])
+        np.testing.assert_array_equal(b[at(x, y)], normal[at(x, y)])
+    # a square block: the inside node on a corner's bisector, and a vertex off the node lines
+    index, normal, a, b, at = normals([(0.5, 0.5), (1.5, 0.5), (1.5, 1.5), (0.5, 1.5)])
+    assert pair(a, b, at(1.4, 1.4)) == [(0.0, 1.0), (1.0, 0.0)]
+    index, normal, a, b, at = normals([(0.52, 0.52), (1.52, 0.52), (1.52, 1.53), (0.52, 1.53)])
+    assert pair(a, b, at(1.5, 1.5)) == [(0.0, 1.0), (1.0, 0.0)]
+    np.testing.assert_array_equal(a[at(1.0, 1.5)], b[at(1.0, 1.5)])
+    # a wall two cells thick: the node one cell below the middle of its top is as near to three faces
+    index, normal, a, b, at = normals([(0.4, 0.0), (0.6, 0.0), (0.6, 0.8), (0.4, 0.8)])
+    np.testing.assert_array_equal(a[at(0.5, 0.7)], b[at(0.5, 0.7)])
+    # a wall from one cell below the grid's bottom (y = 0.1): its foot's corners are not the material's
+    index, normal, a, b, at = normals([(0.4, 0.0), (0.6, 0.0), (0.6, 0.8), (0.4, 0.8)], ((0.0, 0.1), (2.0, 2.0)))
+    np.testing.assert_array_equal(a[at(0.4, 0.0)], b[at(0.4, 0.0)])
+    assert pair(a, b, at(0.4, 0.8)) == [(-1.0, 0.0), (0.0, 1.0)]
+    # a V-shaped valley: its concave corner keeps the gradient's normal
+    index, normal, a, b, at = normals([(0.0, 0.0), (2.0, 0.0), (2.0, 1.5), (1.0, 0.5), (0.0, 1.5)])
+    np.testing.assert_array_equal(a[at(1.0, 0.5)], b[at(1.0, 0.5)])
 
 # (scheme, precision, thickness cells, E Pa, ramp angle deg, [(friction deg, slides), ...])
 RAMP_CASES = [
