@@ -64,6 +64,18 @@ import numpy as np
 PAD_ROW = 2  # solver.engine.PAD (the wall line's node index), checked in diagnose()
 
 
+def node_law_engine():
+    """The engine with friction decided node by node at the wall line and at each ghost node (the
+    law of sessions 8-10, which this diagnosis reads and its experiments change), not by wall
+    column (``Engine.COLUMN_FRICTION``, docs/solver.md, contact)."""
+    from solver.engine import Engine
+
+    class NodeLawEngine(Engine):
+        COLUMN_FRICTION = False
+
+    return NodeLawEngine
+
+
 def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: float, delta: float,
              aspect: float = 4.0, time_factor: float = 1.0, damping: float = 0.0, samples: int = 12,
              transfer: bool = False, light: float = 0.0, light_mode: str = "", light_share: float = 0.0,
@@ -80,7 +92,7 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
     assert PAD == PAD_ROW
     runtime.acquire("cpu", precision)
     try:
-        sc = cs.WallIncline(scheme, precision, thickness, youngs, "bottom", aspect=aspect)
+        sc = cs.WallIncline(scheme, precision, thickness, youngs, "bottom", aspect=aspect, engine_class=node_law_engine())
         e = sc.engine
 
         g = sc.gravity(theta)

@@ -84,6 +84,8 @@ def _linear_engine_class():
         #: towards the mass-weighted mean of the wall line's (a dashpot against the contact's mean slip)
         beta = 0.0
         radius = 0  #: cells each way over which the mean is taken (0: the whole wall line)
+        #: the laws here act node by node (measured before the engine's wall-column law, session 11)
+        COLUMN_FRICTION = False
 
         #: experiment: a Kelvin-Voigt viscosity of the block, stress 2 eta D added to the force (Pa s)
         eta = 0.0

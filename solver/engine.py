@@ -99,6 +99,11 @@ class Engine:
     and starts them afresh.
     """
 
+    #: A friction side's Coulomb law acts on each wall column (the wall node and its ghosts) as one
+    #: contact point (:meth:`_wall_columns`); subclasses that replace the law node by node (the
+    #: stability benchmark's variants) switch it off.
+    COLUMN_FRICTION = True
+
     def __init__(self, grid: Grid, materials: tuple[Material, ...], n_particles: int, scheme: str,
                  np_float=np.float32, speed_bound_m_s: float = 1e30, remove_unstable: bool = False,
                  damping: bool = True, scatter: str = "auto", bands: int | None = None,
@@ -178,6 +183,9 @@ class Engine:
         # impulse on the material in this step (N s/m), impulse on the contact since the last read,
         # and the largest force of one step since then (|F|, Fx, Fy; N/m): in f64 whatever the precision
         self.contact_step = ti.Vector.field(2, ti.f64, self.n_contacts)
+        # a friction side's normal impulse per unit mass at each node of a wall column (the wall
+        # node and the ghost nodes beyond it, layer 0 = the wall line), for the column's Coulomb law
+        self.column_dvn = ti.field(float, (4, max(self.nodes), PAD + 1))
         self.contact_impulse = ti.Vector.field(2, ti.f64, self.n_contacts)
         self.contact_peak = ti.Vector.field(3, ti.f64, self.n_contacts)
         # apic-affine fuses the forces into the momentum; the force at the ghost nodes beyond the
@@ -352,12 +360,14 @@ class Engine:
         fold_force = ("periodic fold (force)",) if self.periodic else ()
         copy_old = ("periodic copy (velocity)",) if self.periodic else ()
         copy = ("periodic copy",) if self.periodic else ()
+        columns_old = ("wall columns (old)",) if self.COLUMN_FRICTION else ()
+        columns = ("wall columns",) if self.COLUMN_FRICTION else ()
         if self.six_stage:
-            return ("reset grid", "P2G momentum", *fold, "grid velocity", "mirror walls (old)", *copy_old,
-                    "stress and force", *fold_force, "mirror forces", "grid update", "mirror walls", *copy, "G2P",
-                    "contact tally")
-        return ("reset grid", "P2G with stress and force", *fold, "mirror forces", "grid update", "mirror walls",
-                *copy, "G2P", "contact tally")
+            return ("reset grid", "P2G momentum", *fold, "grid velocity", *columns_old, "mirror walls (old)", *copy_old,
+                    "stress and force", *fold_force, "mirror forces", "grid update", *columns, "mirror walls", *copy,
+                    "G2P", "contact tally")
+        return ("reset grid", "P2G with stress and force", *fold, "mirror forces", "grid update", *columns,
+                "mirror walls", *copy, "G2P", "contact tally")
 
     def _fused(self, damped: bool) -> bool:
         """Whether apic-affine's P2G fuses the forces into the momentum: undamped and with no
@@ -396,6 +406,10 @@ class Engine:
             self._grid_update_fused(dt, damping, ti.static(not self._fused(damped)))
         elif ti.static(stage == "mirror forces"):
             self._mirror_forces(dt, g, ti.static(self._fused(damped)))
+        elif ti.static(stage == "wall columns (old)"):
+            self._wall_columns(True)
+        elif ti.static(stage == "wall columns"):
+            self._wall_columns(False)
         elif ti.static(stage == "mirror walls (old)"):
             # every scheme's particles receive this first correction (see _grid_velocity): an impulse
             self._mirror_ghosts(True, True)
@@ -510,6 +524,14 @@ class Engine:
         held_by = -1  # the side that holds the node (the last, at a corner of the box)
         sides_holding = 0
         side_n = ti.Vector.zero(float, 2)
+        corner = 0
+        for side in ti.static(range(4)):
+            axis = ti.static(side // 2)
+            low = ti.static(side % 2 == 0)
+            wall = ti.static(PAD if low else PAD + self.cells[axis])
+            on_wall = (I[axis] <= wall) if ti.static(low) else (I[axis] >= wall)
+            if on_wall and self._closed(self.bc_kind[side]):
+                corner += 1
         for side in ti.static(range(4)):
             axis = ti.static(side // 2)
             low = ti.static(side % 2 == 0)
@@ -518,7 +540,14 @@ class Engine:
             kind = self.bc_kind[side]
             if on_wall and self._closed(kind):
                 n = ti.Vector(ti.static(_INWARD[side]), float)
-                new = self._contact_law(v, n, kind, self.bc_mu[side])
+                mu = self.bc_mu[side]
+                if ti.static(self.COLUMN_FRICTION) and kind == FRICTION and corner == 1:
+                    # the wall node and the ghosts beyond it are one contact point: here the
+                    # normal part only; the column's Coulomb law follows (_wall_columns)
+                    mu = 0.0
+                    layer = (wall - I[axis]) if ti.static(low) else (I[axis] - wall)
+                    self.column_dvn[side, I[1 - axis], layer] = ti.max(-v.dot(n), 0.0)
+                new = self._contact_law(v, n, kind, mu)
                 if ti.static(record):
                     self._record(side, mass * (new - v))
                 v = new
@@ -700,6 +729,72 @@ class Engine:
         lo = self.lo[None]
         hi = self.hi[None]
         return lo[0] <= I[0] < hi[0] and lo[1] <= I[1] < hi[1]
+
+    @ti.func
+    def _wall_columns(self, old: ti.template()):
+        """Coulomb friction of a friction side, column by column (docs/solver.md, contact).
+
+        The wall node and the ghost nodes beyond it are one contact point (the ghosts carry the
+        wall node's support beyond the wall), so the law acts on the summed tangential momentum
+        ``P`` and normal impulse ``J`` of the column's approaching nodes (:meth:`_contact` removed
+        their normal part and left ``dvn``, per unit mass, in ``column_dvn``): stick when ``|P| <=
+        mu J`` (every such node stops along the wall), else every such node slows by the same ``mu
+        J / M`` (``M`` their mass), so the column loses exactly ``mu J`` of momentum and its nodes
+        keep their relative velocities. Decided node by node, the base's reaction split between the
+        wall row and the ghost row, with different ratios of tangential to normal force: most wall
+        nodes of a stiff block resting 5 degrees from the friction limit slipped while the ghosts
+        stuck, and the block slid away (a finite-element model of the same block holds)."""
+        for axis in ti.static(range(2)):
+            ti.loop_config(serialize=self.plain)
+            for k in range(2 * self.nodes[1 - axis]):
+                along = k % self.nodes[1 - axis]
+                high = k // self.nodes[1 - axis]
+                side = 2 * axis + high
+                if self.bc_kind[side] == FRICTION:
+                    wall = PAD + high * ti.static(self.cells[axis])
+                    step = 1 - 2 * high
+                    mass = 0.0
+                    momentum = 0.0
+                    normal = 0.0
+                    for layer in ti.static(range(PAD + 1)):
+                        J = ti.Vector([0, 0])
+                        J[axis] = wall - layer * step
+                        J[1 - axis] = along
+                        dvn = self.column_dvn[side, along, layer]
+                        m = self.g_mass[J]
+                        if dvn > 0.0 and m > 0.0:
+                            vt = self.g_v_old[J][1 - axis] if ti.static(old) else self.g_mom[J][1 - axis]
+                            mass += m
+                            momentum += m * vt
+                            normal += m * dvn
+                    if mass > 0.0:
+                        mu = self.bc_mu[side]
+                        speed = ti.abs(momentum)
+                        slide = speed > mu * normal
+                        after = 0.0
+                        if slide:
+                            after = momentum / mass * (speed - mu * normal) / speed
+                        for layer in ti.static(range(PAD + 1)):
+                            J = ti.Vector([0, 0])
+                            J[axis] = wall - layer * step
+                            J[1 - axis] = along
+                            dvn = self.column_dvn[side, along, layer]
+                            m = self.g_mass[J]
+                            if dvn > 0.0 and m > 0.0:
+                                v = self.g_v_old[J] if ti.static(old) else self.g_mom[J]
+                                dv = -v[1 - axis]  # stick: the column stops along the wall
+                                if slide:  # every node of the column slows by the same mu J / M
+                                    dv = after - momentum / mass
+                                v[1 - axis] += dv
+                                impulse = ti.Vector.zero(float, 2)
+                                impulse[1 - axis] = m * dv
+                                self._record(side, impulse)
+                                if ti.static(old):
+                                    self.g_v_old[J] = v
+                                else:
+                                    self.g_mom[J] = v
+                    for layer in ti.static(range(PAD + 1)):
+                        self.column_dvn[side, along, layer] = 0.0
 
     @ti.func
     def _mirror_ghosts(self, old: ti.template(), record: ti.template()):

@@ -164,8 +164,12 @@ class WallIncline:
     ``aspect`` times as long as thick (at least MIN_LENGTH_CELLS long)."""
 
     def __init__(self, scheme: str, precision: str, thickness_cells: int, youngs_pa: float,
-                 side: str = "bottom", scatter: str = "serial", aspect: float = ASPECT):
+                 side: str = "bottom", scatter: str = "serial", aspect: float = ASPECT, engine_class=None):
+        """``engine_class``: an :class:`solver.engine.Engine` subclass (the diagnosis runs the
+        node-by-node law of earlier sessions), the engine itself by default."""
         from solver.engine import Engine
+
+        Engine = engine_class or Engine  # noqa: N806
 
         self.dx = dx = cell_size_for(youngs_pa)
         self.side = side
