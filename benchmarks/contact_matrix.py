@@ -60,6 +60,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="engine: the scenes of studies.contact_scenes (2 m / 0.1 m cells); project: project "
                          "files run by projects.runner.run_project (--cell)")
     ap.add_argument("--cell", type=float, default=PROJECT_CELL_M, help="project path: cell size (m)")
+    ap.add_argument("--gravity-s", default="recommended",
+                    help="project path: the gravity stage's duration (s), or 'recommended' (default): the one "
+                         "projects.checks.recommended_initial_stage gives the project, at least 1 s")
     ap.add_argument("--work", type=Path, default=None, help="project path: results folder (default: a temporary one)")
     ap.add_argument("--table", nargs="+", type=Path, help="print the summary of saved CSVs and stop")
     args = ap.parse_args(argv)
@@ -142,8 +145,9 @@ def _project_matrix(args, angles) -> int:
                 [int(t) for t in args.thickness.split(",")], [float(e) for e in args.youngs.split(",")]):
             for theta, delta in angles:
                 t0 = time.perf_counter()
+                gravity_s = None if args.gravity_s == "recommended" else float(args.gravity_s)
                 case = project_text(contact, scheme, precision, thickness, youngs, theta, delta, cell_m=args.cell,
-                                    start=start, aspect=args.aspect)
+                                    start=start, aspect=args.aspect, gravity_s=gravity_s)
                 try:
                     o, _ = run_case(case, work / "run")
                 except RuntimeError as err:  # a failed run (e.g. the stability guard) is a row, not the end
@@ -246,13 +250,14 @@ def _f(value: float) -> str:
 
 def project_text(contact: str, scheme: str, precision: str, thickness_cells: int, youngs_pa: float,
                  theta_deg: float, delta_deg: float, *, cell_m: float = PROJECT_CELL_M, start: str = "gravity",
-                 aspect: float = 4.0, duration_s: float | None = None, gravity_s: float = GRAVITY_STAGE_S,
+                 aspect: float = 4.0, duration_s: float | None = None, gravity_s: float | None = GRAVITY_STAGE_S,
                  per_cell: int = 2, start_cells: float = 1.0) -> ProjectCase:
     """A block at rest on a frictional contact as a project file.
 
     ``contact``: ``"bottom"``, ``"left"`` or ``"right"`` (a friction side, the incline made by
     tilting gravity) or ``"ramp"`` (a friction structure at ``theta_deg`` under vertical gravity).
-    ``start``: ``"gravity"`` (a damped gravity stage of ``gravity_s`` first), ``"k0"`` or
+    ``start``: ``"gravity"`` (a damped gravity stage of ``gravity_s`` first; ``None``: the duration
+    :func:`projects.checks.recommended_initial_stage` gives the project), ``"k0"`` or
     ``"free"`` (the dynamic stage only). The dynamic stage lasts ``duration_s`` (default: the
     analytic travel of 20 cells plus 5 %, :func:`studies.contact_scenes.run_time`); one frame at
     its end. ``start_cells``: on the ramp, how far down the face from the ramp's convex top vertex
@@ -266,7 +271,23 @@ def project_text(contact: str, scheme: str, precision: str, thickness_cells: int
     n = int(thickness_cells)
     length = SHEET_LENGTH_CELLS if n == 1 else int(round(aspect * n))
     T = run_time(theta_deg, delta_deg, dx) if duration_s is None else duration_s
+    if start == "gravity" and gravity_s is None:
+        # the recommended stage depends on the block alone, not on the room around it
+        probe = project_text(contact, scheme, precision, thickness_cells, youngs_pa, theta_deg, delta_deg,
+                             cell_m=cell_m, start=start, aspect=aspect, duration_s=duration_s, gravity_s=1.0,
+                             per_cell=per_cell, start_cells=start_cells)
+        import tomllib
+
+        from projects.checks import recommended_initial_stage
+        from projects.schema import validate_project
+
+        gravity_s = recommended_initial_stage(validate_project(tomllib.loads(probe.text))).get("duration_s", 1.0)
     travel = TRAVEL_CELLS * 1.15 + 6  # cells of room down the slope
+    if start == "gravity":
+        # a sliding block slides during the gravity stage too: at most a t^2 / 6 under the linear ramp
+        # (undamped), about 0.3 of it with the default damping (a 2.9 s stage: 0.83 m at 40/30)
+        slide = G * (math.sin(math.radians(theta_deg)) - math.tan(math.radians(delta_deg)) * math.cos(math.radians(theta_deg)))
+        travel += math.ceil(max(slide, 0.0) * gravity_s ** 2 / 6 / dx)
     th = math.radians(theta_deg)
     s, c = math.sin(th), math.cos(th)
     boundaries = {"left": '"open"', "right": '"open"', "bottom": '"open"', "top": '"open"'}
@@ -316,7 +337,7 @@ def project_text(contact: str, scheme: str, precision: str, thickness_cells: int
         raise ValueError(f"contact {contact!r}: one of bottom, left, right, ramp")
     stages = ""
     if start == "gravity":
-        stages += f'[[stages]]\nname = "initial stress"\ntype = "gravity"\nduration_s = {_f(gravity_s)}\n\n'
+        stages += '[[stages]]\nname = "initial stress"\ntype = "gravity"\nduration_s = GRAVITY_S\n\n'
     elif start == "k0":
         stages += '[[stages]]\nname = "initial stress"\ntype = "k0"\n\n'
     elif start != "free":
@@ -361,6 +382,8 @@ arch = "cpu"
 interval_s = {_f(T)}
 fields = ["displacement"]
 """
+    if start == "gravity":
+        text = text.replace("GRAVITY_S", _f(gravity_s))
     return ProjectCase(text, contact, float(theta_deg), float(delta_deg), T, dx, tuple(map(float, surface)),
                        tuple(map(float, normal)), tuple(map(float, slope)))
 

@@ -59,7 +59,8 @@ def _check(outcome) -> None:
                          ids=[f"{c}-{s}-{p}-{n}cells-E{e:g}-{t}on{d}" for c, s, p, n, e, t, d in CASES])
 def test_a_block_slides_or_sticks_as_coulomb_says_through_the_project_path(
         tmp_path, contact, scheme, precision, thickness, youngs, theta, delta):
-    case = project_text(contact, scheme, precision, thickness, youngs, theta, delta)
+    # bodies at rest: after the gravity stage the tool recommends (projects.checks.recommended_initial_stage)
+    case = project_text(contact, scheme, precision, thickness, youngs, theta, delta, gravity_s=None)
     assert project_warnings(validate_project(tomllib.loads(case.text))) == []
     outcome, result = run_case(case, tmp_path / "run")
     assert outcome.slides == (delta < theta)
@@ -87,6 +88,29 @@ def test_a_stiff_block_five_degrees_from_the_friction_limit_holds(tmp_path, cont
     _check(outcome)
 
 
+# Soft 20-cell blocks 5 deg from the friction limit, after the recommended gravity stage (2.9 s, three
+# periods 4 H / c_s). Until local damping was left off the contact nodes (docs/solver.md, local
+# damping) the damped stage itself let the base creep 5 mm (apic-affine, 1 s stage), and the block
+# went on in the dynamic stage: 0.40 % of the frictionless distance. Measured after: 0.006-0.074 %.
+SOFT_NEAR_LIMIT = [
+    ("bottom", "apic-affine", "f32", 20, 1e6, 40, 45),
+    ("left", "apic-affine", "f64", 20, 1e6, 40, 45),
+    ("right", "mpm", "f32", 20, 1e6, 40, 45),
+    ("ramp", "apic", "f32", 20, 1e6, 40, 45),
+]
+
+
+@pytest.mark.parametrize("contact,scheme,precision,thickness,youngs,theta,delta", SOFT_NEAR_LIMIT,
+                         ids=[f"{c}-{s}-{p}-{n}cells-E{e:g}-{t}on{d}" for c, s, p, n, e, t, d in SOFT_NEAR_LIMIT])
+def test_a_soft_block_five_degrees_from_the_friction_limit_holds_after_the_recommended_stage(
+        tmp_path, contact, scheme, precision, thickness, youngs, theta, delta):
+    case = project_text(contact, scheme, precision, thickness, youngs, theta, delta, gravity_s=None)
+    assert "duration_s = 2.9\n" in case.text
+    outcome, _ = run_case(case, tmp_path / "run")
+    assert not outcome.slides
+    _check(outcome)
+
+
 # Known limits, measured (docs/validation.md, contact through the project path); the last value is
 # where on the ramp the block starts (cells below its top vertex; unused elsewhere)
 LIMITS = [
@@ -97,9 +121,13 @@ LIMITS = [
                             "project warns (projects.checks)")),
     pytest.param("bottom", "apic-affine", "f32", 20, 1e6, 40, 45, "gravity", 1.0, marks=pytest.mark.xfail(
         strict=True, reason="a soft 20-cell block at 40 deg on 45 deg friction slips +3.4 % of the frictionless "
-                            "distance: its 0.2 s gravity stage is shorter than its shear period (0.29 s); after 1 s "
-                            "0.45 % (a finite-element model 0.16 %). Stiff blocks hold since friction is decided by "
-                            "wall column (docs/validation.md, contact)")),
+                            "distance after a 0.2 s gravity stage, shorter than its fundamental period (0.96 s; "
+                            "the project warns): it is not at rest at the stage's end (a finite-element model of "
+                            "it slips 9.6 %). After the recommended 2.9 s stage it holds (above)")),
+    pytest.param("bottom", "apic", "f32", 20, 1e6, 40, 45, "recommended", 1.0, marks=pytest.mark.xfail(
+        strict=True, reason="after the recommended stage the soft 20-cell block still creeps 0.101 % with apic "
+                            "(0.074 % mpm, 0.006 % apic-affine): the undamped dynamic stage's flutter "
+                            "(docs/validation.md, contact)")),
     pytest.param("ramp", "mpm", "f32", 1, 1e8, 40, 30, "gravity", 0.0, marks=pytest.mark.xfail(
         strict=True, reason="a stiff sheet whose upslope corner starts on the ramp's convex top vertex slides short: "
                             "-7.0 % (mpm; apic -7.7 %, apic-affine -2.2 %, 5 cells +2.8 / -3.9 / -0.9 %; 1e6 Pa "
@@ -112,8 +140,10 @@ LIMITS = [
                          LIMITS)
 def test_known_limits_of_the_project_path(tmp_path, contact, scheme, precision, thickness, youngs, theta, delta,
                                           start, start_cells):
-    case = project_text(contact, scheme, precision, thickness, youngs, theta, delta, start=start,
-                        start_cells=start_cells)
+    recommended = start == "recommended"
+    case = project_text(contact, scheme, precision, thickness, youngs, theta, delta,
+                        start="gravity" if recommended else start, start_cells=start_cells,
+                        **({"gravity_s": None} if recommended else {}))
     outcome, _ = run_case(case, tmp_path / "run")
     _check(outcome)
 

@@ -183,3 +183,20 @@ def test_the_recommended_gravity_stage_lasts_three_periods_of_the_deposit():
     c_s = np.sqrt(material.youngs_modulus_pa / (2 * (1 + material.poisson_ratio)) / material.density_kg_m3)
     expected = 3 * 4 * 69.0 / c_s
     assert recommended_initial_stage(slope)["duration_s"] == pytest.approx(expected, rel=0.05)
+
+
+@pytest.mark.parametrize("fraction,warned", [(0.5, True), (0.99, True), (1.01, False), (3.0, False)])
+def test_a_gravity_stage_shorter_than_the_deposits_period_is_warned_about(fraction, warned):
+    # the slope of Sun and Song: 69 m high, c_s = sqrt(G / rho); its period 4 H / c_s is 2.8 s
+    slope = load_project(EXAMPLES / "slope_sun_song_2015.toml")
+    material = next(iter(slope.materials.values()))
+    c_s = np.sqrt(material.youngs_modulus_pa / (2 * (1 + material.poisson_ratio)) / material.density_kg_m3)
+    period = 4 * 69.0 / c_s
+    index = next(i for i, st in enumerate(slope.stages) if st.type == "gravity")
+    short = apply_overrides(slope, [f"stages.{index}.duration_s={float(fraction * period)!r}"])
+    lines = [w for w in project_warnings(short) if f"stages.{index}.duration_s" in w]
+    assert bool(lines) == warned
+    if warned:
+        assert len(lines) == 1 and "\n" not in lines[0]
+        assert f"{period:.2g} s" in lines[0]
+        assert f"use duration_s = {recommended_initial_stage(slope)['duration_s']:g}" in lines[0]
