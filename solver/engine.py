@@ -174,6 +174,10 @@ class Engine:
         self.node_normal = ti.Vector.field(2, float, self.nodes if has else (1, 1))
         # and its signed distance to that structure's surface (m, negative inside)
         self.node_sd = ti.field(float, self.nodes if has else (1, 1))
+        # the step (``hold_step``, counted from the load) after the last one in which the
+        # structure held the node at the end of its update (``_contact``)
+        self.node_hold = ti.field(ti.i32, self.nodes if has else (1, 1))
+        self.hold_step = ti.field(ti.i32, ())
         # impulse on the material in this step (N s/m), impulse on the contact since the last read,
         # and the largest force of one step since then (|F|, Fx, Fy; N/m): in f64 whatever the precision
         self.contact_step = ti.Vector.field(2, ti.f64, self.n_contacts)
@@ -212,7 +216,7 @@ class Engine:
     #: scatter strategy's ``STATE``, e.g. the split scatter's plan; the grid is rebuilt from the
     #: particles at every step).
     PARTICLE_STATE = ("x", "x0", "v", "C", "s", "m", "rho", "eps_p", "mat", "active", "yielded")
-    COUNTER_STATE = ("lost", "unstable", "contact_impulse", "contact_peak")
+    COUNTER_STATE = ("lost", "unstable", "contact_impulse", "contact_peak", "node_hold", "hold_step")
     #: Every field of the engine the host reads or writes (:meth:`state`, :meth:`load_state` and
     #: the set-up); the scatter strategy's ``STATE`` fields are moved with them.
     HOST_FIELDS = PARTICLE_STATE + COUNTER_STATE + (
@@ -288,6 +292,7 @@ class Engine:
             "m": (np.asarray(volumes_m2, dtype=np.float64) * rho0).astype(f),
             "rho": rho0.astype(f), "eps_p": 0.0, "mat": mat, "active": 1, "yielded": 0,
             "lost": 0, "unstable": 0, "contact_step": 0.0, "contact_impulse": 0.0, "contact_peak": 0.0,
+            "node_hold": -1, "hold_step": 0,
             **self.to_grid.start_state(),  # the strategy forgets what earlier steps taught it
         })
 
@@ -507,6 +512,13 @@ class Engine:
         (:func:`solver.structures.node_contacts`); normal its outward normal there.
         A node on a side and in a structure meets both, side first; the impulse they give it
         together is recorded split along their two normals.
+
+        At a structure's node the normal velocity the law allows is not zero but the material's
+        normal velocity continued linearly to zero at the surface (``_surface_target``; zero for a
+        node on the surface), and on the interpolated velocity (``trial = "interpolated"``, the
+        stress update's) a node the structure held at the end of the last step is held at that
+        target both ways. ``trial`` says how to read the free nodes' trial velocities in this
+        stage, ``dt`` and ``damping`` are the update's.
         """
         v_in = v
         held_by = -1  # the side that holds the node (the last, at a corner of the box)
@@ -538,6 +550,16 @@ class Engine:
                 if kind != FIXED:
                     target = self._surface_target(I, n, trial, dt, damping)
                 new = self._contact_law(v, n, kind, self.st_mu[s], target)
+                if ti.static(trial == "interpolated"):
+                    # the stress update's velocity: where the structure held the node at the end
+                    # of the last step (the contact in compression), it holds it at the target
+                    # either way; the one-sided law here (held while the material approaches,
+                    # free while it recedes) ratcheted mpm's stress update: +14 to +50 % in 0.3 s
+                    # with faces 0.6-0.7 cells off a node line
+                    if kind != FIXED and self.node_hold[I] == self.hold_step[None] and v.dot(n) >= target:
+                        new = v + (target - v.dot(n)) * n
+                elif kind != FIXED and v.dot(n) < target:
+                    self.node_hold[I] = self.hold_step[None] + 1  # read by the next step
                 if ti.static(record):
                     det = side_n[0] * n[1] - side_n[1] * n[0]
                     if sides_holding == 1 and ti.abs(det) > 0.5:
@@ -652,6 +674,7 @@ class Engine:
     @ti.func
     def _contact_tally(self, dt):
         """Turn this step's impulses on the material into the contacts' impulse and peak force."""
+        self.hold_step[None] += 1
         ti.loop_config(serialize=True)  # a handful of contacts
         for c in range(self.n_contacts):
             on_contact = -self.contact_step[c]  # what the material exerts on the contact
