@@ -663,7 +663,7 @@ class Engine:
                 mv += wm * self._trial(J, trial, dt, damping).dot(n)
                 md += wm * (xj - q).dot(n)
         target = 0.0 * sd
-        if mw > 0.0 and md > 0.0:
+        if mw > 0.0 and md > 0.0 and sd > -self.dx:
             target = mv / md * sd
         return target
 
@@ -929,12 +929,12 @@ class Engine:
         for k in range(9):  # runtime loops: this path runs 9 times per image, compiled once
             K = mbase + ti.Vector([k // 3, k % 3])
             if self._takes_reaction(K, st, n):
-                near += _bspline(mfx[0], k // 3) * _bspline(mfx[1], k % 3)
+                near += _bspline(mfx[0], k // 3) * _bspline(mfx[1], k % 3) * self.g_mass[K]
         for k in range(9):
             if near > 0.0:
                 K = mbase + ti.Vector([k // 3, k % 3])
                 if self._takes_reaction(K, st, n):
-                    self.g_f[K] -= (_bspline(mfx[0], k // 3) * _bspline(mfx[1], k % 3) / near) * f
+                    self.g_f[K] -= (_bspline(mfx[0], k // 3) * _bspline(mfx[1], k % 3) * self.g_mass[K] / near) * f
             else:
                 K = base + ti.Vector([k // 3, k % 3])
                 if self.node_struct[K] == st:
