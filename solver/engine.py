@@ -844,9 +844,7 @@ class Engine:
                     momentum = 0.0
                     normal = 0.0
                     for layer in ti.static(range(PAD + 1)):
-                        J = ti.Vector([0, 0])
-                        J[axis] = wall - layer * step
-                        J[1 - axis] = along
+                        J = self._column_node(axis, wall, step, layer, along)
                         dvn = self.column_dvn[side, along, layer]
                         m = self.g_mass[J]
                         if dvn > 0.0 and m > 0.0:
@@ -862,9 +860,7 @@ class Engine:
                         if slide:
                             after = momentum / mass * (speed - mu * normal) / speed
                         for layer in ti.static(range(PAD + 1)):
-                            J = ti.Vector([0, 0])
-                            J[axis] = wall - layer * step
-                            J[1 - axis] = along
+                            J = self._column_node(axis, wall, step, layer, along)
                             dvn = self.column_dvn[side, along, layer]
                             m = self.g_mass[J]
                             if dvn > 0.0 and m > 0.0:
@@ -882,6 +878,15 @@ class Engine:
                                     self.g_mom[J] = v
                     for layer in ti.static(range(PAD + 1)):
                         self.column_dvn[side, along, layer] = 0.0
+
+    @ti.func
+    def _column_node(self, axis: ti.template(), wall, step, layer: ti.template(), along):
+        """The node ``layer`` cells beyond the wall line ``wall`` (``step`` +1 into the domain from
+        the low side, -1 from the high one) at position ``along`` on a wall across ``axis``."""
+        J = ti.Vector([0, 0])
+        J[axis] = wall - layer * step
+        J[1 - axis] = along
+        return J
 
     @ti.func
     def _mirror_ghosts(self, old: ti.template(), record: ti.template()):
