@@ -186,6 +186,10 @@ class Engine:
         # structure held the node at the end of its update (``_contact``)
         self.node_hold = ti.field(ti.i32, self.nodes if has else (1, 1))
         self.hold_step = ti.field(ti.i32, ())
+        # the normal velocity change that hold gave the node in this step's stress-update contact
+        # (<= 0: it pulled receding material back to the target; written and read within a step),
+        # netted in the friction budget of the grid update's contact
+        self.node_pull = ti.field(float, self.nodes if has else (1, 1))
         # impulse on the material in this step (N s/m), impulse on the contact since the last read,
         # and the largest force of one step since then (|F|, Fx, Fy; N/m): in f64 whatever the precision
         self.contact_step = ti.Vector.field(2, ti.f64, self.n_contacts)
@@ -544,8 +548,9 @@ class Engine:
         normal velocity continued linearly to zero at the surface (``_surface_target``; zero for a
         node on the surface), and on the interpolated velocity (``trial = "interpolated"``, the
         stress update's) a node the structure held at the end of the last step is held at that
-        target both ways. ``trial`` says how to read the free nodes' trial velocities in this
-        stage, ``dt`` and ``damping`` are the update's.
+        target both ways; the grid update's friction there nets that hold's pull (``node_pull``):
+        over a step, at most ``mu`` times the net normal impulse. ``trial`` says how to read the
+        free nodes' trial velocities in this stage, ``dt`` and ``damping`` are the update's.
         """
         v_in = v
         held_by = -1  # the side that holds the node (the last, at a corner of the box)
@@ -591,15 +596,27 @@ class Engine:
                 target = 0.0 * mass
                 if kind != FIXED:
                     target = self._surface_target(I, n, trial, dt, damping)
-                new = self._contact_law(v, n, kind, self.st_mu[s], target)
+                mu = self.st_mu[s]
+                if ti.static(trial == "updated"):
+                    # Coulomb over the whole step: the friction is at most mu times the step's net
+                    # normal impulse, so the hold's pull earlier in the step (node_pull) comes off
+                    # this push's budget; counted in full, the pull and the push that undid it
+                    # gave a block sliding on a 40 deg ramp 1 % more friction than mu (-3 % travel)
+                    push = target - v.dot(n)
+                    if push > 0.0:
+                        mu *= ti.max(push + self.node_pull[I], 0.0) / push
+                new = self._contact_law(v, n, kind, mu, target)
                 if ti.static(trial == "interpolated"):
                     # the stress update's velocity: where the structure held the node at the end
                     # of the last step (the contact in compression), it holds it at the target
                     # either way; the one-sided law here (held while the material approaches,
                     # free while it recedes) ratcheted mpm's stress update: +14 to +50 % in 0.3 s
                     # with faces 0.6-0.7 cells off a node line
+                    pull = 0.0 * mass
                     if kind != FIXED and self.node_hold[I] == self.hold_step[None] and v.dot(n) >= target:
-                        new = v + (target - v.dot(n)) * n
+                        pull = target - v.dot(n)
+                        new = v + pull * n
+                    self.node_pull[I] = pull
                 elif kind != FIXED and v.dot(n) < target:
                     self.node_hold[I] = self.hold_step[None] + 1  # read by the next step
                 if ti.static(record):
