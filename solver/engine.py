@@ -186,10 +186,9 @@ class Engine:
         # structure held the node at the end of its update (``_contact``)
         self.node_hold = ti.field(ti.i32, self.nodes if has else (1, 1))
         self.hold_step = ti.field(ti.i32, ())
-        # the normal velocity change that hold gave the node in this step's stress-update contact
-        # (<= 0: it pulled receding material back to the target; written and read within a step),
-        # netted in the friction budget of the grid update's contact
-        self.node_pull = ti.field(float, self.nodes if has else (1, 1))
+        # what that hold adds to the stress update's velocity at the node in this step (zero where
+        # it does not hold; written with the interpolated velocity, read by the stress update)
+        self.node_hold_dv = ti.Vector.field(2, float, self.nodes if has and self.six_stage else (1, 1))
         # impulse on the material in this step (N s/m), impulse on the contact since the last read,
         # and the largest force of one step since then (|F|, Fx, Fy; N/m): in f64 whatever the precision
         self.contact_step = ti.Vector.field(2, ti.f64, self.n_contacts)
@@ -512,6 +511,8 @@ class Engine:
             j = lo[1] + k % height
             if ti.static(old):
                 self.g_v_old[image, j] = self.g_v_old[i, j]
+                if ti.static(self.n_structures > 0 and self.six_stage):
+                    self.node_hold_dv[image, j] = self.node_hold_dv[i, j]
             else:
                 self.g_mom[image, j] = self.g_mom[i, j]
         self.lo[None][0] = 0
@@ -546,11 +547,10 @@ class Engine:
 
         At a structure's node the normal velocity the law allows is not zero but the material's
         normal velocity continued linearly to zero at the surface (``_surface_target``; zero for a
-        node on the surface), and on the interpolated velocity (``trial = "interpolated"``, the
-        stress update's) a node the structure held at the end of the last step is held at that
-        target both ways; the grid update's friction there nets that hold's pull (``node_pull``):
-        over a step, at most ``mu`` times the net normal impulse. ``trial`` says how to read the
-        free nodes' trial velocities in this stage, ``dt`` and ``damping`` are the update's.
+        node on the surface), and on the interpolated velocity (``trial = "interpolated"``) a node
+        the structure held at the end of the last step is held at that target both ways for the
+        stress update alone (``node_hold_dv``, no impulse). ``trial`` says how to read the free
+        nodes' trial velocities in this stage, ``dt`` and ``damping`` are the update's.
         """
         v_in = v
         held_by = -1  # the side that holds the node (the last, at a corner of the box)
@@ -596,27 +596,18 @@ class Engine:
                 target = 0.0 * mass
                 if kind != FIXED:
                     target = self._surface_target(I, n, trial, dt, damping)
-                mu = self.st_mu[s]
-                if ti.static(trial == "updated"):
-                    # Coulomb over the whole step: the friction is at most mu times the step's net
-                    # normal impulse, so the hold's pull earlier in the step (node_pull) comes off
-                    # this push's budget; counted in full, the pull and the push that undid it
-                    # gave a block sliding on a 40 deg ramp 1 % more friction than mu (-3 % travel)
-                    push = target - v.dot(n)
-                    if push > 0.0:
-                        mu *= ti.max(push + self.node_pull[I], 0.0) / push
-                new = self._contact_law(v, n, kind, mu, target)
+                new = self._contact_law(v, n, kind, self.st_mu[s], target)
                 if ti.static(trial == "interpolated"):
                     # the stress update's velocity: where the structure held the node at the end
                     # of the last step (the contact in compression), it holds it at the target
                     # either way; the one-sided law here (held while the material approaches,
                     # free while it recedes) ratcheted mpm's stress update: +14 to +50 % in 0.3 s
-                    # with faces 0.6-0.7 cells off a node line
-                    pull = 0.0 * mass
+                    # with faces 0.6-0.7 cells off a node line. For the stress update only
+                    # (node_hold_dv): as an impulse the hold pulled receding material back, the
+                    # push that undid it brought friction of its own, and a block sliding on a
+                    # 40 deg ramp slid 2-17 % short
                     if kind != FIXED and self.node_hold[I] == self.hold_step[None] and v.dot(n) >= target:
-                        pull = target - v.dot(n)
-                        new = v + pull * n
-                    self.node_pull[I] = pull
+                        self.node_hold_dv[I] = (target - v.dot(n)) * n
                 elif kind != FIXED and v.dot(n) < target:
                     self.node_hold[I] = self.hold_step[None] + 1  # read by the next step
                 if ti.static(record):
@@ -1256,6 +1247,8 @@ class Engine:
             I = lo + ti.Vector([k // width[1], k % width[1]])
             mass = self.g_mass[I]
             v = ti.Vector.zero(float, 2)
+            if ti.static(self.n_structures > 0 and self.six_stage):
+                self.node_hold_dv[I] = ti.Vector.zero(float, 2)  # _contact sets it where it holds
             if mass > 0.0:
                 # the contact law on the interpolated velocity too (Bardenhagen et al. 2000): the
                 # stress update sees the constrained velocity. APIC's particles take the new grid
@@ -1273,7 +1266,11 @@ class Engine:
         L = ti.Matrix.zero(float, 2, 2)
         for i, j in ti.static(ti.ndrange(3, 3)):
             grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
-            L += outer(self.g_v_old[base + ti.Vector([i, j])], grad)
+            J = base + ti.Vector([i, j])
+            v = self.g_v_old[J]
+            if ti.static(self.n_structures > 0 and self.six_stage):
+                v += self.node_hold_dv[J]  # the structures' hold (_contact)
+            L += outer(v, grad)
         return self._stress_point(p, L, dt)
 
     @ti.func
