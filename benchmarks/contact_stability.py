@@ -188,7 +188,7 @@ def _linear_engine_class():
                         vel[I][0] = self.tmp[i]
 
         @ti.func
-        def _contact(self, I, v, mass, record: ti.template()):
+        def _contact(self, I, v, mass, record: ti.template(), trial: ti.template(), dt, damping):
             out = v
             if ti.static(self.variant == "patch" and self.radius > 0):
                 # the local patch (bottom wall only): the sums over the wall-line nodes within radius
@@ -217,7 +217,7 @@ def _linear_engine_class():
                         self._record(2, mass * (new - v))
                     out = new
             else:
-                out = Engine._contact(self, I, v, mass, record)
+                out = Engine._contact(self, I, v, mass, record, trial, dt, damping)
             return out
 
         @ti.func
@@ -242,9 +242,10 @@ def _linear_engine_class():
                 self.to_grid.add(self.g_f, base + ti.Vector([i, j]), -vol * mat_vec(sig, grad) + weight * m * g)
 
         @ti.func
-        def _contact_law(self, v, n, kind, mu):
-            # the engine's law itself; the variants replace its result where they differ
-            out = Engine._contact_law(self, v, n, kind, mu)
+        def _contact_law(self, v, n, kind, mu, target):
+            # the engine's law itself; the variants replace its result where they differ (walls only:
+            # target zero)
+            out = Engine._contact_law(self, v, n, kind, mu, target)
             if ti.static(self.variant != "engine"):
                 if kind != FIXED:
                     vn = v.dot(n)

@@ -12,10 +12,10 @@ workbench shows them):
   1 cell (its nodes are reached by material at both faces and hold it from one side only), up to
   2.8 times under one cell, and material thrown at an inclined one half a cell thick was ejected
   faster than the stability guard allows (apic-affine); from 2 cells on it is within 3 %;
-- a vertical or horizontal structure face far from the grid's node lines (0.26 to 0.74 cells off
-  with mpm and apic, 0.41 to 0.59 with apic-affine): the node the structure holds lies inside the
-  material or the free node next to it close to the face, and the thrust on it drifts
-  (docs/validation.md, thrust);
+- a vertical or horizontal structure face a body touches, 0.55 to 0.85 cells from the last node
+  line on the material's side (every scheme): the lattice-seeded material stops up to a quarter cell short of
+  such a face and the at-rest thrust on it was 4-6.5 % low, up to 6 % high at 0.8 (docs/validation.md,
+  thrust); elsewhere within 4 %;
 - a body resting on an inclined frictional contact (a friction side or a friction structure face
   it touches, inclined to gravity's level, its friction angle at least the incline) while the
   first dynamic or strength-reduction stage has no initial-stress stage before it: it starts
@@ -52,8 +52,9 @@ STRUCTURE_TOUCH_CELLS = 0.02
 GRAVITY_STAGE_PERIODS = 3.0
 #: Structures thinner than this many cells at their thickest are warned about.
 STRUCTURE_MIN_CELLS = 2.0
-#: Axis-aligned structure faces this far off the node lines (cells, per scheme) are warned about.
-FACE_OFFSET_BAND = {"mpm": (0.26, 0.74), "apic": (0.26, 0.74), "apic-affine": (0.41, 0.59)}
+#: Axis-aligned structure faces this far (cells) from the last node line on the material's side
+#: (outside the structure) are warned about, in every scheme.
+FACE_OFFSET_BAND = (0.55, 0.85)
 
 _CLOSED = ("fixed", "slip", "friction")
 
@@ -257,31 +258,44 @@ def _thin_structures(project: Project) -> list[str]:
 
 
 def _off_node_faces(project: Project) -> list[str]:
-    scheme = project.numerics.scheme
-    if scheme not in FACE_OFFSET_BAND:
-        return []
+    from geometry.polygons import counter_clockwise
+
     dx = project.domain.cell_size_m
     origin = project.domain.origin_m
-    lo, hi = FACE_OFFSET_BAND[scheme]
-    near = "within a quarter cell of one, or use scheme \"apic-affine\"" if scheme != "apic-affine" else \
-        "within 0.4 cells of one"
-
+    lo, hi = FACE_OFFSET_BAND
+    # the bodies' outlines, sampled a quarter cell apart: a face is judged only where a body touches it
+    outline = []
+    for body in project.bodies:
+        b = np.asarray(body.polygon_m, dtype=np.float64)
+        for p, q in zip(b, np.roll(b, -1, axis=0)):
+            count = min(4096, max(1, int(math.ceil(4.0 * float(np.hypot(*(q - p))) / dx))))
+            outline.append(p + np.linspace(0.0, 1.0, count + 1)[:, None] * (q - p))
+    outline = np.concatenate(outline) if outline else np.zeros((0, 2))
     warnings = []
     for index, structure in enumerate(project.structures):
-        pts = np.asarray(structure.polygon_m, dtype=np.float64)
+        pts = counter_clockwise(np.asarray(structure.polygon_m, dtype=np.float64))
         for a, b in zip(pts, np.roll(pts, -1, axis=0)):
             for axis, name in ((0, "x"), (1, "y")):  # a face along y sits at one x, and the reverse
                 if abs(a[axis] - b[axis]) > 1e-9 * dx or abs(a[1 - axis] - b[1 - axis]) < dx:
                     continue
+                # the outward normal of a counter-clockwise outline: (dy, -dx) along the edge
+                outward = (b[1] - a[1]) if axis == 0 else (a[0] - b[0])
+                ahead = (outline[:, axis] - a[axis]) * math.copysign(1.0, outward)
+                span = sorted((a[1 - axis], b[1 - axis]))
+                if not np.any((ahead > -STRUCTURE_TOUCH_CELLS * dx) & (ahead < dx)
+                              & (outline[:, 1 - axis] > span[0]) & (outline[:, 1 - axis] < span[1])):
+                    continue  # no body next to this face
                 cells = (a[axis] - origin[axis]) / dx
-                offset = cells - math.floor(cells)
+                below = cells - math.floor(cells)
+                offset = 1.0 - below if outward > 0 else below  # from the node line on the material's side
                 if lo < offset < hi:
-                    below = origin[axis] + math.floor(cells) * dx
+                    line = origin[axis] + math.floor(cells) * dx
                     warnings.append(
                         f"structures.{index} ({structure.name!r}) has a face at {name} = {a[axis]:g} m, "
-                        f"{offset:.2f} cells off the grid's node lines: with scheme \"{scheme}\" the force on it "
-                        f"can drift far from the at-rest value; put it on a node line ({name} = {below:g} m or "
-                        f"{below + dx:g} m) or {near}"
+                        f"{offset:.2f} cells from the last node line on the material's side: the lattice of "
+                        f"particles stops short of it and the force on it can be 4-6.5 % off the at-rest value; "
+                        f"put it on a node line ({name} = {line:g} m or {line + dx:g} m) or within 0.55 cells "
+                        "of the node line on the material's side"
                     )
                     break
             else:

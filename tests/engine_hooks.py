@@ -23,7 +23,7 @@ def transfer_only(eng) -> None:
 @ti.kernel
 def _contact_everywhere(eng: ti.template()):
     for I in ti.grouped(eng.g_mom):
-        eng.g_mom[I] = eng._contact(I, eng.g_mom[I], 1.0, False)
+        eng.g_mom[I] = eng._contact(I, eng.g_mom[I], 1.0, False, "updated", 0.0, 0.0)
     if ti.static(eng.COLUMN_FRICTION):
         eng._wall_columns(False)
 

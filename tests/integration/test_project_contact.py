@@ -44,6 +44,8 @@ CASES = [
     ("right", "mpm", "f64", 20, 1e6, 20, 30),
     ("ramp", "apic", "f64", 5, 1e6, 20, 10),
     ("ramp", "apic", "f64", 1, 1e6, 10, 20),
+    # the structures' two-way hold acting on the momentum made this one slide 17 % short (thrust13)
+    ("ramp", "mpm", "f32", 5, 1e8, 40, 30),
 ]
 
 

@@ -10,9 +10,12 @@ the node lines.
 
 Known limits (docs/solver.md, limits of structures; warned about by `runout validate`), strict
 xfails with the figures measured through this path (ratio to the thrust over the intervals):
-a wall one cell thick (mpm 0.93, apic 0.94, 0.92 half a cell off), and faces half a cell off the
-node lines (mpm 1.05 -> 1.29 and growing over 0.2 s, apic 1.03 -> 1.07, apic-affine 0.98 ->
-0.87).
+a wall one cell thick (mpm 0.93, apic 0.94, 0.92 half a cell off), and a face 0.6-0.7 cells from
+the node line on the material's side, which the particle lattice stops 0.1-0.2 cells short of
+(0.935-0.952 in every scheme over 0.3 s). Faces half a cell off drifted (mpm 1.05 -> 1.29 over
+0.2 s, apic 1.03 -> 1.07, apic-affine 0.98 -> 0.87) until the structures' image reactions were
+placed opposite the node that takes the image's force and the contact on the stress update's
+velocity held its active nodes both ways (docs/validation.md, thrust): now 0.956-1.013 over 0.3 s.
 """
 
 from __future__ import annotations
@@ -102,6 +105,10 @@ CASES = [
     ("apic", "f32", 4, 0.0),
     ("apic-affine", "f32", 2, 0.0),
     ("apic-affine", "f32", 4, 0.25),
+    # half a cell off and beyond (drifted before, docs/validation.md, thrust)
+    ("mpm", "f64", 2, 0.5),
+    ("apic", "f32", 4, 0.9),
+    ("apic-affine", "f32", 4, 0.5),
 ]
 
 
@@ -110,11 +117,11 @@ def test_a_column_pushes_on_a_retaining_wall_with_the_at_rest_thrust(tmp_path, s
                                                                      offset_cells):
     ratios = _thrust_ratios(tmp_path, scheme, precision, thick_cells, offset_cells)
     assert abs(ratios - 1.0).max() < TOLERANCE, f"force / (1/2 K0 gamma H^2) per interval: {ratios.round(3)}"
-    # nothing warns about this wall: it is thick enough and its faces are near the node lines
+    # nothing warns about this wall: it is thick enough and its face is not in the warned band
     assert not project_warnings(_project(scheme, precision, thick_cells, offset_cells))
 
 
-LIMITS = [("mpm", "f64", 1, 0.0), ("mpm", "f64", 2, 0.5), ("apic-affine", "f32", 4, 0.5)]
+LIMITS = [("mpm", "f64", 1, 0.0), ("apic-affine", "f32", 2, 0.7)]
 _LIMIT = pytest.mark.xfail(strict=True, reason="known limit of structures (docs/solver.md), warned about; "
                                                "measured in the module note")
 

@@ -2,7 +2,8 @@
 
 Every scheme, with a gravity-loading stage (ramped gravity, damping, velocities reset at its end)
 and a dynamic stage that stops early on its kinetic-energy criterion, so that every phase of the
-run loop (stage start, time loop, stage end) is a checkpoint at least once. Serial scatter: its
+run loop (stage start, time loop, stage end) is a checkpoint at least once; mpm also with a
+structure the column leans on. Serial scatter: its
 sums come in a fixed order, so equal states give equal steps.
 """
 
@@ -43,10 +44,19 @@ def _same(a, b):
         np.testing.assert_array_equal(a.fields[name], b.fields[name], err_msg=name)
 
 
-@pytest.mark.parametrize(("scheme", "precision"),
-                         [("mpm", "f32"), ("apic", "f32"), ("apic-affine", "f32"), ("apic-affine", "f64")])
-def test_restore_from_every_checkpoint_gives_the_same_frames(scheme, precision):
-    project = load_project(TINY_PROJECT, [*SETS, f"numerics.scheme={scheme}", f"numerics.precision={precision}"])
+#: a friction wall the column leans on from the start, its face half a cell off the node line: the
+#: structure contact's state that outlives a step (``Engine.node_hold``, the step stamps of the
+#: nodes it held) is in the checkpoint
+WALL = ('structures=[{name="wall",polygon_m=[[0.13,0.0],[0.19,0.0],[0.19,0.1],[0.13,0.1]],'
+        'contact={type="friction",friction_angle_deg=20.0}}]')
+
+
+@pytest.mark.parametrize(("scheme", "precision", "extra"),
+                         [("mpm", "f32", []), ("apic", "f32", []), ("apic-affine", "f32", []),
+                          ("apic-affine", "f64", []), ("mpm", "f32", [WALL])])
+def test_restore_from_every_checkpoint_gives_the_same_frames(scheme, precision, extra):
+    project = load_project(TINY_PROJECT, [*SETS, f"numerics.scheme={scheme}", f"numerics.precision={precision}",
+                                          *extra])
     resolved = resolve(project)
     frames, checkpoints, message = _frames_and_checkpoints(resolved)
     phases = {phase for _, phase in checkpoints.values()}

@@ -31,12 +31,13 @@ BEYOND = (40.0, 1.0)
 #: per column (COLUMNS, then BEYOND): the offset of its left face from the node line and its width,
 #: in cells. apic-affine: the right faces then lie 0.5, 0.3, 0.7 and 0.7 cells off the node line, so
 #: a run has faces at 0, 0.2, 0.3, 0.5 and 0.7 cells on both sides of the material (left of a
-#: structure and right of one). mpm and apic: faces 0, 0.2, 0.25, 0.75 and 0.8 cells off (right
-#: faces 0, 0.75, 0.8, 0.2). Faces 0.3-0.7 cells off (mpm, apic) and 0.45-0.55 on both sides of a
-#: column (apic-affine) are a known limit, warned about in the project (docs/validation.md,
-#: thrust); the k0 overburden itself is exact for any alignment (test below)
+#: structure and right of one). mpm and apic: faces 0, 0.1, 0.4 and 0.6 cells off on both sides
+#: (right faces 0, 0.4, 0.1, 0.6; before the structures' image reactions and contact target, mpm
+#: drifted to 1.08-8 times the thrust at 0.4-0.6). Both faces of a column half a cell off are a
+#: known limit in this scene (1.10-1.17; docs/validation.md, thrust); the k0 overburden itself is
+#: exact for any alignment (test below)
 FACES = {"apic-affine": ((0.0, 4.5), (0.3, 4.0), (0.2, 4.5), (0.7, 4.0)),
-         "mpm": ((0.0, 4.0), (0.25, 4.5), (0.8, 4.0), (0.2, 4.0))}
+         "mpm": ((0.0, 4.0), (0.4, 4.0), (0.6, 4.5), (0.1, 4.5))}
 FACES["apic"] = FACES["mpm"]
 #: structures' thickness, cells
 THICK = 3
