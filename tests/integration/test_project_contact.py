@@ -74,40 +74,28 @@ def test_a_block_slides_or_sticks_as_coulomb_says_through_the_project_path(
 # +5.1-5.5 % of the frictionless distance and the 5-cell apic-affine one +1.3 %; a finite-element model
 # of the same block holds (benchmarks/contact_fem.py). Measured after: 0.000-0.005 %.
 NEAR_LIMIT = [
-    ("bottom", "apic-affine", "f32", 20, 1e8, 40, 45),
-    ("bottom", "mpm", "f32", 20, 1e8, 40, 45),
-    ("right", "apic", "f64", 20, 1e8, 40, 45),
-    ("left", "mpm", "f32", 5, 1e8, 40, 45),
+    ("bottom", "apic-affine", "f32", 20, 1e8, 40, 45, 0.2),
+    ("bottom", "mpm", "f32", 20, 1e8, 40, 45, 0.2),
+    ("right", "apic", "f64", 20, 1e8, 40, 45, 0.2),
+    ("left", "mpm", "f32", 5, 1e8, 40, 45, 0.2),
+    # Soft 20-cell blocks, after the recommended gravity stage (None: 2.9 s, three periods 4 H / c_s).
+    # Until local damping was left off the contact nodes (docs/solver.md, local damping) the damped
+    # stage itself let the base creep 5 mm (apic-affine, 1 s stage), and the block went on in the
+    # dynamic stage: 0.40 % of the frictionless distance. Measured after: 0.006-0.074 %.
+    ("bottom", "apic-affine", "f32", 20, 1e6, 40, 45, None),
+    ("left", "apic-affine", "f64", 20, 1e6, 40, 45, None),
+    ("right", "mpm", "f32", 20, 1e6, 40, 45, None),
+    ("ramp", "apic", "f32", 20, 1e6, 40, 45, None),
 ]
 
 
-@pytest.mark.parametrize("contact,scheme,precision,thickness,youngs,theta,delta", NEAR_LIMIT,
-                         ids=[f"{c}-{s}-{p}-{n}cells-E{e:g}-{t}on{d}" for c, s, p, n, e, t, d in NEAR_LIMIT])
-def test_a_stiff_block_five_degrees_from_the_friction_limit_holds(tmp_path, contact, scheme, precision, thickness,
-                                                                  youngs, theta, delta):
-    outcome, _ = run_case(project_text(contact, scheme, precision, thickness, youngs, theta, delta), tmp_path / "run")
-    assert not outcome.slides
-    _check(outcome)
-
-
-# Soft 20-cell blocks 5 deg from the friction limit, after the recommended gravity stage (2.9 s, three
-# periods 4 H / c_s). Until local damping was left off the contact nodes (docs/solver.md, local
-# damping) the damped stage itself let the base creep 5 mm (apic-affine, 1 s stage), and the block
-# went on in the dynamic stage: 0.40 % of the frictionless distance. Measured after: 0.006-0.074 %.
-SOFT_NEAR_LIMIT = [
-    ("bottom", "apic-affine", "f32", 20, 1e6, 40, 45),
-    ("left", "apic-affine", "f64", 20, 1e6, 40, 45),
-    ("right", "mpm", "f32", 20, 1e6, 40, 45),
-    ("ramp", "apic", "f32", 20, 1e6, 40, 45),
-]
-
-
-@pytest.mark.parametrize("contact,scheme,precision,thickness,youngs,theta,delta", SOFT_NEAR_LIMIT,
-                         ids=[f"{c}-{s}-{p}-{n}cells-E{e:g}-{t}on{d}" for c, s, p, n, e, t, d in SOFT_NEAR_LIMIT])
-def test_a_soft_block_five_degrees_from_the_friction_limit_holds_after_the_recommended_stage(
-        tmp_path, contact, scheme, precision, thickness, youngs, theta, delta):
-    case = project_text(contact, scheme, precision, thickness, youngs, theta, delta, gravity_s=None)
-    assert "duration_s = 2.9\n" in case.text
+@pytest.mark.parametrize("contact,scheme,precision,thickness,youngs,theta,delta,gravity_s", NEAR_LIMIT,
+                         ids=[f"{c}-{s}-{p}-{n}cells-E{e:g}-{t}on{d}-stage{g}" for c, s, p, n, e, t, d, g in NEAR_LIMIT])
+def test_a_block_five_degrees_from_the_friction_limit_holds(tmp_path, contact, scheme, precision, thickness,
+                                                            youngs, theta, delta, gravity_s):
+    case = project_text(contact, scheme, precision, thickness, youngs, theta, delta, gravity_s=gravity_s)
+    if gravity_s is None:
+        assert "duration_s = 2.9\n" in case.text
     outcome, _ = run_case(case, tmp_path / "run")
     assert not outcome.slides
     _check(outcome)
