@@ -558,11 +558,7 @@ class Engine:
         side_n = ti.Vector.zero(float, 2)
         corner = 0
         for side in ti.static(range(4)):
-            axis = ti.static(side // 2)
-            low = ti.static(side % 2 == 0)
-            wall = ti.static(PAD if low else PAD + self.cells[axis])
-            on_wall = (I[axis] <= wall) if ti.static(low) else (I[axis] >= wall)
-            if on_wall and self._closed(self.bc_kind[side]):
+            if self._on_closed_side(I, side):
                 corner += 1
         for side in ti.static(range(4)):
             axis = ti.static(side // 2)
@@ -645,16 +641,22 @@ class Engine:
         return n
 
     @ti.func
+    def _on_closed_side(self, I, side: ti.template()):
+        """Whether node I lies on or beyond ``side`` (0-3: left, right, bottom, top) and that side is
+        closed (a contact)."""
+        axis = ti.static(side // 2)
+        low = ti.static(side % 2 == 0)
+        wall = ti.static(PAD if low else PAD + self.cells[axis])
+        on_wall = (I[axis] <= wall) if ti.static(low) else (I[axis] >= wall)
+        return on_wall and self._closed(self.bc_kind[side])
+
+    @ti.func
     def _held(self, I):
         """Whether node I is a contact node of a closed side or of a structure (where
         :meth:`_contact` acts)."""
         held = False
         for side in ti.static(range(4)):
-            axis = ti.static(side // 2)
-            low = ti.static(side % 2 == 0)
-            wall = ti.static(PAD if low else PAD + self.cells[axis])
-            on_wall = (I[axis] <= wall) if ti.static(low) else (I[axis] >= wall)
-            if on_wall and self._closed(self.bc_kind[side]):
+            if self._on_closed_side(I, side):
                 held = True
         if ti.static(self.n_structures > 0):
             if self.node_struct[I] >= 0:
