@@ -7,7 +7,8 @@ strain) and the index of the body each point belongs to.
 lattice
     Each background-grid cell (square, side ``cell_size_m``, cells start at ``origin_m``) is
     split into ``per_cell x per_cell`` sub-cells of side ``h = cell_size_m / per_cell``; a point
-    sits at the centre of every sub-cell whose centre lies in a body, with volume ``h**2``.
+    sits at the centre of every sub-cell a body covers whole, with volume ``h**2``, and at the
+    centroid of each body's part of a sub-cell its outline cuts, with that part's area.
 gauss
     The bodies are meshed into quadrilaterals of edge ``cell_size_m`` (gmsh, see
     :mod:`geometry.gmsh_bodies`); each quad gets ``per_cell x per_cell`` Gauss-Legendre points
@@ -17,6 +18,7 @@ gauss
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -30,6 +32,8 @@ logger = logging.getLogger(__name__)
 _LATTICE_BLOCK_POINTS = 2_000_000
 # Sub-cell indices beyond this cannot be counted (int64 with room to spare).
 _MAX_SUBCELL_INDEX = 2.0**60
+# Pieces of a cut sub-cell smaller than this fraction of it get no point (their centroid is round-off).
+_MIN_PIECE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -95,27 +99,21 @@ def seed_lattice(
     origin_m: tuple[float, float],
     cell_size_m: float,
     per_cell: int,
+    holes: Sequence[np.ndarray] = (),
 ) -> Seeds:
     """Seed points on a lattice aligned with the background grid, clipped by the bodies.
 
     Every grid cell ``[ox + i dx, ox + (i+1) dx] x [oy + j dx, oy + (j+1) dx]`` is divided into
-    ``per_cell x per_cell`` sub-cells of side ``h = dx / per_cell``. A point is placed at the
-    centre of each sub-cell whose centre lies in a body (overlaps go to the later body) and
-    gets the sub-cell's area ``h**2`` as its volume.
+    ``per_cell x per_cell`` sub-cells of side ``h = dx / per_cell``. A sub-cell no body outline
+    passes through gets a point at its centre if a body contains the centre (overlaps go to the
+    later body), with volume ``h**2``. A sub-cell an outline passes through gets one point per
+    body at the centroid of the part of it that body's own region (its polygon less the later
+    bodies) covers, with that part's area (parts below ``_MIN_PIECE`` of a sub-cell get none).
 
-    Volume bound: the volumes of a body sum to its area exactly when its edges run along
-    sub-cell lines (e.g. a rectangle aligned with the grid). Otherwise the difference comes
-    only from sub-cells cut by the boundary. A straight edge leaves at least half of a
-    sub-cell on the side of its centre, so each cut sub-cell is off by at most ``h**2 / 2``,
-    and the signed errors along an edge largely cancel. For bodies without features thinner
-    than ``h``::
-
-        |sum of volumes - area| <= perimeter * h / 2
-
-    (on random polygons the worst case found is about 0.4 of this bound). A needle thinner
-    than ``h`` can exceed it by up to ``h**2`` per needle; the unconditional bound, counting
-    every sub-cell an edge meets as wholly wrong, is ``h * sum(|dx_e| + |dy_e|) + 3 K h**2``
-    over the K edges ``e``.
+    So a body's volumes sum to its area, less what later bodies cover, to round-off at any
+    alignment with the grid, and its material reaches its outline: with centres alone it
+    stopped up to half a sub-cell short of an edge or ran past it, which next to a structure
+    face off the node lines took 5-6.5 % off the at-rest thrust (docs/geometry.md).
 
     Parameters
     ----------
@@ -127,6 +125,9 @@ def seed_lattice(
         Background-grid cell size ``dx``.
     per_cell : int
         Points per cell per direction (``per_cell**2`` points in a full cell).
+    holes : sequence of array_like, each shape (K_i, 2), m
+        Outlines that take precedence over every body (the structures): no point is seeded in
+        them, and the sub-cells their outlines cut are clipped as a body's are.
 
     Returns
     -------
@@ -139,6 +140,7 @@ def seed_lattice(
         For non-simple polygons, a non-positive cell size or ``per_cell < 1``.
     """
     polys = [check_simple(p, f"polygons[{i}]") for i, p in enumerate(polygons)]
+    holes = [check_simple(p, f"holes[{i}]") for i, p in enumerate(holes)]
     dx = _check_cell_size(cell_size_m)
     n = _check_per_cell(per_cell)
     ox, oy = (float(v) for v in origin_m)
@@ -164,19 +166,106 @@ def seed_lattice(
     ys = oy + (np.arange(j0, j1) + 0.5) * h
     rows_per_block = max(1, _LATTICE_BLOCK_POINTS // max(1, len(xs)))
 
+    cut_cells = _cells_on_outlines(polys + holes, (ox, oy), h, (i0, j0), (len(xs), len(ys)))
+    regions = _own_regions(polys, holes)
     positions: list[np.ndarray] = []
+    volumes: list[np.ndarray] = []
     owners: list[np.ndarray] = []
+    order: list[np.ndarray] = []  # sub-cell number (row-major) of each point, for the row-then-x order
     for start in range(0, len(ys), rows_per_block):
-        gy, gx = np.meshgrid(ys[start : start + rows_per_block], xs, indexing="ij")
-        pts = np.column_stack([gx.ravel(), gy.ravel()])
-        owner = owner_of_points(pts, polys)
-        keep = owner >= 0
-        positions.append(pts[keep])
-        owners.append(owner[keep])
-    pos = np.concatenate(positions)
+        rows = ys[start : start + rows_per_block]
+        gy, gx = np.meshgrid(rows, xs, indexing="ij")
+        centres = np.column_stack([gx.ravel(), gy.ravel()])
+        centre = owner_of_points(centres, polys)
+        if holes:
+            centre[owner_of_points(centres, holes) >= 0] = -1
+        centre = centre.reshape(gy.shape)
+        cut = np.zeros(gy.shape, dtype=bool)
+        here = (cut_cells[:, 1] >= start) & (cut_cells[:, 1] < start + len(rows))
+        cut[cut_cells[here, 1] - start, cut_cells[here, 0]] = True
+        number = (np.arange(start, start + len(rows))[:, None] * len(xs) + np.arange(len(xs))[None, :])
+        full = ~cut & (centre >= 0)
+        positions.append(np.column_stack([gx[full], gy[full]]))
+        volumes.append(np.full(int(full.sum()), h * h))
+        owners.append(centre[full])
+        order.append(number[full])
+        if np.any(cut):
+            piece_xy, piece_area, piece_body, piece_cell = _clip_sub_cells(
+                gx[cut], gy[cut], number[cut], h, regions)
+            positions.append(piece_xy)
+            volumes.append(piece_area)
+            owners.append(piece_body)
+            order.append(piece_cell)
+    cells = np.concatenate(order)
     body = np.concatenate(owners)
+    sort = np.lexsort((body, cells))
+    pos = np.concatenate(positions)[sort]
+    vol = np.concatenate(volumes)[sort]
+    body = body[sort]
     _warn_empty(body, len(polys), "lattice")
-    return Seeds(positions_m=pos, volumes_m2=np.full(len(pos), h * h), body_index=body)
+    return Seeds(positions_m=pos, volumes_m2=vol, body_index=body)
+
+
+def _cells_on_outlines(polys, origin, h, first, count) -> np.ndarray:
+    """(i, j) of every sub-cell an outline passes through, with its eight neighbours (so that
+    sampling each edge every half sub-cell cannot miss one), within ``count`` from ``first``."""
+    marks = []
+    for polygon in polys:
+        for a, b in zip(polygon, np.roll(polygon, -1, axis=0)):
+            samples = max(1, int(math.ceil(2.0 * float(np.hypot(*(b - a))) / h)))
+            t = np.linspace(0.0, 1.0, samples + 1)[:, None]
+            marks.append(np.floor((a + t * (b - a) - origin) / h).astype(np.int64) - first)
+    cells = np.unique(np.concatenate(marks), axis=0)
+    around = np.array([(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)])
+    cells = np.unique((cells[:, None, :] + around[None, :, :]).reshape(-1, 2), axis=0)
+    keep = (cells[:, 0] >= 0) & (cells[:, 0] < count[0]) & (cells[:, 1] >= 0) & (cells[:, 1] < count[1])
+    return cells[keep]
+
+
+def _own_regions(polys: Sequence[np.ndarray], holes: Sequence[np.ndarray] = ()) -> list:
+    """Each body's own region as a shapely geometry: its polygon less the later bodies and the
+    holes."""
+    import shapely
+
+    shapes = [shapely.Polygon(p) for p in polys]
+    hole_shapes = [shapely.Polygon(p) for p in holes]
+    regions = []
+    for index, shape in enumerate(shapes):
+        later = shapes[index + 1:] + hole_shapes
+        region = shapely.difference(shape, shapely.union_all(later)) if later else shape
+        shapely.prepare(region)
+        regions.append(region)
+    return regions
+
+
+def _clip_sub_cells(cx: np.ndarray, cy: np.ndarray, cells: np.ndarray, h: float, regions: list):
+    """The pieces of the sub-cells centred at (cx, cy) that each body's region covers: centroid,
+    area, body and sub-cell number per piece (pieces below ``_MIN_PIECE`` of a sub-cell are
+    dropped; a whole sub-cell keeps its centre and ``h**2`` exactly, as an uncut one)."""
+    import shapely
+
+    boxes = shapely.box(cx - 0.5 * h, cy - 0.5 * h, cx + 0.5 * h, cy + 0.5 * h)
+    xy, area, body, cell = [], [], [], []
+    for index, region in enumerate(regions):
+        hit = shapely.intersects(region, boxes)
+        if not np.any(hit):
+            continue
+        pieces = shapely.intersection(boxes[hit], region)
+        a = shapely.area(pieces)
+        keep = a > _MIN_PIECE * h * h
+        centroid = shapely.centroid(pieces[keep])
+        p = np.column_stack([shapely.get_x(centroid), shapely.get_y(centroid)])
+        a = a[keep]
+        entire = a >= (1.0 - 1e-12) * h * h
+        p[entire] = np.column_stack([cx[hit][keep][entire], cy[hit][keep][entire]])
+        a[entire] = h * h
+        xy.append(p)
+        area.append(a)
+        body.append(np.full(len(a), index, dtype=np.int64))
+        cell.append(cells[hit][keep])
+    if not xy:
+        return np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    return np.concatenate(xy), np.concatenate(area), np.concatenate(body), np.concatenate(cell)
 
 
 def gauss_legendre(per_cell: int) -> tuple[np.ndarray, np.ndarray]:

@@ -186,13 +186,15 @@ def seed_bodies(project: Project) -> Seeds:
     -------
     geometry.seeding.Seeds
         Positions (N, 2) m, volumes (N,) m2 and body index (N,); overlaps belong to the
-        later body.
+        later body, and the structures take precedence over every body (lattice seeding clips
+        the bodies at their outlines; Gauss points inside one are dropped by the caller).
     """
     polygons = [np.asarray(body.polygon_m, dtype=np.float64) for body in project.bodies]
     particles = project.particles
     if particles.seeding == "gauss":
         return seed_gauss(polygons, project.domain.cell_size_m, particles.per_cell)
-    return seed_lattice(polygons, project.domain.origin_m, project.domain.cell_size_m, particles.per_cell)
+    holes = [np.asarray(structure.polygon_m, dtype=np.float64) for structure in project.structures]
+    return seed_lattice(polygons, project.domain.origin_m, project.domain.cell_size_m, particles.per_cell, holes)
 
 
 def _seed_particles(project: Project, config: sc.SimulationConfig) -> tuple[sc.Particles, np.ndarray]:
@@ -207,8 +209,9 @@ def _seed_particles(project: Project, config: sc.SimulationConfig) -> tuple[sc.P
     Raises
     ------
     ProjectError
-        When a body receives no particles (it is thinner than the particle spacing or
-        entirely covered by later bodies).
+        When a body receives no particles (it is entirely covered by later bodies or
+        structures, or, seeded on the lattice, of almost no area; with Gauss seeding, thinner
+        than the particle spacing).
     """
     try:
         seeds = seed_bodies(project)
@@ -226,9 +229,9 @@ def _seed_particles(project: Project, config: sc.SimulationConfig) -> tuple[sc.P
         Problem(
             f"bodies.{i}.polygon_m",
             None,
-            "receives no particles: smaller than the particle spacing "
-            f"({project.domain.cell_size_m / project.particles.per_cell:g} m) or covered by later bodies"
-            + (" or structures" if project.structures else ""),
+            "receives no particles: covered by later bodies" + (" or structures" if project.structures else "")
+            + " or too small for the particle spacing "
+            f"({project.domain.cell_size_m / project.particles.per_cell:g} m)",
         )
         for i, count in enumerate(counts)
         if count == 0

@@ -16,7 +16,10 @@ last bits (initial stresses 1e-12 of the largest apart): written again; the sand
 contact point, issue 11, session 11) changed the two examples with a friction floor again, the
 aluminium bars and the tiny column, written again; the sand column and the slope kept theirs. Then
 local damping left off the contact nodes (issue 11, session 12) changed the one example with a
-damped gravity stage, the slope, written again; the others kept theirs. Each example runs 200 to 400 steps with its own settings and the
+damped gravity stage, the slope, written again; the others kept theirs. Then the lattice seeding
+clipped at the bodies' outlines (a point at the centroid of each body's part of a cut sub-cell,
+session 13) changed the one example with an outline off the sub-cell lines, the slope, written
+again; the others (grid-aligned rectangles) kept theirs bit for bit. Each example runs 200 to 400 steps with its own settings and the
 scatter ``auto`` picks on this machine (serial below 10,000 particles, split above, on a CPU with
 few threads: both repeat bit for bit). A change that alters the numbers of a scene fails here; if
 the change is meant (a physics fix), write the digests again and say so in the commit.

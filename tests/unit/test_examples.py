@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from geometry.polygons import owner_of_points, polygon_area
 from projects.build import estimate, resolve
 from projects.document import dumps_project, load_project, loads_project, save_project
 
@@ -87,7 +88,15 @@ def test_sand_column_matches_the_paper():
 
 def test_slope_matches_the_paper():
     project, run = particles_of("slope_sun_song_2015")
-    assert len(run.particles) == 39051  # paper: 39051 particles
+    # paper: 39051 particles, one per sub-cell whose centre lies in the slope; the clipped lattice
+    # adds one in each of the 92 sub-cells the slope face cuts with the centre outside, so that the
+    # particles' volumes sum to the slope's area
+    h = project.domain.cell_size_m / project.particles.per_cell
+    sub_cell_centres = (np.floor(run.particles.positions_m / h) + 0.5) * h
+    slope = [np.asarray(body.polygon_m) for body in project.bodies]
+    assert (owner_of_points(sub_cell_centres, slope) >= 0).sum() == 39051
+    assert len(run.particles) == 39051 + 92
+    assert run.particles.volumes_m2.sum() == pytest.approx(sum(polygon_area(p) for p in slope), rel=1e-12)
     assert project.domain.cell_size_m == 1.0 and project.particles.per_cell == 2
     assert project.numerics.time_step_s == 1e-4
     assert run.config.grid.bottom.kind == "fixed"
