@@ -53,7 +53,8 @@ GRAVITY_STAGE_PERIODS = 3.0
 #: Structures thinner than this many cells at their thickest are warned about.
 STRUCTURE_MIN_CELLS = 2.0
 #: Axis-aligned structure faces this far (cells) from the last node line on the material's side
-#: (outside the structure) are warned about, in every scheme.
+#: (outside the structure) are warned about, in every scheme: walls two cells thick take 0.935-0.956
+#: of the at-rest thrust there (four cells thick: within 4.6 % since the clipped lattice).
 FACE_OFFSET_BAND = (0.55, 0.85)
 
 _CLOSED = ("fixed", "slip", "friction")
