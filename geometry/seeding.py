@@ -48,11 +48,15 @@ class Seeds:
         Volume of each point per unit thickness (plane strain).
     body_index : numpy.ndarray, shape (N,), int64
         Index of the body (in the list given to the seeder) each point belongs to.
+    bounds_m : numpy.ndarray, shape (N, 4), float64, m, or None
+        Lattice seeding: the box (x min, y min, x max, y max) of the part of its sub-cell each
+        point stands for (the sub-cell itself but along outlines), for the k0 stage's bars.
     """
 
     positions_m: np.ndarray
     volumes_m2: np.ndarray
     body_index: np.ndarray
+    bounds_m: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.volumes_m2)
@@ -172,6 +176,7 @@ def seed_lattice(
     volumes: list[np.ndarray] = []
     owners: list[np.ndarray] = []
     order: list[np.ndarray] = []  # sub-cell number (row-major) of each point, for the row-then-x order
+    boxes: list[np.ndarray] = []
     for start in range(0, len(ys), rows_per_block):
         rows = ys[start : start + rows_per_block]
         gy, gx = np.meshgrid(rows, xs, indexing="ij")
@@ -186,13 +191,15 @@ def seed_lattice(
         number = (np.arange(start, start + len(rows))[:, None] * len(xs) + np.arange(len(xs))[None, :])
         full = ~cut & (centre >= 0)
         positions.append(np.column_stack([gx[full], gy[full]]))
+        boxes.append(np.column_stack([gx[full] - 0.5 * h, gy[full] - 0.5 * h, gx[full] + 0.5 * h, gy[full] + 0.5 * h]))
         volumes.append(np.full(int(full.sum()), h * h))
         owners.append(centre[full])
         order.append(number[full])
         if np.any(cut):
-            piece_xy, piece_area, piece_body, piece_cell = _clip_sub_cells(
+            piece_xy, piece_area, piece_body, piece_cell, piece_box = _clip_sub_cells(
                 gx[cut], gy[cut], number[cut], h, regions)
             positions.append(piece_xy)
+            boxes.append(piece_box)
             volumes.append(piece_area)
             owners.append(piece_body)
             order.append(piece_cell)
@@ -202,8 +209,9 @@ def seed_lattice(
     pos = np.concatenate(positions)[sort]
     vol = np.concatenate(volumes)[sort]
     body = body[sort]
+    bounds = np.concatenate(boxes)[sort]
     _warn_empty(body, len(polys), "lattice")
-    return Seeds(positions_m=pos, volumes_m2=vol, body_index=body)
+    return Seeds(positions_m=pos, volumes_m2=vol, body_index=body, bounds_m=bounds)
 
 
 def _cells_on_outlines(polys, origin, h, first, count) -> np.ndarray:
@@ -240,12 +248,12 @@ def _own_regions(polys: Sequence[np.ndarray], holes: Sequence[np.ndarray] = ()) 
 
 def _clip_sub_cells(cx: np.ndarray, cy: np.ndarray, cells: np.ndarray, h: float, regions: list):
     """The pieces of the sub-cells centred at (cx, cy) that each body's region covers: centroid,
-    area, body and sub-cell number per piece (pieces below ``_MIN_PIECE`` of a sub-cell are
+    area, body, sub-cell number and bounding box per piece (pieces below ``_MIN_PIECE`` of a sub-cell are
     dropped; a whole sub-cell keeps its centre and ``h**2`` exactly, as an uncut one)."""
     import shapely
 
     boxes = shapely.box(cx - 0.5 * h, cy - 0.5 * h, cx + 0.5 * h, cy + 0.5 * h)
-    xy, area, body, cell = [], [], [], []
+    xy, area, body, cell, bound = [], [], [], [], []
     for index, region in enumerate(regions):
         hit = shapely.intersects(region, boxes)
         if not np.any(hit):
@@ -257,15 +265,20 @@ def _clip_sub_cells(cx: np.ndarray, cy: np.ndarray, cells: np.ndarray, h: float,
         p = np.column_stack([shapely.get_x(centroid), shapely.get_y(centroid)])
         a = a[keep]
         entire = a >= (1.0 - 1e-12) * h * h
+        box = shapely.bounds(pieces[keep])
         p[entire] = np.column_stack([cx[hit][keep][entire], cy[hit][keep][entire]])
         a[entire] = h * h
+        box[entire] = np.column_stack([p[entire] - 0.5 * h, p[entire] + 0.5 * h])
         xy.append(p)
         area.append(a)
         body.append(np.full(len(a), index, dtype=np.int64))
         cell.append(cells[hit][keep])
+        bound.append(box)
     if not xy:
-        return np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-    return np.concatenate(xy), np.concatenate(area), np.concatenate(body), np.concatenate(cell)
+        return (np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64),
+                np.zeros((0, 4)))
+    return (np.concatenate(xy), np.concatenate(area), np.concatenate(body), np.concatenate(cell),
+            np.concatenate(bound))
 
 
 def gauss_legendre(per_cell: int) -> tuple[np.ndarray, np.ndarray]:

@@ -223,7 +223,7 @@ def _seed_particles(project: Project, config: sc.SimulationConfig) -> tuple[sc.P
         keep = np.ones(len(seeds.body_index), bool)
         for structure in project.structures:
             keep &= signed_distance(np.asarray(seeds.positions_m, float), structure.polygon_m) >= 0.0
-        seeds = type(seeds)(**{k: np.asarray(v)[keep] for k, v in vars(seeds).items()})
+        seeds = type(seeds)(**{k: None if v is None else np.asarray(v)[keep] for k, v in vars(seeds).items()})
     counts = np.bincount(seeds.body_index, minlength=len(project.bodies))
     empty = [
         Problem(
@@ -247,6 +247,7 @@ def _seed_particles(project: Project, config: sc.SimulationConfig) -> tuple[sc.P
         volumes_m2=np.asarray(seeds.volumes_m2, dtype=np.float64),
         material_ids=body_material[body_index],
         velocities_m_s=body_velocity[body_index],
+        bounds_m=None if seeds.bounds_m is None else np.asarray(seeds.bounds_m, dtype=np.float64),
     )
     logger.info("seeded %d particles in %d bodies on a %d x %d grid",
                 len(particles), len(project.bodies), *config.grid.cells)

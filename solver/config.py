@@ -275,12 +275,15 @@ class Particles:
     volumes_m2 : (N,) float, area per metre out of plane
     material_ids : (N,) int, index into ``SimulationConfig.materials``
     velocities_m_s : (N, 2) float, optional (zeros)
+    bounds_m : (N, 4) float, optional: the box (x min, y min, x max, y max) of the material each
+        particle stands for (lattice seeding), for the k0 stage's bars; otherwise ``sqrt(V)`` wide
     """
 
     positions_m: np.ndarray
     volumes_m2: np.ndarray
     material_ids: np.ndarray
     velocities_m_s: np.ndarray | None = None
+    bounds_m: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = len(self.positions_m)
@@ -290,6 +293,8 @@ class Particles:
             raise ValueError("volumes_m2 and material_ids must have shape (N,) matching positions_m")
         if self.velocities_m_s is not None and np.shape(self.velocities_m_s) != (n, 2):
             raise ValueError("velocities_m_s must have shape (N, 2) matching positions_m")
+        if self.bounds_m is not None and np.shape(self.bounds_m) != (n, 4):
+            raise ValueError("bounds_m must have shape (N, 4) matching positions_m")
 
     def __len__(self) -> int:
         return len(self.positions_m)

@@ -15,8 +15,10 @@ alignment of the lattice with the grid, for layered bodies, for bodies of differ
 spacings and next to a structure face that cuts a grid cell: the particle line next to the face
 carries its full column. (The former binning by grid-cell columns assumed the material filled
 each column across: a face 0.3 cells off the node line left the particle line next to it at half
-its overburden.) Where the bars' edges are not shared (Gauss seeding, gravity oblique to the
-lattice) the edges are snapped to strips of a quarter of the median bar width, so the work stays
+its overburden.) With lattice seeding a particle's bar is the box of the material it stands for
+(``Particles.bounds_m``: its sub-cell, or the part of it a body's outline leaves), not ``sqrt(V)``
+about it, so the bars tile each row next to outlines between sub-cell lines too. Where the bars'
+edges are not shared (Gauss seeding, gravity oblique to the lattice) the edges are snapped to strips of a quarter of the median bar width, so the work stays
 a few entries per particle.
 
 The horizontal and out-of-plane stresses are ``K0 sigma_v``; K0 is the stage's value or each
@@ -86,8 +88,25 @@ def k0_stress(particles: Particles, materials: Sequence[Material], gravity_m_s2,
         weight = np.where(active, weight, 0.0)
     width = np.sqrt(np.maximum(volume, 0.0))
     tol = TOLERANCE_CELLS * cell_size_m
-    width = np.maximum(width, 4 * tol)
     centre = x @ across
+    bounds = particles.bounds_m
+    axis = int(np.argmax(np.abs(across)))
+    moved = 0.0 if positions_m is None else float(np.max(np.abs(x - particles.positions_m), initial=0.0))
+    if bounds is not None and moved <= 1e-3 * cell_size_m and abs(abs(across[axis]) - 1.0) < 1e-12:
+        # the lattice's own boxes (gravity along a grid axis): a part of a sub-cell cut by an
+        # outline is as wide as it is, not sqrt(V), and its bar lies where it does, so the bars
+        # still tile each row (a sqrt(V) bar about its centroid left the particle line against a
+        # structure face 0.55 cells off the node line at 0.85 of its overburden)
+        box = np.asarray(bounds, dtype=np.float64)
+        lo = box[:, axis] * across[axis]
+        hi = box[:, axis + 2] * across[axis]
+        # only where the box differs from the sqrt(V) bar (the cut parts): a whole sub-cell keeps
+        # its bar to the last bit
+        seeded = np.asarray(particles.positions_m, dtype=np.float64) @ across
+        part = (np.abs(np.abs(hi - lo) - width) > tol) | (np.abs(0.5 * (lo + hi) - seeded) > tol)
+        centre = np.where(part, 0.5 * (lo + hi), centre)
+        width = np.where(part, np.abs(hi - lo), width)
+    width = np.maximum(width, 4 * tol)
     first, count, strip_w = _strips(centre - 0.5 * width, centre + 0.5 * width, tol)
     # one entry per (particle, strip it covers); each strip holds the particle's share of its weight
     owner = np.repeat(np.arange(n), count)

@@ -297,3 +297,29 @@ def test_the_k0_overburden_is_exact_for_lattices_at_any_alignment(offset_cells):
     top = 0.6 + 18 * s1
     closed = -(rho[0] * G * (0.6 - pos[deep, 1]) + rho[1] * G * (top - 0.6))
     np.testing.assert_allclose(stress[deep, 1], closed, rtol=1e-12)
+
+
+@pytest.mark.parametrize("per_cell", [2, 3])
+@pytest.mark.parametrize("offset_cells", [0.0, 0.3, 0.55, 0.7, 0.8])
+def test_the_k0_overburden_is_exact_next_to_a_clipped_outline(offset_cells, per_cell):
+    """The project path: a column seeded on the lattice clipped at its outline (the face of a
+    structure between node lines cuts the last sub-cells) gets ``rho g (top - y)`` at every
+    particle, the parts of the cut sub-cells included: their bars are their own boxes
+    (``Particles.bounds_m``), not ``sqrt(V)`` about their centroids (0.85-0.95 of the overburden in
+    the particle line against the face, 1.07 beside it)."""
+    from geometry.seeding import seed_lattice
+    from solver.initial_stress import k0_stress
+
+    dx, height, rho = 0.02, 0.24, 1800.0
+    face = 0.24 + offset_cells * dx
+    column = np.array([[0.0, 0.0], [face, 0.0], [face, height], [0.0, height]])
+    wall = np.array([[face, 0.0], [face + 4 * dx, 0.0], [face + 4 * dx, 0.4], [face, 0.4]])
+    seeds = seed_lattice([column], (0.0, 0.0), dx, per_cell, holes=[wall])
+    cut = seeds.volumes_m2 < (dx / per_cell) ** 2 * (1 - 1e-9)
+    assert cut.any() == (offset_cells * per_cell % 1 != 0)
+    particles = Particles(seeds.positions_m, seeds.volumes_m2, np.zeros(len(seeds), np.int32),
+                          bounds_m=seeds.bounds_m)
+    stress = k0_stress(particles, [Material("sand", "elastic", rho, 2e7, 0.3)], (0.0, -G), dx, k0=0.5)
+    closed = -rho * G * (height - seeds.positions_m[:, 1])
+    np.testing.assert_allclose(stress[:, 1], closed, rtol=1e-9)
+    np.testing.assert_allclose(stress[:, 0], 0.5 * closed, rtol=1e-9)
