@@ -261,14 +261,15 @@ def _clip_sub_cells(cx: np.ndarray, cy: np.ndarray, cells: np.ndarray, h: float,
         pieces = shapely.intersection(boxes[hit], region)
         a = shapely.area(pieces)
         keep = a > _MIN_PIECE * h * h
-        centroid = shapely.centroid(pieces[keep])
+        pieces, a = pieces[keep], a[keep]
+        centre = np.column_stack([cx[hit][keep], cy[hit][keep]])
+        centroid = shapely.centroid(pieces)
         p = np.column_stack([shapely.get_x(centroid), shapely.get_y(centroid)])
-        a = a[keep]
+        box = shapely.bounds(pieces)
         entire = a >= (1.0 - 1e-12) * h * h
-        box = shapely.bounds(pieces[keep])
-        p[entire] = np.column_stack([cx[hit][keep][entire], cy[hit][keep][entire]])
+        p[entire] = centre[entire]
         a[entire] = h * h
-        box[entire] = np.column_stack([p[entire] - 0.5 * h, p[entire] + 0.5 * h])
+        box[entire] = np.column_stack([centre[entire] - 0.5 * h, centre[entire] + 0.5 * h])
         xy.append(p)
         area.append(a)
         body.append(np.full(len(a), index, dtype=np.int64))

@@ -217,7 +217,9 @@ def _seed_particles(project: Project, config: sc.SimulationConfig) -> tuple[sc.P
         seeds = seed_bodies(project)
     except ValueError as err:  # what the size limits did not stop (--force): one line, no traceback
         raise ProjectError([Problem("domain.cell_size_m", project.domain.cell_size_m, f"cannot seed the bodies: {err}")]) from None
-    if project.structures:  # a structure takes precedence: no material is seeded inside one
+    if project.structures and project.particles.seeding == "gauss":
+        # a structure takes precedence: no material is seeded inside one (the lattice is clipped
+        # at the structures' outlines already, seed_bodies)
         from solver.structures import signed_distance
 
         keep = np.ones(len(seeds.body_index), bool)

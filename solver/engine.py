@@ -272,13 +272,13 @@ class Engine:
         for k, polygon in enumerate(self.solid_polygons):
             mine = index == k
             pts = np.c_[X[mine], Y[mine]]
-            sd[mine] = signed_distance(pts, polygon)
+            dist = signed_distance(pts, polygon)
             # where the structure is less than a cell thick beyond the node's surface point the node
             # keeps the plain law (zero: its contact target, _surface_target, is then zero): a
             # block thrown at a leaning barrier half a cell thick went unstable with the target
-            deeper = pts - (sd[mine] + self.dx)[:, None] * normal[mine]
-            thin = signed_distance(deeper, polygon) > 0.0
-            sd[np.flatnonzero(mine.ravel())[thin] // index.shape[1], np.flatnonzero(mine.ravel())[thin] % index.shape[1]] = 0.0
+            deeper = pts - (dist + self.dx)[:, None] * normal[mine]
+            dist[signed_distance(deeper, polygon) > 0.0] = 0.0
+            sd[mine] = dist
         self._io.write({
             "edge_a": np.concatenate([a for a, _ in edges]).astype(f),
             "edge_b": np.concatenate([b for _, b in edges]).astype(f),

@@ -18,8 +18,8 @@ each column across: a face 0.3 cells off the node line left the particle line ne
 its overburden.) With lattice seeding a particle's bar is the box of the material it stands for
 (``Particles.bounds_m``: its sub-cell, or the part of it a body's outline leaves), not ``sqrt(V)``
 about it, so the bars tile each row next to outlines between sub-cell lines too. Where the bars'
-edges are not shared (Gauss seeding, gravity oblique to the lattice) the edges are snapped to strips of a quarter of the median bar width, so the work stays
-a few entries per particle.
+edges are not shared (Gauss seeding, gravity oblique to the lattice) the edges are snapped to
+strips of a quarter of the median bar width, so the work stays a few entries per particle.
 
 The horizontal and out-of-plane stresses are ``K0 sigma_v``; K0 is the stage's value or each
 material's default (Jaky's ``1 - sin(phi)``, ``nu / (1 - nu)`` for elastic materials). Compression
