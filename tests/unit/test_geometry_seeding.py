@@ -1,5 +1,8 @@
 """Lattice and Gauss seeding: volumes, the overlap rule and material assignment."""
 
+import itertools
+import math
+
 import numpy as np
 import pytest
 
@@ -160,3 +163,27 @@ def test_material_assignment_on_a_layered_slope(method):
         # the volumes are the areas to round-off here too
         np.testing.assert_allclose(volumes, expected, rtol=1e-12)
         assert volumes[2] == pytest.approx(expected[2])  # the foundation is grid-aligned
+
+
+def test_a_block_resting_on_an_inclined_structure_keeps_its_whole_area():
+    """Blocks lying on a ramp's face (their lower edge on it to round-off), every incline from 10
+    to 80 deg, from the ramp's top vertex to 2 cells down it, 1-5 cells thick, two cell sizes and
+    three heights of the ramp: the seeded volumes are the block's area, none lost to the ramp.
+    GEOS's floating-point overlay, used alone, gave 162 of 2754 such placements a wrong region:
+    empty (a sheet on a 40 deg ramp: no particles at all) or 14-61 % of the block (its mass lost)."""
+    wrong = []
+    for theta, start, cells, h, top in itertools.product(range(10, 81, 10), (0.0, 0.5, 1.0, 2.0), (1, 2, 5),
+                                                         (0.05, 0.1), (1.7, 1.0, 0.73)):
+        th = math.radians(theta)
+        down, up = np.array([math.cos(th), -math.sin(th)]), np.array([math.sin(th), math.cos(th)])
+        vertex = np.array([0.1, top])
+        foot = vertex + 3.0 * down
+        ramp = np.array([(0.0, top), vertex, foot, (foot[0], foot[1] - 1.0), (0.0, foot[1] - 1.0)])
+        a = vertex + start * h * down
+        length = 20 * h
+        block = np.array([a, a + length * down, a + length * down + cells * h * up, a + cells * h * up])
+        seeds = seed_lattice([block], (0.0, -5.0), h, 2, [ramp])
+        ratio = seeds.volumes_m2.sum() / (length * cells * h)
+        if abs(ratio - 1.0) > 1e-6:
+            wrong.append((theta, start, cells, h, top, round(float(ratio), 4)))
+    assert wrong == []
