@@ -57,7 +57,7 @@ from solver import runtime
 from solver.config import (Boundary, Grid, Material, Numerics, Output, Particles, SimulationConfig, Stage,
                            Structure)
 from solver.simulation import Simulation
-from solver.structures import corner_normals, node_contacts, signed_distance
+from solver.structures import corner_normals, corner_zone, node_contacts, signed_distance
 from studies.contact_scenes import RampIncline, WallIncline
 
 SLIDE_TOL = 0.03
@@ -509,3 +509,29 @@ def test_the_idealised_block_in_finite_elements_holds_at_40_on_45_and_slides_wit
     assert held["error"] < 1e-3
     free = run(1e8, 10.0, 0.0, cells=10, aspect=4.0, h=0.1)
     assert abs(free["error"]) < 0.03
+
+
+def test_the_nodes_near_a_convex_vertex_form_its_zone():
+    """corner_zone: the contact nodes within 2 cells of a ramp's convex top vertex along both axes
+    (the level top's nodes one and two cells back included), none near the concave foot or far
+    along a face, none beyond the grid box; the particle box reaches 1.5 cells past the zone."""
+    h = 0.1
+    xs = ys = np.arange(0.0, 2.0001, h)
+    th = math.radians(40.0)
+    foot = np.array([0.5, 1.5]) + 1.8 / math.sin(th) * np.array([math.cos(th), -math.sin(th)])  # below the box
+    ramp = [(-0.3, 1.5), (0.5, 1.5), tuple(foot), (-0.3, foot[1])]  # one convex vertex in the box
+    index, normal = node_contacts([ramp], xs, ys, h)
+    zone, boxes = corner_zone([ramp], xs, ys, index, normal, h, ((0.0, 0.0), (2.0, 2.0)))
+    at = lambda x, y: (round(x / h), round(y / h))  # noqa: E731
+    for x, y in ((0.5, 1.5), (0.4, 1.5), (0.3, 1.5), (0.6, 1.4), (0.5, 1.4)):
+        assert zone[at(x, y)] == 1, (x, y)
+    for x, y in ((0.2, 1.5), (0.5, 1.6), (1.2, 0.9)):  # 3 cells back, off the structure, down the face
+        assert zone[at(x, y)] == 0, (x, y)
+    assert np.all(zone[index < 0] == 0)
+    np.testing.assert_allclose(boxes[0], [0.3 - 0.15, 1.3 - 0.15, 0.7 + 0.15, 1.5 + 0.15], atol=1e-9)
+    # a platform through the grid's bottom: its foot's corners are beyond the box, no zone there
+    platform = [(0.0, -0.3), (1.0, -0.3), (1.0, 0.5), (0.0, 0.5)]
+    index, normal = node_contacts([platform], xs, ys, h)
+    zone, boxes = corner_zone([platform], xs, ys, index, normal, h, ((0.0, 0.0), (2.0, 2.0)))
+    assert zone[at(1.0, 0.5)] == 1 and zone[at(1.0, 0.3)] == 1 and zone[at(1.0, 0.2)] == 0
+    assert zone[at(0.0, 0.5)] == 1  # its top-left corner is on the box's side, still a corner
