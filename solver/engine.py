@@ -1075,7 +1075,8 @@ class Engine:
         :meth:`_structure_normal`): every particle in a structure's zone box adds its weight x mass
         x the outward normal at its nearest surface point, ``(x - q) / |x - q|``, and its weight
         x mass, to its stencil's zone nodes of that structure (node_pn, cleared by the grid reset).
-        Serial with plain adds, so the sums repeat bit for bit, as in :meth:`_mirror_structures`."""
+        As in :meth:`_mirror_structures`: in one thread with plain adds (serial and split scatters),
+        so the sums repeat bit for bit; in parallel with atomic adds (GPU)."""
         ti.loop_config(serialize=self.plain)
         for p in range(self.n):
             if self.active[p]:
