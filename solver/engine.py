@@ -683,10 +683,16 @@ class Engine:
                     material = mean / size
                     lies = True
         corner = (nb - n).norm_sqr() > 0.0
-        if lies and corner and material.dot(n) >= OWN_NORMAL:
-            pass  # the material lies on the corner's first face
-        elif lies and corner and material.dot(nb) >= OWN_NORMAL:
-            n = nb
+        on_a = material.dot(n)
+        on_b = material.dot(nb)
+        if lies and corner and ti.max(on_a, on_b) >= OWN_NORMAL:
+            # the material lies on one of the corner's faces: the nearer one (both faces within
+            # OWN_NORMAL of it, as on a curve drawn with chords under a degree apart, must not
+            # leave it to the polygon's orientation, which orders the two)
+            if on_b > on_a:
+                n = nb
+            elif on_b == on_a:
+                n = (n + nb).normalized()
         else:
             va = v.dot(n)
             vb = v.dot(nb)
