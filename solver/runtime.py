@@ -205,9 +205,17 @@ def _cached_sources() -> None:
     kernel_impl._runout_cached_sources = True
 
 
+# Taichi's offline kernel cache keeps at most 100 MB by default and then drops the least recently
+# used quarter. Every grid compiles its own kernels (0.1-1.1 MB each; a scene with structures ~1 MB),
+# so the test suite's scenes alone overflow it and a second run recompiled most of them (39 min
+# instead of about 15 on two cores). 1 GiB holds them with room for a user's projects.
+KERNEL_CACHE_MAX_BYTES = 1024 ** 3  # (a 32-bit setting: below 2 GiB)
+
+
 def _init(**kwargs) -> None:
     _lean_source_positions()
     _cached_sources()
+    kwargs.setdefault("offline_cache_max_size_of_files", KERNEL_CACHE_MAX_BYTES)
     # ti.init prints "[Taichi] Starting on arch=..." to stdout; scripts read stdout, so log it instead
     with contextlib.redirect_stdout(io.StringIO()) as banner:
         ti.init(**kwargs)
