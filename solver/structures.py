@@ -238,10 +238,14 @@ def corner_zone(polygons: Sequence[Sequence[Sequence[float]]], node_x_m: np.ndar
     for k, poly in enumerate(polygons):
         mine = (index == k) & (np.abs(normal).sum(axis=-1) > 0.0)
         a, _ = segments(poly)
-        near = np.zeros(X.shape, bool)
+        # per vertex over this structure's contact nodes only, not the whole grid (a curve drawn
+        # with hundreds of chords has as many convex vertices)
+        x, y = X[mine], Y[mine]
+        close = np.zeros(x.shape, bool)
         for v in a[convex_vertices(poly, cell_m, box_m)]:
-            near |= (np.abs(X - v[0]) <= reach) & (np.abs(Y - v[1]) <= reach)
-        near &= mine
+            close |= (np.abs(x - v[0]) <= reach) & (np.abs(y - v[1]) <= reach)
+        near = np.zeros(X.shape, bool)
+        near[mine] = close
         if near.any():
             zone[near] = k + 1
             stencil = STENCIL_CELLS * cell_m  # a particle's weights reach this far from it
