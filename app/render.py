@@ -29,6 +29,9 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 logger = logging.getLogger(__name__)
 
 _KPA = 1.0e-3  # stresses are shown in kPa
+#: Line colours of the contacts (matplotlib's tab10 without the material blue and orange first).
+CONTACT_COLORS: tuple[str, ...] = ("#d62728", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+                                   "#bcbd22", "#17becf", "#1f77b4", "#ff7f0e")
 
 
 @dataclass(frozen=True)

@@ -307,6 +307,32 @@ def targets_png(doc: Mapping[str, Any], path: Path) -> Path | None:
     return path
 
 
+def contacts_png(contacts: Mapping[str, Mapping[str, np.ndarray]], path: Path) -> Path | None:
+    """The force on each contact that took any against time: the mean over each output interval
+    and the largest single-step force in it (the workbench's *Contact forces* curves), kN/m."""
+    from app.render import CONTACT_COLORS
+    from projects.results import contact_curves
+
+    curves = {name: c for name, c in contact_curves(dict(contacts)).items()
+              if len(c[0]) and np.nanmax(np.abs(c[2]), initial=0.0) > 0.0}
+    if not curves:
+        return None
+    fig = _figure(9.0, 4.6)
+    axes = fig.subplots(2, 1, sharex=True)
+    for i, (name, (t, mean, peak)) in enumerate(curves.items()):
+        color = CONTACT_COLORS[i % len(CONTACT_COLORS)]
+        axes[0].plot(t, mean * 1e-3, color=color, lw=1.4, drawstyle="steps-pre", label=name)
+        axes[1].plot(t, peak * 1e-3, color=color, lw=1.2, drawstyle="steps-pre", label=name)
+    axes[0].set_ylabel("mean over interval (kN/m)")
+    axes[1].set_ylabel("peak of a step (kN/m)")
+    axes[1].set_xlabel("time (s)")
+    axes[0].legend(fontsize=8, loc="best")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    fig.savefig(path)
+    return path
+
+
 def context_png(ctx: list[dict[str, Any]], doc: Mapping[str, Any], path: Path) -> Path | None:
     """The empirical relations as curves, this run as a point."""
     if not ctx:
@@ -374,18 +400,22 @@ def _img(path: Path | None, alt: str) -> str:
             f"<figcaption>{html.escape(alt)} ({html.escape(path.name)})</figcaption></figure>")
 
 
-def _contacts(path: Path) -> list[list[str]]:
-    """Per contact of ``contacts.csv`` (a side or a structure): the largest single-step force with
-    its components and time, and the largest mean force of an output interval with its time."""
+def _read_contacts(path: Path) -> dict[str, dict[str, np.ndarray]]:
+    """``contacts.csv`` of the results (empty where there is none or it does not read)."""
     from projects.results import read_contacts
 
     if not path.is_file():
-        return []
+        return {}
     try:
-        table = read_contacts(path)
+        return read_contacts(path)
     except (OSError, ValueError, KeyError, IndexError) as err:
         logger.warning("contacts.csv not read: %s", err)
-        return []
+        return {}
+
+
+def _contacts(table: Mapping[str, Mapping[str, np.ndarray]]) -> list[list[str]]:
+    """Per contact of ``contacts.csv`` (a side or a structure): the largest single-step force with
+    its components and time, and the largest mean force of an output interval with its time."""
     out = []
     for name, cols in table.items():
         t = np.asarray(cols["time_s"], float)
@@ -486,6 +516,8 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
     pictures["profiles"] = profiles_png(doc, out / "profiles.png")
     pictures["energy"] = energy_png(res.series, doc, out / "energy.png")
     pictures["targets"] = targets_png(doc, out / "targets.png")
+    contact_table = _read_contacts(res.path / CONTACTS_CSV)
+    pictures["contacts"] = contacts_png(contact_table, out / "contacts.png")
     ctx = context(doc, project, summary)
     pictures["context"] = context_png(ctx, doc, out / "context.png")
 
@@ -536,13 +568,15 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
         parts.append(_img(pictures.get("targets"), "the targets' time series (targets.csv)"))
     else:
         parts.append("<p class='note'>No targets in the project ([[targets]]).</p>")
-    contacts = _contacts(res.path / CONTACTS_CSV)
+    contacts = _contacts(contact_table)
     if contacts:
         parts.append("<h3>Forces on the sides and structures (contacts.csv)</h3>")
         parts.append("<p class='note'>The force the material exerts on each closed side and structure, N per "
                      "metre out of plane: the largest of a single step (x, y) and the largest mean over an "
                      "output interval (the impulse over the interval divided by its length).</p>")
         parts.append(_table(["contact", "peak force (x, y)", "at", "largest interval mean", "at"], contacts))
+        parts.append(_img(pictures.get("contacts"), "the force on each contact that took any against time "
+                                                    "(contacts.csv)"))
 
     parts.append("<h2>Energy</h2>")
     parts.append(_img(pictures["energy"], "kinetic energy and the fastest particle (series.csv and the envelope "

@@ -1090,6 +1090,26 @@ def read_contacts(path: str | os.PathLike[str]) -> dict[str, dict[str, np.ndarra
     return {name: {k: np.asarray(v) for k, v in cols.items()} for name, cols in out.items()}
 
 
+def contact_curves(contacts: dict[str, dict[str, np.ndarray]]) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Per contact ``(time_s, mean_N_per_m, peak_N_per_m)`` from :func:`projects.results.read_contacts`.
+
+    The mean force of an output interval is the magnitude of its mean components
+    ``hypot(force_x, force_y)`` (N per metre out of plane); the peak is the largest single-step force
+    in it (``peak_force_N_per_m``). Each value belongs to the interval that *ends* at its time.
+    """
+    out = {}
+    for name, columns in contacts.items():
+        t = np.asarray(columns.get("time_s", []), dtype=float)
+        fx = np.asarray(columns.get("force_x_N_per_m", np.full(len(t), np.nan)), dtype=float)
+        fy = np.asarray(columns.get("force_y_N_per_m", np.full(len(t), np.nan)), dtype=float)
+        peak = np.asarray(columns.get("peak_force_N_per_m", np.full(len(t), np.nan)), dtype=float)
+        if not (len(t) == len(fx) == len(fy) == len(peak)):
+            continue
+        out[name] = (t, np.hypot(fx, fy), peak)
+    return out
+
+
+
 class Results:
     """Read a results folder, also one whose run was killed part way.
 

@@ -77,8 +77,8 @@ def step_length(time_s: float, target_s: float, dt_s: float) -> float:
     half of ``dt_s`` (unless the whole way is). A short last step would be a defect, not only a
     waste: a contact's impulse in one step has a part that does not shrink with the step (the
     grid's approach velocity the contact cancels), so the force of a step of 0.2 % of ``dt_s``
-    came out 8 times the weight on it and became the run's peak force (docs/solver.md, contact
-    forces). Where the last full step would leave less than half a step, the last two share the
+    came out 7.8 times that of the steps around it and became the run's peak force (docs/solver.md,
+    contact forces). Where the last full step would leave less than half a step, the last two share the
     way equally."""
     if time_s + dt_s * (1 + 1e-6) >= target_s:
         return target_s - time_s

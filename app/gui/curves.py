@@ -17,6 +17,9 @@ import numpy as np
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
+from app.render import CONTACT_COLORS
+from projects.results import contact_curves
+
 logger = logging.getLogger(__name__)
 
 REDRAW_MS = 700
@@ -226,30 +229,6 @@ class ProfileCurve(_Canvas):
         self.axes[0].set_ylabel(label, fontsize=8)
         self.axes[0].set_title(title, fontsize=8)
         self.redraw_now()
-
-
-#: Line colours of the contacts (matplotlib's tab10 without the material blue and orange first).
-CONTACT_COLORS: tuple[str, ...] = ("#d62728", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
-                                   "#bcbd22", "#17becf", "#1f77b4", "#ff7f0e")
-
-
-def contact_curves(contacts: dict[str, dict[str, np.ndarray]]) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Per contact ``(time_s, mean_N_per_m, peak_N_per_m)`` from :func:`projects.results.read_contacts`.
-
-    The mean force of an output interval is the magnitude of its mean components
-    ``hypot(force_x, force_y)`` (N per metre out of plane); the peak is the largest single-step force
-    in it (``peak_force_N_per_m``). Each value belongs to the interval that *ends* at its time.
-    """
-    out = {}
-    for name, columns in contacts.items():
-        t = np.asarray(columns.get("time_s", []), dtype=float)
-        fx = np.asarray(columns.get("force_x_N_per_m", np.full(len(t), np.nan)), dtype=float)
-        fy = np.asarray(columns.get("force_y_N_per_m", np.full(len(t), np.nan)), dtype=float)
-        peak = np.asarray(columns.get("peak_force_N_per_m", np.full(len(t), np.nan)), dtype=float)
-        if not (len(t) == len(fx) == len(fy) == len(peak)):
-            continue
-        out[name] = (t, np.hypot(fx, fy), peak)
-    return out
 
 
 class ContactCurves(_Canvas):

@@ -103,6 +103,34 @@ def test_report_lists_the_contact_forces_of_contacts_csv(collapse, tmp_path):
     assert wall == ["wall", "61.25 N/m (-60, 12.3)", "0.1 s", "37.47 N/m", "0.1 s"], wall
     bottom = cells[cells.index("bottom"):][:5]
     assert bottom == ["bottom", "80 N/m (2, -79.9)", "0.1 s", "50.01 N/m", "0.1 s"], bottom
+    # and their history as a figure, embedded, one line per contact that took any force in each panel
+    picture = folder / "report" / "contacts.png"
+    _non_blank(picture)
+    assert base64.b64encode(picture.read_bytes()).decode("ascii") in text
+
+
+def test_report_plots_only_the_contacts_that_took_a_force(tmp_path, monkeypatch):
+    from matplotlib.figure import Figure
+
+    from app import report
+
+    shown = []
+    real = Figure.savefig
+
+    def spy(fig, path, *args, **kwargs):
+        shown.append({line.get_label() for ax in fig.axes for line in ax.get_lines()})
+        return real(fig, path, *args, **kwargs)
+
+    t = np.array([0.0, 0.1, 0.2])
+    zero = np.zeros(3)
+    table = {"left": {"time_s": t, "force_x_N_per_m": zero, "force_y_N_per_m": zero, "peak_force_N_per_m": zero},
+             "dam": {"time_s": t, "force_x_N_per_m": np.array([0.0, 5.0, 7.0]), "force_y_N_per_m": zero,
+                     "peak_force_N_per_m": np.array([0.0, 6.0, 9.0])}}
+    monkeypatch.setattr(Figure, "savefig", spy)
+    assert report.contacts_png(table, tmp_path / "c.png") == tmp_path / "c.png"
+    assert report.contacts_png({"left": table["left"]}, tmp_path / "none.png") is None
+    assert shown == [{"dam"}]
+    assert not (tmp_path / "none.png").exists()
 
 
 def test_report_without_hazard_files_is_a_one_line_error(collapse, tmp_path):

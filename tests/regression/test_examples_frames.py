@@ -44,6 +44,7 @@ SHORT = {
     "slope_sun_song_2015": ["stages.0.duration_s=0.02", "stages.1.duration_s=0.01", "stages.2.duration_s=0.01",
                             "output.interval_s=0.01"],
     "bui2008_aluminium_bars": ["stages.1.duration_s=0.004", "output.interval_s=0.002"],
+    "debris_barrier": ["stages.0.duration_s=0.3", "stages.0.min_duration_s=0.1", "output.interval_s=0.1"],
 }
 
 
