@@ -157,11 +157,24 @@ def _nice_step(span: float, ticks: int = 5) -> float:
 
 
 def _nice_axis(lo: float, hi: float) -> tuple[float, float, int, float]:
-    """Extend ``[lo, hi]`` to whole tick steps; return (lo, hi, number of labels, step)."""
-    step = _nice_step(hi - lo)
-    lo2 = math.floor(lo / step + 1e-9) * step
-    hi2 = math.ceil(hi / step - 1e-9) * step
-    return lo2, hi2, int(round((hi2 - lo2) / step)) + 1, step
+    """Extend ``[lo, hi]`` to whole tick steps; return (lo, hi, number of labels, step).
+
+    Of the nice steps giving 3 to 7 intervals, the one that extends the range least (a 32 m
+    domain: 0-35 in steps of 5, not 0-40 in steps of 10); ties go to the coarser step."""
+    base = _nice_step(hi - lo)
+    power = 10.0 ** math.floor(math.log10(base))
+    steps = [m * power * 10.0 ** k for k in (-1, 0, 1) for m in (1.0, 2.0, 2.5, 5.0)]
+    best = None
+    for step in (st for st in steps if base / 3.0 <= st <= base * 3.0):
+        lo2 = math.floor(lo / step + 1e-9) * step
+        hi2 = math.ceil(hi / step - 1e-9) * step
+        intervals = int(round((hi2 - lo2) / step))
+        if not 3 <= intervals <= 7 and step != base:
+            continue
+        if best is None or hi2 - lo2 < best[1] - best[0] - 1e-9 * (hi - lo) or (
+                abs((hi2 - lo2) - (best[1] - best[0])) <= 1e-9 * (hi - lo) and step > best[3]):
+            best = (lo2, hi2, intervals + 1, step)
+    return best
 
 
 def _label_format(*steps: float) -> str:
