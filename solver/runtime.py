@@ -211,6 +211,15 @@ def _cached_sources() -> None:
 # instead of about 15 on two cores). 1 GiB holds them with room for a user's projects.
 KERNEL_CACHE_MAX_BYTES = 1024 ** 3  # (a 32-bit setting: below 2 GiB)
 
+# Taichi's "advanced optimization" IR passes are most of a kernel's compile time on the CPU: the
+# step kernel of a scene with structures compiled in 47 s with them and 6.4 s without (the check-dam
+# example, two cores), and a run compiles it afresh for every new grid. The steps run as fast within
+# the measurement's noise on that scene and 5-14 % slower on the 20,000-particle bars
+# (docs/performance.md, kernel compilation), so the CPU runs without them; on a GPU, where the
+# long runs are and nothing was measured, they stay on. The results differ from the optimised
+# kernels' in the last bits of f32 only.
+CPU_ADVANCED_OPTIMIZATION = False
+
 
 def _init(**kwargs) -> None:
     _lean_source_positions()
@@ -250,7 +259,8 @@ def acquire(arch: str, precision: str) -> str:
                 ti.reset()
                 want_gpu = False
         if not want_gpu:
-            _init(arch=ti.cpu, default_fp=fp, default_ip=ti.i32, offline_cache=True, log_level=ti.WARN)
+            _init(arch=ti.cpu, default_fp=fp, default_ip=ti.i32, offline_cache=True, log_level=ti.WARN,
+                  advanced_optimization=CPU_ADVANCED_OPTIMIZATION)
         if arch == "auto" and used == "cpu":
             log.info("Taichi runtime on the CPU (no GPU found)")
         _owner = threading.get_ident()

@@ -79,3 +79,10 @@ def test_the_kernel_cache_keeps_the_suites_kernels(fields):
     config = ti.lang.impl.current_cfg()
     assert config.offline_cache
     assert config.offline_cache_max_size_of_files == runtime.KERNEL_CACHE_MAX_BYTES >= 1024 ** 3
+
+
+def test_cpu_kernels_compile_without_the_advanced_optimization_passes(fields):
+    """They were most of the compile time of a scene with structures (47 s against 6.4 s) for a
+    runtime cost within noise to 14 % (docs/performance.md, kernel compilation)."""
+    # the fixture acquired the CPU runtime
+    assert ti.lang.impl.current_cfg().advanced_optimization is runtime.CPU_ADVANCED_OPTIMIZATION is False
