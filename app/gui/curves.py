@@ -80,6 +80,7 @@ class _Canvas(QWidget):
             # curves of a run before its first frame kept that run's axes (0.0075-0.008 s)
             ax.relim(visible_only=True)
             if any(line.get_visible() and len(line.get_xdata()) for line in ax.lines):
+                ax.autoscale(True)  # set_xlim below switched autoscaling off, for good
                 ax.autoscale_view()
             else:
                 ax.set_xlim(0.0, 1.0)

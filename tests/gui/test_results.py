@@ -206,3 +206,17 @@ def test_curves_of_a_run_before_its_first_frame_show_no_axes_of_the_last_run(qtb
         canvas.redraw_now()
         for ax in canvas.axes:
             assert ax.get_xlim() == (0.0, 1.0) and ax.get_ylim() == (0.0, 1.0)
+    # and the next run's curves get axes that hold them again (the 0-1 range switched matplotlib's
+    # autoscaling off, and every later run showed its curves through a 0-1 window: found by the
+    # session-16 walkthrough of the check-dam example)
+    later = np.array([0.0, 2.0, 4.0])
+    big = np.array([10.0, 250.0, 90.0])
+    series.set_series({"time_s": later, **{k: big for k in
+                                           ("kinetic_energy_J_per_m", "momentum_x", "momentum_y", "max_speed_m_s")}})
+    contacts.set_contacts({"dam": {"time_s": later, "force_x_N_per_m": big, "force_y_N_per_m": 0 * big,
+                                   "peak_force_N_per_m": big}})
+    for canvas in (series, contacts):
+        canvas.redraw_now()
+        for ax in canvas.axes:
+            (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+            assert x0 <= 0.0 and x1 >= 4.0 and y1 >= 250.0, (ax.get_xlim(), ax.get_ylim())
