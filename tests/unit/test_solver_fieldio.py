@@ -75,7 +75,7 @@ def test_bad_names_and_shapes_are_refused(fields):
 def test_the_kernel_cache_keeps_the_suites_kernels(fields):
     """Taichi's default offline-cache limit (100 MB, then the least recently used quarter dropped)
     is smaller than the kernels of the test suite's grids; the runtime raises it
-    (docs/performance.md, kernel compilation with structures)."""
+    (docs/performance.md, kernel compilation)."""
     config = ti.lang.impl.current_cfg()
     assert config.offline_cache
     assert config.offline_cache_max_size_of_files == runtime.KERNEL_CACHE_MAX_BYTES >= 1024 ** 3
