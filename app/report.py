@@ -456,8 +456,17 @@ MEASURES = [
     ("peak_kinetic_energy_J_per_m", "peak kinetic energy", "J/m", ""),
     ("max_flow_height_m", "largest flow height", "m", ""),
     ("max_speed_m_s", "largest speed", "m/s", ""),
-    ("max_pressure_pa", "largest impact pressure", "Pa", ""),
+    ("max_pressure_pa", "largest impact pressure", "kPa", ""),
 ]
+
+
+def measure_value(doc: Mapping[str, Any], key: str, unit: str) -> Any:
+    """The value of measure ``key`` of ``hazard.json`` in the unit :data:`MEASURES` shows it in
+    (pressures are stored in Pa and shown in kPa, as in every plot)."""
+    value = doc.get(key)
+    if unit == "kPa" and isinstance(value, (int, float)) and not isinstance(value, bool):
+        return value * 1e-3
+    return value
 
 
 def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str] | None = None,
@@ -532,7 +541,7 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
     parts.append("<h2>Measures</h2>")
     rows = []
     for key, label, unit, thr in MEASURES:
-        rows.append([label, _fmt(doc.get(key), unit), f"{thr} = {_fmt(th[thr])}" if thr else ""])
+        rows.append([label, _fmt(measure_value(doc, key, unit), unit), f"{thr} = {_fmt(th[thr])}" if thr else ""])
     direction = doc.get("direction")
     rows.append(["run-out direction", {1: "+x", -1: "-x"}.get(direction, "-"), doc.get("direction_rule", "")])
     rows.append(["source top (crown)", _fmt(doc.get("source_top_m"), "m"), ""])
@@ -561,7 +570,8 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
     parts.append("<h2>Targets</h2>")
     trows = [[name, t["kind"], _fmt(t["x_m"], "m") + ("" if t["y_m"] is None else f", y {_fmt(t['y_m'], 'm')}"),
               _fmt(t["arrival_time_s"], "s") if t["arrival_time_s"] is not None else "never reached",
-              _fmt(t["max_height_m"], "m"), _fmt(t["max_speed_m_s"], "m/s"), _fmt(t["max_pressure_pa"], "Pa")]
+              _fmt(t["max_height_m"], "m"), _fmt(t["max_speed_m_s"], "m/s"),
+              _fmt(t["max_pressure_pa"] * 1e-3, "kPa")]
              for name, t in (doc.get("targets") or {}).items()]
     if trows:
         parts.append(_table(["target", "kind", "place", "arrival", "max height", "max speed", "max pressure"], trows))

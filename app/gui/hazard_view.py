@@ -66,7 +66,7 @@ def has_hazard(path: str | os.PathLike[str]) -> bool:
 
 def measure_rows(doc: dict[str, Any]) -> list[tuple[str, str, str]]:
     """(label, value with unit, threshold) of each measure of :data:`app.report.MEASURES` in ``doc``."""
-    from app.report import MEASURES
+    from app.report import MEASURES, measure_value
 
     thresholds = doc.get("thresholds") or {}
     rows = []
@@ -74,7 +74,7 @@ def measure_rows(doc: dict[str, Any]) -> list[tuple[str, str, str]]:
         if key not in doc:
             continue
         th = f"{threshold} = {thresholds[threshold]:g}" if threshold and threshold in thresholds else ""
-        rows.append((label, format_value(doc.get(key), unit), th))
+        rows.append((label, format_value(measure_value(doc, key, unit), unit), th))
     return rows
 
 
@@ -329,8 +329,9 @@ class HazardView(QWidget):
 
     def export_and_open(self) -> Path | None:
         html = self.export_report()
-        if html is not None:
-            self.open_report(html)
+        if html is not None and not self.open_report(html):
+            # no browser to hand it to (no desktop launcher): say where the report is
+            self.message.emit(f"Wrote {html}; no web browser could be opened here: open that file in one")
         return html
 
     def close_view(self) -> None:

@@ -88,6 +88,8 @@ def test_the_hazard_tab_shows_the_measures_and_targets_of_a_results_folder(windo
     assert measures["run-out distance (deposit, from the source front)"] == ["0.3 m", "deposit_threshold_m = 0.005"]
     assert measures["travel angle (Fahrboeschung)"][0] == "11.31 deg"
     assert measures["H / L"][0] == "0.2"
+    # pressures in kPa, as in the plots and the targets' table (the measures said Pa)
+    assert measures["largest impact pressure"][0] == "4.805 kPa"
     targets = {row[0]: row[1:] for row in _cells(view.targets)}
     assert targets["road (line)"][:2] == ["0.4", "0.12"]
     assert targets["road (line)"][5] == "3.92"  # kPa
@@ -132,6 +134,19 @@ def test_export_report_writes_the_html_report_and_opens_it(window, make_results,
     assert ">Measures<" in text and "road" in text and "house" in text and "travel angle" in text
     assert 'src="data:image/png;base64,' in text
     assert taichi_before or "taichi" not in sys.modules  # the report is written without Taichi
+
+
+def test_a_report_no_browser_can_show_is_named_in_the_status_bar(window, make_results, monkeypatch):
+    """Without a desktop launcher (Xvfb, a bare session) Qt cannot hand the report to a browser; the
+    workbench said nothing (the session-16 walkthrough)."""
+    path = make_results()
+    write_hazard(path)
+    window.open_results(path)
+    monkeypatch.setattr(window.hazard_view, "open_report", lambda html: False)
+    html = window.export_report_dialog()
+    assert html is not None and html.is_file()
+    message = window.statusBar().currentMessage()
+    assert str(html) in message and "no web browser" in message
 
 
 def _fos_summary(path: Path) -> dict:
