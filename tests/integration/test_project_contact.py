@@ -13,6 +13,7 @@ issue's tolerances). The whole matrix: ``python -m benchmarks.contact_matrix --p
 
 from __future__ import annotations
 
+import functools
 import tomllib
 
 import pytest
@@ -101,22 +102,28 @@ def test_a_block_five_degrees_from_the_friction_limit_holds(tmp_path, contact, s
     _check(outcome)
 
 
-# Known limits, measured (docs/validation.md, contact through the project path)
+# Known limits, measured (docs/validation.md, contact through the project path): each must fail its
+# tolerance check, nothing else
+_limit = functools.partial(pytest.mark.xfail, strict=True, raises=AssertionError)
 LIMITS = [
-    pytest.param("bottom", "apic-affine", "f32", 5, 1e6, 20, 30, "free", marks=pytest.mark.xfail(
-        strict=True, reason="stress free (no initial-stress stage): the waves of the sudden loading make a sticking "
-                            "block creep, 0.38 % of the frictionless distance here (5 cells, 1e6 Pa), as the elastic "
-                            "continuum does (test_project_sudden_loading.py compares it with the wave solution); the "
-                            "project warns (projects.checks)")),
-    pytest.param("bottom", "apic-affine", "f32", 20, 1e6, 40, 45, "gravity", marks=pytest.mark.xfail(
-        strict=True, reason="a soft 20-cell block at 40 deg on 45 deg friction slips +3.4 % of the frictionless "
-                            "distance after a 0.2 s gravity stage, shorter than its fundamental period (0.96 s; "
-                            "the project warns): it is not at rest at the stage's end (a finite-element model of "
-                            "it slips 9.6 %). After the recommended 2.9 s stage it holds (above)")),
-    pytest.param("bottom", "apic", "f32", 20, 1e6, 40, 45, "recommended", marks=pytest.mark.xfail(
-        strict=True, reason="after the recommended stage the soft 20-cell block still creeps 0.101 % with apic "
-                            "(0.074 % mpm, 0.006 % apic-affine): the undamped dynamic stage's flutter "
-                            "(docs/validation.md, contact)")),
+    pytest.param("bottom", "apic-affine", "f32", 5, 1e6, 20, 30, "free", marks=_limit(
+        reason="stress free (no initial-stress stage): the waves of the sudden loading make a sticking "
+               "block creep, 0.38 % of the frictionless distance here (5 cells, 1e6 Pa), as the elastic "
+               "continuum does (test_project_sudden_loading.py compares it with the wave solution); the "
+               "project warns (projects.checks)")),
+    pytest.param("bottom", "apic-affine", "f32", 20, 1e6, 40, 45, "gravity", marks=_limit(
+        reason="a soft 20-cell block at 40 deg on 45 deg friction slips +3.4 % of the frictionless "
+               "distance after a 0.2 s gravity stage, shorter than its fundamental period (0.96 s; "
+               "the project warns): it is not at rest at the stage's end (a finite-element model of "
+               "it slips 9.6 %). After the recommended 2.9 s stage it holds (above)")),
+    pytest.param("right", "mpm", "f32", 5, 1e6, 40, 36, "recommended", marks=_limit(
+        reason="sliding 4 deg above the friction limit at high friction (mu = 0.73): +23.9 %, the "
+               "frictional flutter of near-limit slides (docs/validation.md, contact; the one "
+               "failure of 30 random cases of the matrix, session 16)")),
+    pytest.param("bottom", "apic", "f32", 20, 1e6, 40, 45, "recommended", marks=_limit(
+        reason="after the recommended stage the soft 20-cell block still creeps 0.101 % with apic "
+               "(0.074 % mpm, 0.006 % apic-affine): the undamped dynamic stage's flutter "
+               "(docs/validation.md, contact)")),
 ]
 
 
