@@ -413,9 +413,11 @@ def _read_contacts(path: Path) -> dict[str, dict[str, np.ndarray]]:
         return {}
 
 
-def _contacts(table: Mapping[str, Mapping[str, np.ndarray]]) -> list[list[str]]:
+def _contacts(table: Mapping[str, Mapping[str, np.ndarray]],
+              peaks: Mapping[str, Mapping[str, Any]]) -> list[list[str]]:
     """Per contact of ``contacts.csv`` (a side or a structure): the largest single-step force with
-    its components and time, and the largest mean force of an output interval with its time."""
+    its components and time, the largest mean force of an output interval with its time, and a
+    point of that mean force's line of action (``summary.json``, where the run wrote one)."""
     out = []
     for name, cols in table.items():
         t = np.asarray(cols["time_s"], float)
@@ -426,8 +428,9 @@ def _contacts(table: Mapping[str, Mapping[str, np.ndarray]]) -> list[list[str]]:
         mean = np.nan_to_num(mean, nan=-1.0)
         i, j = int(np.argmax(peak)), int(np.argmax(mean))
         px, py = float(cols["peak_force_x_N_per_m"][i]), float(cols["peak_force_y_N_per_m"][i])
+        point = (peaks.get(name) or {}).get("max_mean_force_point_m")
         out.append([name, f"{_fmt(float(peak[i]), 'N/m')} ({_fmt(px)}, {_fmt(py)})", _fmt(float(t[i]), "s"),
-                    _fmt(float(mean[j]), "N/m"), _fmt(float(t[j]), "s")])
+                    _fmt(float(mean[j]), "N/m"), _fmt(float(t[j]), "s"), _fmt(point, "m") if point else "-"])
     return out
 
 
@@ -578,13 +581,16 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
         parts.append(_img(pictures.get("targets"), "the targets' time series (targets.csv)"))
     else:
         parts.append("<p class='note'>No targets in the project ([[targets]]).</p>")
-    contacts = _contacts(contact_table)
+    contacts = _contacts(contact_table, summary.get("contacts") or {})
     if contacts:
         parts.append("<h3>Forces on the sides and structures (contacts.csv)</h3>")
         parts.append("<p class='note'>The force the material exerts on each closed side and structure, N per "
                      "metre out of plane: the largest of a single step (x, y) and the largest mean over an "
-                     "output interval (the impulse over the interval divided by its length).</p>")
-        parts.append(_table(["contact", "peak force (x, y)", "at", "largest interval mean", "at"], contacts))
+                     "output interval (the impulse over the interval divided by its length), with the point of "
+                     "that mean force's line of action where it meets a side (the centre of pressure) or "
+                     "nearest a structure's vertex mean (from its moment in contacts.csv).</p>")
+        parts.append(_table(["contact", "peak force (x, y)", "at", "largest interval mean", "at", "acts through"],
+                            contacts))
         parts.append(_img(pictures.get("contacts"), "the force on each contact that took any against time "
                                                     "(contacts.csv)"))
 

@@ -324,7 +324,7 @@ def diagnose(scheme: str, precision: str, thickness: int, youngs: float, theta: 
                 x = e.x.to_numpy().astype(np.float64)
                 energy.append(((k + 1) * dt, 0.5 * (m * ((v - vbar) ** 2).sum(1)).sum(), 0.5 * m.sum() * vbar @ vbar,
                                float(((x - x0)[sc.base_row] @ sc.slope).mean())))
-        impulse, _ = e.read_contacts()
+        impulse, _, _ = e.read_contacts()
         vend = e.v.to_numpy()[: e.n].astype(np.float64)
         x = e.x.to_numpy().astype(np.float64)
     finally:

@@ -102,7 +102,9 @@ SERIES_COLUMNS: tuple[str, ...] = (
 #: Columns of ``contacts.csv``, in order: one row per contact and output time. The forces are what the
 #: material exerts on the contact (N per metre out of plane): the mean over the output interval that
 #: ends at ``time_s`` and the largest of one step in it (magnitude and components); normal and
-#: tangential for sides only (empty for structures). See :class:`solver.config.ContactForce`.
+#: tangential for sides only (empty for structures); the mean force's moment about the grid origin
+#: (``domain.origin_m``; N m per metre, counter-clockwise positive; files written before session 16
+#: lack it). See :class:`solver.config.ContactForce`.
 CONTACT_COLUMNS: tuple[str, ...] = (
     "time_s",
     "contact",
@@ -113,7 +115,10 @@ CONTACT_COLUMNS: tuple[str, ...] = (
     "peak_force_N_per_m",
     "peak_force_x_N_per_m",
     "peak_force_y_N_per_m",
+    "moment_N_m_per_m",
 )
+#: The columns every ``contacts.csv`` has (those of files written before the moment was added).
+_CONTACT_COLUMNS_REQUIRED = CONTACT_COLUMNS[:9]
 _INT_COLUMNS = frozenset(
     {"frame", "stage_index", "step", "unstable_particles", "lost_particles", "yielding_particles"}
 )
@@ -694,7 +699,8 @@ class ResultsWriter:
             self._series.flush()
             if keep_frames is not None:
                 _atomic_write_text(self.out_dir / CONTACTS_NAME,
-                                   _csv_text([list(CONTACT_COLUMNS), *self._kept_contact_rows]))
+                                   _csv_text([list(CONTACT_COLUMNS), *(row + [""] * (len(CONTACT_COLUMNS) - len(row))
+                                                                       for row in self._kept_contact_rows)]))
                 self._contacts = open(self.out_dir / CONTACTS_NAME, "a", newline="", encoding="utf-8")
                 self._contacts_csv = csv.writer(self._contacts)
             else:
@@ -994,23 +1000,57 @@ class ResultsWriter:
             self._contacts_csv.writerow([repr(float(time_s)), c.contact, num(c.force_x_N_per_m), num(c.force_y_N_per_m),
                                          num(c.force_normal_N_per_m), num(c.force_tangential_N_per_m),
                                          num(c.peak_force_N_per_m), num(c.peak_force_x_N_per_m),
-                                         num(c.peak_force_y_N_per_m)])
-            self._add_peaks(time_s, c.contact, c.force_x_N_per_m, c.force_y_N_per_m, c.peak_force_N_per_m,
-                            c.peak_force_x_N_per_m, c.peak_force_y_N_per_m)
+                                         num(c.peak_force_y_N_per_m), num(c.moment_N_m_per_m)])
+            self._add_peaks(time_s, c)
         self._contacts.flush()
 
-    def _add_peaks(self, time_s: float, name: str, fx: float, fy: float, peak: float, peak_x: float,
-                   peak_y: float) -> None:
-        """Count one row of ``contacts.csv`` into the run's peaks (``summary["contacts"]``)."""
+    def _add_peaks(self, time_s: float, c: ContactForce) -> None:
+        """Count one row of ``contacts.csv`` into the run's peaks (``summary["contacts"]``): the
+        largest single-step force, and the largest interval mean with its time and a point of its
+        line of action (on a side, where it meets the side: the centre of pressure; on a structure,
+        the point nearest the structure's vertex mean)."""
         entry = self.summary.setdefault("contacts", {}).setdefault(
-            name, {"peak_force_N_per_m": 0.0, "peak_force_x_N_per_m": 0.0, "peak_force_y_N_per_m": 0.0,
-                   "peak_time_s": 0.0, "max_mean_force_N_per_m": 0.0})
+            c.contact, {"peak_force_N_per_m": 0.0, "peak_force_x_N_per_m": 0.0, "peak_force_y_N_per_m": 0.0,
+                        "peak_time_s": 0.0, "max_mean_force_N_per_m": 0.0, "max_mean_force_time_s": 0.0,
+                        "max_mean_force_point_m": None})
+        peak = c.peak_force_N_per_m
         if math.isfinite(peak) and peak > entry["peak_force_N_per_m"]:
-            entry.update(peak_force_N_per_m=float(peak), peak_force_x_N_per_m=float(peak_x),
-                         peak_force_y_N_per_m=float(peak_y), peak_time_s=float(time_s))
-        mean = math.hypot(fx, fy)
-        if math.isfinite(mean):
-            entry["max_mean_force_N_per_m"] = max(entry["max_mean_force_N_per_m"], mean)
+            entry.update(peak_force_N_per_m=float(peak), peak_force_x_N_per_m=float(c.peak_force_x_N_per_m),
+                         peak_force_y_N_per_m=float(c.peak_force_y_N_per_m), peak_time_s=float(time_s))
+        mean = math.hypot(c.force_x_N_per_m, c.force_y_N_per_m)
+        if math.isfinite(mean) and mean > entry["max_mean_force_N_per_m"]:
+            entry.update(max_mean_force_N_per_m=mean, max_mean_force_time_s=float(time_s),
+                         max_mean_force_point_m=self._line_point(c))
+
+    def _line_point(self, c: ContactForce) -> list[float] | None:
+        """A point of ``c``'s mean force's line of action in the project's coordinates (see
+        :meth:`_add_peaks`; None without the domain in the summary or without a force)."""
+        from solver.config import line_of_action
+
+        domain = self.summary.get("domain") or {}
+        try:
+            (x0, y0), (w, h) = domain["origin_m"], domain["size_m"]
+        except (KeyError, TypeError, ValueError):
+            return None
+        centres = {"left": (x0, y0 + h / 2), "right": (x0 + w, y0 + h / 2), "bottom": (x0 + w / 2, y0),
+                   "top": (x0 + w / 2, y0 + h)}
+        for structure in self.summary.get("structures") or []:
+            points = np.asarray(structure.get("polygon_m") or [], dtype=float).reshape(-1, 2)
+            if len(points):
+                centres[structure["name"]] = tuple(points.mean(axis=0))
+        centre = centres.get(c.contact)
+        if centre is None:
+            return None
+        fx, fy, moment = c.force_x_N_per_m, c.force_y_N_per_m, c.moment_N_m_per_m
+        # relative to the grid origin, about which the moment is taken
+        rx, ry = centre[0] - x0, centre[1] - y0
+        if c.contact in ("bottom", "top") and abs(fy) > 1e-9 * abs(fx):
+            point = ((moment + ry * fx) / fy, ry)  # where the line of action meets the side
+        elif c.contact in ("left", "right") and abs(fx) > 1e-9 * abs(fy):
+            point = (rx, (rx * fy - moment) / fx)
+        else:
+            point = line_of_action((fx, fy), moment, (rx, ry))
+        return None if point is None else [float(point[0] + x0), float(point[1] + y0)]
 
     def _write_pvd(self) -> None:
         _atomic_write_text(self.out_dir / PVD_NAME, _pvd_text(self._pvd_entries))
@@ -1066,7 +1106,8 @@ def _read_series(path: Path) -> dict[str, np.ndarray]:
 def read_contacts(path: str | os.PathLike[str]) -> dict[str, dict[str, np.ndarray]]:
     """``contacts.csv`` of a results folder (or the file itself) as contact name -> column -> array
     (time order; an empty cell, the normal and tangential force of a structure, is NaN; rows cut off
-    by a kill are dropped). Empty when the folder has no such file."""
+    by a kill are dropped; a file written before the moment column has no ``moment_N_m_per_m``).
+    Empty when the folder has no such file."""
     path = Path(path)
     if path.is_dir():
         path = path / CONTACTS_NAME
@@ -1075,17 +1116,21 @@ def read_contacts(path: str | os.PathLike[str]) -> dict[str, dict[str, np.ndarra
         return {}
     with open(path, newline="", encoding="utf-8") as fh:
         rows = list(csv.reader(fh))
-    if not rows or tuple(rows[0][: len(CONTACT_COLUMNS)]) != CONTACT_COLUMNS:
+    if not rows or tuple(rows[0][: len(_CONTACT_COLUMNS_REQUIRED)]) != _CONTACT_COLUMNS_REQUIRED:
         return {}
+    header = tuple(rows[0][: len(CONTACT_COLUMNS)])
+    if header != CONTACT_COLUMNS[: len(header)]:
+        header = _CONTACT_COLUMNS_REQUIRED
+    names = [k for k in header if k != "contact"]
     for row in rows[1:]:
-        if len(row) != len(CONTACT_COLUMNS):
+        if len(row) != len(header):
             continue
         try:
             values = [float(v) if v else math.nan for i, v in enumerate(row) if i != 1]
         except ValueError:
             continue
-        columns = out.setdefault(row[1], {k: [] for k in CONTACT_COLUMNS if k != "contact"})
-        for key, value in zip((k for k in CONTACT_COLUMNS if k != "contact"), values):
+        columns = out.setdefault(row[1], {k: [] for k in names})
+        for key, value in zip(names, values):
             columns[key].append(value)
     return {name: {k: np.asarray(v) for k, v in cols.items()} for name, cols in out.items()}
 

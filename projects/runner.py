@@ -400,6 +400,7 @@ def _without_stop_frame(checkpoint: Checkpoint, out_path: Path, interval_s: floa
     if "contact_impulse" in arrays and "contact_peak" in arrays:
         impulse = np.zeros_like(arrays["contact_impulse"])
         peak = np.zeros_like(arrays["contact_peak"])
+        moment = np.zeros(len(impulse))
         names = list(SIDES) + structures  # the engine's order of contacts
         for c, name in enumerate(names[: len(impulse)]):
             rows = contacts.get(name)
@@ -410,7 +411,11 @@ def _without_stop_frame(checkpoint: Checkpoint, out_path: Path, interval_s: floa
                 continue
             impulse[c] = (rows["force_x_N_per_m"][k] * (t - since_s), rows["force_y_N_per_m"][k] * (t - since_s))
             peak[c] = (rows["peak_force_N_per_m"][k], rows["peak_force_x_N_per_m"][k], rows["peak_force_y_N_per_m"][k])
+            if "moment_N_m_per_m" in rows and math.isfinite(rows["moment_N_m_per_m"][k]):
+                moment[c] = rows["moment_N_m_per_m"][k] * (t - since_s)
         arrays["contact_impulse"], arrays["contact_peak"] = impulse, peak
+        if "contact_moment" in arrays:  # (checkpoints written before session 16 have none)
+            arrays["contact_moment"] = moment
     # last_output_step -1: a stop at a stage's last step still gets that stage's end frame
     run = {**run, "contacts_since_s": since_s, "cursor": {**cursor, "frames": frames - 1, "last_output_step": -1}}
     return dataclasses.replace(checkpoint, run=run, arrays=arrays)

@@ -330,7 +330,11 @@ class ContactForce:
     interval (its magnitude and components). For sides, ``force_normal`` is the component pressing
     on the wall (along the wall's outward normal, positive when the material pushes on it) and
     ``force_tangential`` the component along +x (bottom, top) or +y (left, right); both are None
-    for structures. Zero at t = 0 and for an interval in which nothing touched the contact.
+    for structures. ``moment`` is the mean force's moment about the grid origin (the domain's
+    ``origin_m``; N m per metre, counter-clockwise positive), each node's share taken at its
+    point on the contact's surface: with the mean force it gives the force's line of action
+    (:func:`line_of_action`). Zero at t = 0 and for an interval in which nothing touched the
+    contact.
     """
 
     contact: str
@@ -341,6 +345,20 @@ class ContactForce:
     peak_force_N_per_m: float
     peak_force_x_N_per_m: float
     peak_force_y_N_per_m: float
+    moment_N_m_per_m: float = 0.0
+
+
+def line_of_action(force: tuple[float, float], moment: float, near: tuple[float, float]) -> tuple[float, float] | None:
+    """The point of a force's line of action nearest to ``near``: the line of the points ``p``
+    with ``p x F = M`` (``moment`` about the same origin as ``near``'s coordinates). None for a
+    zero force."""
+    fx, fy = force
+    size2 = fx * fx + fy * fy
+    if not size2 > 0.0:
+        return None
+    # p = near + off (fy, -fx), perpendicular to F, with p x F = near x F + off |F|^2 = M
+    off = (moment - (near[0] * fy - near[1] * fx)) / size2
+    return near[0] + off * fy, near[1] - off * fx
 
 
 @dataclass(frozen=True, eq=False)

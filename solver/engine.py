@@ -204,13 +204,16 @@ class Engine:
         # what that hold adds to the stress update's velocity at the node in this step (zero where
         # it does not hold; written with the interpolated velocity, read by the stress update)
         self.node_hold_dv = ti.Vector.field(2, float, self.nodes if has and self.six_stage else (1, 1))
-        # impulse on the material in this step (N s/m), impulse on the contact since the last read,
-        # and the largest force of one step since then (|F|, Fx, Fy; N/m): in f64 whatever the precision
-        self.contact_step = ti.Vector.field(2, ti.f64, self.n_contacts)
+        # impulse on the material in this step (N s/m) with its moment about the grid origin (N s:
+        # x Jy - y Jx of each node's impulse at its point on the contact's surface), impulse on the
+        # contact since the last read and its moment, and the largest force of one step since then
+        # (|F|, Fx, Fy; N/m): in f64 whatever the precision
+        self.contact_step = ti.Vector.field(3, ti.f64, self.n_contacts)
         # a friction side's normal impulse per unit mass at each node of a wall column (the wall
         # node and the ghost nodes beyond it, layer 0 = the wall line), for the column's Coulomb law
         self.column_dvn = ti.field(float, (4, max(self.nodes), PAD + 1))
         self.contact_impulse = ti.Vector.field(2, ti.f64, self.n_contacts)
+        self.contact_moment = ti.field(ti.f64, self.n_contacts)
         self.contact_peak = ti.Vector.field(3, ti.f64, self.n_contacts)
         # apic-affine fuses the forces into the momentum; the force at the ghost nodes beyond the
         # closed walls is also summed apart (per side, along the wall) for the mirror forces
@@ -245,7 +248,8 @@ class Engine:
     #: scatter strategy's ``STATE``, e.g. the split scatter's plan; the grid is rebuilt from the
     #: particles at every step).
     PARTICLE_STATE = ("x", "x0", "v", "C", "s", "m", "rho", "eps_p", "mat", "active", "yielded")
-    COUNTER_STATE = ("lost", "unstable", "contact_impulse", "contact_peak", "node_hold", "hold_step")
+    COUNTER_STATE = ("lost", "unstable", "contact_impulse", "contact_moment", "contact_peak", "node_hold",
+                     "hold_step")
     #: Every field of the engine the host reads or writes (:meth:`state`, :meth:`load_state` and
     #: the set-up); the scatter strategy's ``STATE`` fields are moved with them.
     HOST_FIELDS = PARTICLE_STATE + COUNTER_STATE + (
@@ -316,13 +320,15 @@ class Engine:
         """Names of the contacts in engine order: the four sides, then the structures."""
         return SIDES + tuple(st.name for st in self.structures)
 
-    def read_contacts(self) -> tuple[np.ndarray, np.ndarray]:
-        """Impulse on each contact since the last read (N s/m, (n_contacts, 2)) and the largest
-        force of one step in that time (|F|, Fx, Fy in N/m, (n_contacts, 3)); both start afresh.
-        Impulse and force are what the material exerts on the contact."""
-        got = self._io.read(("contact_impulse", "contact_peak"))
-        self._io.write({"contact_impulse": 0.0, "contact_peak": 0.0})
-        return got["contact_impulse"], got["contact_peak"]
+    def read_contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Impulse on each contact since the last read (N s/m, (n_contacts, 2)), the largest force
+        of one step in that time (|F|, Fx, Fy in N/m, (n_contacts, 3)) and the impulse's moment
+        about the grid origin (N s, (n_contacts,), counter-clockwise positive); all start afresh.
+        Impulse, force and moment are what the material exerts on the contact; each node's share
+        acts at its point on the contact's surface (a side's line, a structure's face)."""
+        got = self._io.read(("contact_impulse", "contact_peak", "contact_moment"))
+        self._io.write({"contact_impulse": 0.0, "contact_peak": 0.0, "contact_moment": 0.0})
+        return got["contact_impulse"], got["contact_peak"], got["contact_moment"]
 
     def load_particles(self, positions_m, volumes_m2, material_ids, velocities_m_s=None,
                        densities_kg_m3=None) -> None:
@@ -336,7 +342,8 @@ class Engine:
             "x": pos, "x0": pos, "v": vel, "C": 0.0, "s": 0.0,
             "m": (np.asarray(volumes_m2, dtype=np.float64) * rho0).astype(f),
             "rho": rho0.astype(f), "eps_p": 0.0, "mat": mat, "active": 1, "yielded": 0,
-            "lost": 0, "unstable": 0, "contact_step": 0.0, "contact_impulse": 0.0, "contact_peak": 0.0,
+            "lost": 0, "unstable": 0, "contact_step": 0.0, "contact_impulse": 0.0, "contact_moment": 0.0,
+            "contact_peak": 0.0,
             "node_hold": -1, "hold_step": 0,
             **self.to_grid.start_state(),  # the strategy forgets what earlier steps taught it
         })
@@ -602,7 +609,7 @@ class Engine:
                     self.column_dvn[side, I[1 - axis], layer] = ti.max(-v.dot(n), 0.0)
                 new = self._contact_law(v, n, kind, mu, 0.0)
                 if ti.static(record):
-                    self._record(side, mass * (new - v))
+                    self._record(side, mass * (new - v), self._side_point(side, I))
                 v = new
                 held_by = side
                 sides_holding += 1
@@ -644,10 +651,10 @@ class Engine:
                         total = mass * (new - v_in)
                         a = (total[0] * n[1] - total[1] * n[0]) / det
                         b = (side_n[0] * total[1] - side_n[1] * total[0]) / det
-                        self._record(held_by, a * side_n - mass * (v - v_in))
-                        self._record(4 + s, b * n)
+                        self._record(held_by, a * side_n - mass * (v - v_in), self._side_point(held_by, I))
+                        self._record(4 + s, b * n, self._surface_point(I))
                     else:
-                        self._record(4 + s, mass * (new - v))
+                        self._record(4 + s, mass * (new - v), self._surface_point(I))
                 v = new
         return v
 
@@ -802,8 +809,31 @@ class Engine:
         return target
 
     @ti.func
-    def _record(self, c, impulse):
-        self.contact_step[c] += ti.cast(impulse, ti.f64)
+    def _record(self, c, impulse, point):
+        """Add an impulse on the material at ``point`` to contact ``c``'s step, with its moment."""
+        j = ti.cast(impulse, ti.f64)
+        p = ti.cast(point, ti.f64)
+        self.contact_step[c] += ti.Vector([j[0], j[1], p[0] * j[1] - p[1] * j[0]])
+
+    @ti.func
+    def _side_point(self, side, I):
+        """Node I's point on the line of ``side`` (the wall nodes and ghosts beyond it act there)."""
+        p = ti.Vector(self.origin) + ti.cast(I - PAD, float) * self.dx
+        if side == 0:
+            p[0] = self.origin[0]
+        elif side == 1:
+            p[0] = self.upper[0]
+        elif side == 2:
+            p[1] = self.origin[1]
+        else:
+            p[1] = self.upper[1]
+        return p
+
+    @ti.func
+    def _surface_point(self, I):
+        """Node I's point on its structure's surface: along its normal by its signed distance."""
+        p = ti.Vector(self.origin) + ti.cast(I - PAD, float) * self.dx
+        return p - self.node_sd[I] * self.node_normal[I]
 
     @ti.func
     def _contact_tally(self, dt):
@@ -811,9 +841,11 @@ class Engine:
         self.hold_step[None] += 1
         ti.loop_config(serialize=True)  # a handful of contacts
         for c in range(self.n_contacts):
-            on_contact = -self.contact_step[c]  # what the material exerts on the contact
-            self.contact_step[c] = ti.Vector.zero(ti.f64, 2)
+            step = -self.contact_step[c]  # what the material exerts on the contact
+            self.contact_step[c] = ti.Vector.zero(ti.f64, 3)
+            on_contact = ti.Vector([step[0], step[1]])
             self.contact_impulse[c] += on_contact
+            self.contact_moment[c] += step[2]
             if dt > 0.0:
                 force = on_contact / ti.cast(dt, ti.f64)
                 size = force.norm()
@@ -959,7 +991,7 @@ class Engine:
                                 v[1 - axis] += dv
                                 impulse = ti.Vector.zero(float, 2)
                                 impulse[1 - axis] = m * dv
-                                self._record(side, impulse)
+                                self._record(side, impulse, self._side_point(side, J))
                                 if ti.static(old):
                                     self.g_v_old[J] = v
                                 else:
@@ -995,7 +1027,7 @@ class Engine:
                     vg = self.g_v_old[ghost] if ti.static(old) else self.g_mom[ghost]
                     new = self._ghost_image(kind, axis, inward, vm, vg, self.bc_mu[side])
                     if ti.static(record):
-                        self._record(side, mass * (new - vg))
+                        self._record(side, mass * (new - vg), self._side_point(side, ghost))
                     if ti.static(old):
                         self.g_v_old[ghost] = new
                     else:
@@ -1520,7 +1552,7 @@ class Engine:
                         vn = v.dot(n)
                         if vn < 0.0:
                             v -= vn * n
-                            self._record(4 + s, -mass * vn * n)
+                            self._record(4 + s, -mass * vn * n, x)
         return x, v
 
     # ------------------------------------------------------------------ diagnostics

@@ -307,13 +307,14 @@ class Simulation:
 
     def _contact_forces(self) -> tuple[ContactForce, ...]:
         """Mean and peak force on each contact since the last frame (see :class:`ContactForce`)."""
-        impulse, peak = self.engine.read_contacts()
+        impulse, peak, moment = self.engine.read_contacts()
         interval = self.time_s - self._contacts_since_s
         self._contacts_since_s = self.time_s
         names = self.engine.contact_names
         out = []
         for c in self._contacts:
             fx, fy = (float(v) / interval for v in impulse[c]) if interval > 0 else (0.0, 0.0)
+            mz = float(moment[c]) / interval if interval > 0 else 0.0
             normal = tangential = None
             if c < 4:
                 axis = c // 2
@@ -321,7 +322,7 @@ class Simulation:
                 normal = (fx, fy)[axis] * outward
                 tangential = (fx, fy)[1 - axis]
             out.append(ContactForce(names[c], fx, fy, normal, tangential, float(peak[c, 0]), float(peak[c, 1]),
-                                    float(peak[c, 2])))
+                                    float(peak[c, 2]), mz))
         return tuple(out)
 
     def _check(self, dt: float, d: dict) -> None:

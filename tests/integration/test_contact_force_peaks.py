@@ -107,8 +107,13 @@ def test_the_peak_force_of_a_standing_block_is_its_weight_wherever_the_frames_fa
     for t, m, p in zip(rows["time_s"][standing], mean[standing], rows["peak_force_N_per_m"][standing]):
         assert abs(m / WEIGHT - 1) < 0.01, f"t = {t:.4f} s: mean force {m:.1f} N/m, weight {WEIGHT:.1f} N/m"
         assert abs(p / WEIGHT - 1) < 0.05, f"t = {t:.4f} s: peak force {p:.1f} N/m, weight {WEIGHT:.1f} N/m"
-    peak = json.loads((tmp_path / "r" / "summary.json").read_text())["contacts"][contact]["peak_force_N_per_m"]
-    assert peak < 1.05 * WEIGHT
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())["contacts"][contact]
+    assert summary["peak_force_N_per_m"] < 1.05 * WEIGHT
+    # the weight acts through the block's centre, x = 0.5 m (from the moment in contacts.csv): on
+    # the floor (a side) the centre of pressure, on the platform the point of the line of action
+    # nearest its vertex mean
+    x, y = summary["max_mean_force_point_m"]
+    assert abs(x - 0.5) < 0.001 and abs(y - (0.1 if contact == "platform" else 0.0)) < 1e-6, (x, y)
 
 
 # --- a block released on a frictional ramp (a structure) ------------------------------------------

@@ -90,7 +90,8 @@ def test_report_lists_the_contact_forces_of_contacts_csv(collapse, tmp_path):
 
     folder = tmp_path / "with_contacts.results"
     shutil.copytree(collapse, folder)
-    rows = [",".join(CONTACT_COLUMNS),
+    # a file as runs wrote it before the moment column (session 16): still read
+    rows = [",".join(CONTACT_COLUMNS[:9]),
             "0.0,bottom,0.0,0.0,0.0,0.0,0.0,0.0,0.0", "0.0,wall,0.0,0.0,,,0.0,0.0,0.0",
             "0.1,bottom,1.0,-50.0,50.0,1.0,80.0,2.0,-79.9", "0.1,wall,-35.5,12.0,,,61.25,-60.0,12.3",
             "0.2,bottom,2.0,-49.0,49.0,2.0,70.0,1.0,-69.9", "0.2,wall,20.0,3.0,,,25.0,24.0,7.0"]
