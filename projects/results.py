@@ -680,7 +680,8 @@ class ResultsWriter:
             for row in self._kept_contact_rows:
                 try:
                     values = [float(v) if v != "" else None for v in row[2:]]
-                    self._add_peaks(float(row[0]), row[1], values[0], values[1], values[4], values[5], values[6])
+                    moment = values[7] if len(values) > 7 and values[7] is not None else math.nan  # older rows
+                    self._add_peaks(float(row[0]), ContactForce(row[1], *values[:7], moment_N_m_per_m=moment))
                 except (IndexError, ValueError, TypeError):
                     continue
 
@@ -1042,6 +1043,8 @@ class ResultsWriter:
         if centre is None:
             return None
         fx, fy, moment = c.force_x_N_per_m, c.force_y_N_per_m, c.moment_N_m_per_m
+        if not math.isfinite(moment):  # a row written before the moment column
+            return None
         # relative to the grid origin, about which the moment is taken
         rx, ry = centre[0] - x0, centre[1] - y0
         if c.contact in ("bottom", "top") and abs(fy) > 1e-9 * abs(fx):

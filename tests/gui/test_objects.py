@@ -212,8 +212,8 @@ def test_contact_forces_and_structures_in_the_results(window, make_results, qtbo
     (path / "summary.json").write_text(json.dumps(summary), encoding="utf-8")
     rows = []
     for k, t in enumerate((0.0, 0.05, 0.1, 0.15)):
-        rows.append([t, "bottom", 0.0, 100.0 * k, 100.0 * k, 0.0, 150.0 * k, 0.0, 150.0 * k])
-        rows.append([t, "barrier", 30.0 * k, 40.0 * k, "", "", 80.0 * k, 48.0 * k, 64.0 * k])
+        rows.append([t, "bottom", 0.0, 100.0 * k, 100.0 * k, 0.0, 150.0 * k, 0.0, 150.0 * k, 50.0 * k])
+        rows.append([t, "barrier", 30.0 * k, 40.0 * k, "", "", 80.0 * k, 48.0 * k, 64.0 * k, -12.0 * k])
     _write_contacts(path / "contacts.csv", rows)
     assert window.open_results(path)
     view = window.results_view
@@ -230,7 +230,7 @@ def test_contact_forces_and_structures_in_the_results(window, make_results, qtbo
     view.show_frame(1)
     assert plot.markers[0].get_visible() and plot.markers[0].get_xdata()[0] == pytest.approx(view.results.times[1])
     # the folder is the interface: rows appended while a run goes on show at the next reread
-    rows.append([0.2, "barrier", 300.0, 400.0, "", "", 900.0, 540.0, 720.0])
+    rows.append([0.2, "barrier", 300.0, 400.0, "", "", 900.0, 540.0, 720.0, -60.0])
     _write_contacts(path / "contacts.csv", rows)
     view._show_contacts(path, live=True)
     assert plot.curves["barrier"][1][-1] == pytest.approx(500.0)

@@ -166,20 +166,24 @@ def test_a_resumed_folder_takes_its_contact_peaks_from_the_rows_it_keeps(tmp_pat
     from projects.results import ResultsWriter
 
     out = tmp_path / "r"
-    writer = ResultsWriter(out, "", {"particles": 1})
+    meta = {"particles": 1, "domain": {"origin_m": [0.0, 0.0], "size_m": [1.0, 1.0]}}
+    writer = ResultsWriter(out, "", meta)
     pos = np.zeros((1, 2), np.float32)
 
     def frame(i, fx, peak):
         diag = Diagnostics(0.1 * i, "s", 0, 0.1 * i, i, 1e-3, 0, 0, 0, 0, 0, 0, 1.0, 0)
-        contacts = (ContactForce("bottom", fx, -2 * fx, 2 * fx, fx, peak, peak / 2, -peak),)
+        # the force (fx, -2 fx) acting at x = 0.3 on the bottom: moment x Fy - y Fx = -0.6 fx
+        contacts = (ContactForce("bottom", fx, -2 * fx, 2 * fx, fx, peak, peak / 2, -peak, -0.6 * fx),)
         return Frame(diag, {"positions": pos, "active": np.ones(1, bool)}, contacts)
 
     for i, (fx, peak) in enumerate([(0.0, 0.0), (5.0, 12.0), (10.0, 40.0)]):
         writer.write_frame(frame(i, fx, peak))
     assert writer.close("stopped")["contacts"]["bottom"]["peak_force_N_per_m"] == 40.0
-    resumed = ResultsWriter(out, "", {"particles": 1}, keep_frames=2)
+    resumed = ResultsWriter(out, "", meta, keep_frames=2)
     assert resumed.summary["contacts"]["bottom"]["peak_force_N_per_m"] == 12.0
     assert resumed.summary["contacts"]["bottom"]["max_mean_force_N_per_m"] == pytest.approx(math.hypot(5.0, 10.0))
+    # the centre of pressure from the kept row's moment
+    assert resumed.summary["contacts"]["bottom"]["max_mean_force_point_m"] == pytest.approx([0.3, 0.0])
     resumed.write_frame(frame(2, 8.0, 30.0))
     peaks = resumed.close("completed")["contacts"]["bottom"]
     assert peaks["peak_force_N_per_m"] == 30.0 and peaks["peak_time_s"] == pytest.approx(0.2)
