@@ -679,11 +679,15 @@ class ResultsWriter:
             self.summary.pop("contacts", None)
             for row in self._kept_contact_rows:
                 try:
+                    time_s = float(row[0])
                     values = [float(v) if v != "" else None for v in row[2:]]
                     moment = values[7] if len(values) > 7 and values[7] is not None else math.nan  # older rows
-                    self._add_peaks(float(row[0]), ContactForce(row[1], *values[:7], moment_N_m_per_m=moment))
+                    force = ContactForce(row[1], *values[:7], moment_N_m_per_m=moment)
+                    if None in (values[0], values[1], values[4], values[5], values[6]):
+                        continue
                 except (IndexError, ValueError, TypeError):
-                    continue
+                    continue  # a row cut short (a kill while it was written)
+                self._add_peaks(time_s, force)
 
         try:
             self._frames_dir.mkdir(exist_ok=True)
