@@ -30,21 +30,23 @@ RHO = 2000.0
 DT = 4.0e-4
 BLOCK = (0.4, 0.2)  # m
 WEIGHT = RHO * G * BLOCK[0] * BLOCK[1]  # N/m
+FRICTION_DEG = 20.0  # of the floor, the platform and the ramp
 
 
-def _project(contact: str, scheme: str, precision: str, remainder: float) -> str:
-    """``remainder``: what the last step before each frame would have been, as a fraction of DT."""
-    floor = 0.2 if contact == "platform" else 0.0
+def _text(size: tuple[float, float], bottom: str, polygon: list, structure: tuple[str, list] | None, stages: str,
+          scheme: str, precision: str, remainder: float) -> str:
+    """A block of linear-elastic material (E = 1e6 Pa) on a contact, as a project file; output
+    frames at intervals that leave the last step before each ``remainder`` of DT."""
     text = f"""
 [runout]
 schema_version = 1
 [domain]
-size_m = [1.0, 0.6]
+size_m = {json.dumps(list(size))}
 cell_size_m = 0.02
 [domain.boundaries]
 left = "slip"
 right = "slip"
-bottom = {{ type = "friction", friction_angle_deg = 30.0 }}
+bottom = {bottom}
 top = "open"
 [materials.block]
 model = "linear-elastic"
@@ -54,7 +56,7 @@ poisson_ratio = 0.3
 [[bodies]]
 name = "block"
 material = "block"
-polygon_m = [[0.3, {floor}], [0.7, {floor}], [0.7, {floor + BLOCK[1]}], [0.3, {floor + BLOCK[1]}]]
+polygon_m = {json.dumps(polygon)}
 [particles]
 per_cell = 2
 [numerics]
@@ -62,25 +64,27 @@ scheme = "{scheme}"
 precision = "{precision}"
 time_step_s = {DT}
 arch = "cpu"
-[[stages]]
-name = "initial stress"
-type = "gravity"
-duration_s = 0.3
-[[stages]]
-name = "standing"
-type = "dynamic"
-duration_s = 0.06
+{stages}
 [output]
 interval_s = {0.01 + remainder * DT!r}
 fields = ["velocity"]
 """
-    if contact == "platform":
-        text += """[[structures]]
-name = "platform"
-polygon_m = [[0.1, 0.0], [0.9, 0.0], [0.9, 0.2], [0.1, 0.2]]
-contact = { type = "friction", friction_angle_deg = 30.0 }
-"""
+    if structure is not None:
+        name, outline = structure
+        text += (f'[[structures]]\nname = "{name}"\npolygon_m = {json.dumps(outline)}\n'
+                 f'contact = {{ type = "friction", friction_angle_deg = {FRICTION_DEG} }}\n')
     return text
+
+
+def _project(contact: str, scheme: str, precision: str, remainder: float) -> str:
+    """The block standing on the floor or on a platform after a damped gravity stage."""
+    floor = 0.2 if contact == "platform" else 0.0
+    block = [[0.3, floor], [0.7, floor], [0.7, floor + BLOCK[1]], [0.3, floor + BLOCK[1]]]
+    platform = ("platform", [[0.1, 0.0], [0.9, 0.0], [0.9, 0.2], [0.1, 0.2]]) if contact == "platform" else None
+    stages = ('[[stages]]\nname = "initial stress"\ntype = "gravity"\nduration_s = 0.3\n'
+              '[[stages]]\nname = "standing"\ntype = "dynamic"\nduration_s = 0.06')
+    return _text((1.0, 0.6), f'{{ type = "friction", friction_angle_deg = {FRICTION_DEG} }}', block, platform,
+                 stages, scheme, precision, remainder)
 
 
 CASES = [
@@ -120,56 +124,20 @@ def test_the_peak_force_of_a_standing_block_is_its_weight_wherever_the_frames_fa
 
 RAMP_TOP = 0.92  # the ramp falls from (0, RAMP_TOP) to (1.6, 0): 29.9 deg
 THETA = math.atan2(RAMP_TOP, 1.6)
-FRICTION_DEG = 20.0
 
 
 def _ramp_project(scheme: str, precision: str, remainder: float) -> str:
+    """The block released stress free on a frictional ramp (a structure)."""
     t = (math.cos(THETA), -math.sin(THETA))
     n = (math.sin(THETA), math.cos(THETA))
     a = (0.2 * t[0], RAMP_TOP + 0.2 * t[1])
     corners = [a, (a[0] + BLOCK[0] * t[0], a[1] + BLOCK[0] * t[1]),
                (a[0] + BLOCK[0] * t[0] + BLOCK[1] * n[0], a[1] + BLOCK[0] * t[1] + BLOCK[1] * n[1]),
                (a[0] + BLOCK[1] * n[0], a[1] + BLOCK[1] * n[1])]
-    polygon = json.dumps([[round(x, 5), round(y, 5)] for x, y in corners])
-    return f"""
-[runout]
-schema_version = 1
-[domain]
-size_m = [1.6, 1.2]
-cell_size_m = 0.02
-[domain.boundaries]
-left = "slip"
-right = "slip"
-bottom = "slip"
-top = "open"
-[materials.block]
-model = "linear-elastic"
-density_kg_m3 = {RHO}
-youngs_modulus_pa = 1.0e6
-poisson_ratio = 0.3
-[[bodies]]
-name = "block"
-material = "block"
-polygon_m = {polygon}
-[[structures]]
-name = "ramp"
-polygon_m = [[0.0, 0.0], [1.6, 0.0], [0.0, {RAMP_TOP}]]
-contact = {{ type = "friction", friction_angle_deg = {FRICTION_DEG} }}
-[particles]
-per_cell = 2
-[numerics]
-scheme = "{scheme}"
-precision = "{precision}"
-time_step_s = {DT}
-arch = "cpu"
-[[stages]]
-name = "release"
-type = "dynamic"
-duration_s = 0.3
-[output]
-interval_s = {0.01 + remainder * DT!r}
-fields = ["velocity"]
-"""
+    block = [[round(x, 5), round(y, 5)] for x, y in corners]
+    ramp = ("ramp", [[0.0, 0.0], [1.6, 0.0], [0.0, RAMP_TOP]])
+    stages = '[[stages]]\nname = "release"\ntype = "dynamic"\nduration_s = 0.3'
+    return _text((1.6, 1.2), '"slip"', block, ramp, stages, scheme, precision, remainder)
 
 
 @pytest.mark.parametrize("scheme,precision,remainder", [("apic-affine", "f32", 0.001), ("mpm", "f64", 0.001),
