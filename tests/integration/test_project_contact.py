@@ -120,6 +120,11 @@ LIMITS = [
         reason="sliding 4 deg above the friction limit at high friction (mu = 0.73): +23.9 %, the "
                "frictional flutter of near-limit slides (docs/validation.md, contact; the one "
                "failure of 30 random cases of the matrix, session 16)")),
+    pytest.param("bottom", "mpm", "f32", 1, 1e8, 39, 35, "recommended", marks=_limit(
+        reason="classic mpm, a stiff one-cell sheet on a wall near the limit at high friction slides short: "
+               "-39.6 % at 39/35 (-13.5 % at 40/35, -6.4 % at 35/30; the ramp structure, apic and "
+               "apic-affine, 1e7 Pa and 5-cell blocks are within 1 %): friction over-counted at the walls "
+               "for mpm's sheets (docs/validation.md, contact; random cases, session 16)")),
     pytest.param("bottom", "apic", "f32", 20, 1e6, 40, 45, "recommended", marks=_limit(
         reason="after the recommended stage the soft 20-cell block still creeps 0.101 % with apic "
                "(0.074 % mpm, 0.006 % apic-affine): the undamped dynamic stage's flutter "
