@@ -574,7 +574,7 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
     trows = [[name, t["kind"], _fmt(t["x_m"], "m") + ("" if t["y_m"] is None else f", y {_fmt(t['y_m'], 'm')}"),
               _fmt(t["arrival_time_s"], "s") if t["arrival_time_s"] is not None else "never reached",
               _fmt(t["max_height_m"], "m"), _fmt(t["max_speed_m_s"], "m/s"),
-              _fmt(t["max_pressure_pa"] * 1e-3, "kPa")]
+              _fmt(measure_value(t, "max_pressure_pa", "kPa"), "kPa")]
              for name, t in (doc.get("targets") or {}).items()]
     if trows:
         parts.append(_table(["target", "kind", "place", "arrival", "max height", "max speed", "max pressure"], trows))

@@ -1161,7 +1161,6 @@ def contact_curves(contacts: dict[str, dict[str, np.ndarray]]) -> dict[str, tupl
     return out
 
 
-
 class Results:
     """Read a results folder, also one whose run was killed part way.
 

@@ -213,11 +213,10 @@ KERNEL_CACHE_MAX_BYTES = 1024 ** 3  # (a 32-bit setting: below 2 GiB)
 
 # Taichi's "advanced optimization" IR passes are most of a kernel's compile time on the CPU: the
 # step kernel of a scene with structures compiled in 47 s with them and 6.4 s without (the check-dam
-# example, two cores), and a run compiles it afresh for every new grid. The steps run as fast within
-# the measurement's noise on that scene and 5-14 % slower on the 20,000-particle bars
-# (docs/performance.md, kernel compilation), so the CPU runs without them; on a GPU, where the
-# long runs are and nothing was measured, they stay on. The results differ from the optimised
-# kernels' in the last bits of f32 only.
+# example, two cores), and a run compiles it afresh for every new grid. The steps run 2-3 % slower
+# (paired rounds at 20,000 particles, docs/performance.md, kernel compilation), so the CPU runs
+# without them; on a GPU, where the long runs are and nothing was measured, they stay on. The
+# results differ from the optimised kernels' in the last bits of f32 only.
 CPU_ADVANCED_OPTIMIZATION = False
 
 

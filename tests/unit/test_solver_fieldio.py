@@ -83,6 +83,6 @@ def test_the_kernel_cache_keeps_the_suites_kernels(fields):
 
 def test_cpu_kernels_compile_without_the_advanced_optimization_passes(fields):
     """They were most of the compile time of a scene with structures (47 s against 6.4 s) for a
-    runtime cost within noise to 14 % (docs/performance.md, kernel compilation)."""
+    runtime cost of 2-3 % (docs/performance.md, kernel compilation)."""
     # the fixture acquired the CPU runtime
     assert ti.lang.impl.current_cfg().advanced_optimization is runtime.CPU_ADVANCED_OPTIMIZATION is False
