@@ -415,12 +415,12 @@ class Engine:
         columns = ("wall columns",) if self.COLUMN_FRICTION else ()
         corners = ("corner normals",) if self.has_zone else ()
         if self.six_stage:
-            return ("reset grid", *corners, "P2G momentum", *fold, "grid velocity", *columns_old, "mirror walls (old)",
+            return ("reset grid", *corners, "P2G momentum", *fold, "grid velocity", "mirror walls (old)", *columns_old,
                     *copy_old,
-                    "stress and force", *fold_force, "mirror forces", "grid update", *columns, "mirror walls", *copy,
+                    "stress and force", *fold_force, "mirror forces", "grid update", "mirror walls", *columns, *copy,
                     "G2P", "contact tally")
-        return ("reset grid", *corners, "P2G with stress and force", *fold, "mirror forces", "grid update", *columns,
-                "mirror walls", *copy, "G2P", "contact tally")
+        return ("reset grid", *corners, "P2G with stress and force", *fold, "mirror forces", "grid update",
+                "mirror walls", *columns, *copy, "G2P", "contact tally")
 
     def _fused(self, damped: bool) -> bool:
         """Whether apic-affine's P2G fuses the forces into the momentum: undamped and with no
@@ -944,7 +944,8 @@ class Engine:
         The wall node and the ghost nodes beyond it are one contact point (the ghosts carry the
         wall node's support beyond the wall), so the law acts on the summed tangential momentum
         ``P`` and normal impulse ``J`` of the column's approaching nodes (:meth:`_contact` removed
-        their normal part and left ``dvn``, per unit mass, in ``column_dvn``): stick when ``|P| <=
+        their normal part and left ``dvn``, per unit mass, in ``column_dvn``, and the mirror image
+        added the ghost's, :meth:`_mirror_ghosts`): stick when ``|P| <=
         mu J`` (every such node stops along the wall), else every such node slows by the same ``mu
         J / M`` (``M`` their mass), so the column loses exactly ``mu J`` of momentum and its nodes
         keep their relative velocities. Decided node by node, the base's reaction split between the
@@ -1011,11 +1012,12 @@ class Engine:
     @ti.func
     def _mirror_ghosts(self, old: ti.template(), record: ti.template()):
         """The ghost node's velocity across the wall becomes the mirror image of the mirror node's
-        while the material there approaches the wall (both components for a fixed wall), so that
-        the velocity gradient of the particles in the wall cell is that of the mirror-image field;
-        the momentum this changes is the wall's impulse too, and on a friction wall its normal part
-        brings Coulomb friction with it (the ghost's velocity along the wall reduced by at most mu
-        times it, never reversed)."""
+        while the material there approaches the wall and the image pushes the ghost into the
+        material (both components for a fixed wall), so that the velocity gradient of the particles
+        in the wall cell is that of the mirror-image field; the momentum this changes is the wall's
+        impulse too. On a friction wall its normal part brings Coulomb friction with it: through the
+        ghost's wall column (``column_dvn``, :meth:`_wall_columns` runs next), or at the ghost
+        alone (reduced by at most mu times it, never reversed) at a corner of the box."""
         for axis in ti.static(range(2)):
             ti.loop_config(serialize=self.plain)
             for k in range(2 * self.nodes[1 - axis]):
@@ -1025,7 +1027,19 @@ class Engine:
                 if self._closed(kind) and mass > 0.0 and self._in_box(ghost) and self._in_box(mirror):
                     vm = self.g_v_old[mirror] if ti.static(old) else self.g_mom[mirror]
                     vg = self.g_v_old[ghost] if ti.static(old) else self.g_mom[ghost]
-                    new = self._ghost_image(kind, axis, inward, vm, vg, self.bc_mu[side])
+                    mu = self.bc_mu[side]
+                    column = False
+                    if ti.static(self.COLUMN_FRICTION) and kind == FRICTION:
+                        corner = 0
+                        for s in ti.static(range(4)):
+                            if self._on_closed_side(ghost, s):
+                                corner += 1
+                        column = corner == 1
+                    if column:
+                        mu = 0.0  # the ghost is part of its wall column: friction there (_wall_columns)
+                    new = self._ghost_image(kind, axis, inward, vm, vg, mu)
+                    if column:
+                        self.column_dvn[side, k % self.nodes[1 - axis], 1] += (new[axis] - vg[axis]) * inward
                     if ti.static(record):
                         self._record(side, mass * (new - vg), self._side_point(side, ghost))
                     if ti.static(old):
@@ -1036,17 +1050,17 @@ class Engine:
     @ti.func
     def _ghost_image(self, kind, axis: ti.template(), inward, vm, vg, mu):
         """The ghost node's new velocity (see :meth:`_mirror_ghosts`) from the mirror node's ``vm``
-        and its own ``vg``, for a wall across ``axis`` whose material lies towards ``inward``."""
+        and its own ``vg``, for a wall across ``axis`` whose material lies towards ``inward``.
+        Never a pull: where the ghost already moves into the material faster than the image, the
+        image would hold it back, a tension on the wall that the friction, taken from the pushing
+        impulses, did not see (classic mpm's stiff sheets, docs/solver.md, walls as mirror planes)."""
         new = vg
         if kind == FIXED:
             new = -vm
         elif vm[axis] * inward < 0.0:
-            new[axis] = -vm[axis]
-            # the normal impulse this gives the ghost node is the wall's too: Coulomb friction on
-            # it, as in the contact law (never reversing); without it a sheet sliding on a 38 deg
-            # wall with 36 deg friction felt 0.42 % less than mu N (docs/solver.md, contact)
-            dvn = (new[axis] - vg[axis]) * inward
+            dvn = (-vm[axis] - vg[axis]) * inward
             if dvn > 0.0:
+                new[axis] = -vm[axis]
                 vt = new[1 - axis]
                 new[1 - axis] = ti.math.sign(vt) * ti.max(ti.abs(vt) - mu * dvn, 0.0)
         return new

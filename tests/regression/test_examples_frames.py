@@ -22,7 +22,10 @@ session 13) changed the one example with an outline off the sub-cell lines, the 
 again; the others (grid-aligned rectangles) kept theirs bit for bit. Session 16 added the
 check-dam example, then compiled the CPU kernels without Taichi's advanced-optimization passes
 (seven times faster to compile, solver.runtime): every example's frames moved in the last bits
-of f32 (9e-8 m/s in the first frame of the check dam), written again. Each example runs 200 to 400 steps with its own settings and the
+of f32 (9e-8 m/s in the first frame of the check dam), written again. Session 17 stopped the walls'
+mirror image from pulling the ghost back and gave its friction to the wall column (issue 11):
+the three examples whose material touches a friction or slip side in these steps (aluminium bars,
+slope, tiny column) written again; the sand column and the check dam kept theirs. Each example runs 200 to 400 steps with its own settings and the
 scatter ``auto`` picks on this machine (serial below 10,000 particles, split above, on a CPU with
 few threads: both repeat bit for bit). A change that alters the numbers of a scene fails here; if
 the change is meant (a physics fix), write the digests again and say so in the commit.
