@@ -428,6 +428,14 @@ def run(
         typer.Option("--progress", help="rich: a progress bar on standard error; jsonl: one JSON object "
                      "per line on standard output (started, warning, progress, frame, finished) for programs."),
     ] = ProgressMode.rich,
+    source: Annotated[
+        Path | None,
+        typer.Option("--source", help="The project file PROJECT is a copy of, named in summary.json instead of "
+                     "PROJECT (the workbench runs a temporary copy of its window's project).", show_default=False),
+    ] = None,
+    unsaved: Annotated[bool, typer.Option(
+        "--unsaved", help="PROJECT holds edits not saved in --source, or has no file of its own: "
+        "summary.json says so.")] = False,
 ) -> None:
     """Run a project and write its results folder (or continue one with --resume).
 
@@ -440,8 +448,9 @@ def run(
 
     if (project is None) == (resume is None):
         fail("give a project file, or --resume RESULTS (not both)")
-    if resume is not None and (out_dir is not None or overrides or start_from is not None):
-        fail("--resume continues a run as it was: no --out, --set or --start-from with it")
+    if resume is not None and (out_dir is not None or overrides or start_from is not None or source is not None
+                               or unsaved):
+        fail("--resume continues a run as it was: no --out, --set, --start-from, --source or --unsaved with it")
     jsonl = progress_mode is ProgressMode.jsonl
     if quiet or jsonl:
         _setup_logging(verbose=False, quiet=True)
@@ -483,8 +492,10 @@ def run(
                 else:
                     result = run_project(
                         model,
-                        out_dir,
-                        project_path=project,
+                        where_to,
+                        # the file the user knows, not the copy that runs (--source); none: unsaved
+                        project_path=source if source is not None else None if unsaved else project,
+                        unsaved=unsaved,
                         arch=arch.value if arch is not None else None,
                         cancel=stop,
                         on_progress=on_progress,

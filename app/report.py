@@ -222,7 +222,9 @@ def profiles_png(doc: Mapping[str, Any], path: Path) -> Path:
                     label=f"travel angle {doc['travel_angle_deg']:.1f} deg" if doc.get("travel_angle_deg") else None)
     ax.set_ylabel("height y (m)")
     ax.set_title("Surfaces")
-    ax.legend(fontsize=7, loc="upper right")
+    # above the plots, not in them: in the upper right corner it covered the names of the targets
+    # downstream, where they usually are
+    fig.legend(*ax.get_legend_handles_labels(), fontsize=7, loc="outside upper center", ncols=4)
     _target_lines(ax, doc, label=True)
     panels = [
         (axes[1], p["peak_flow_height_m"], "peak flow height (m)", "tab:orange", 1.0),
@@ -472,6 +474,16 @@ def measure_value(doc: Mapping[str, Any], key: str, unit: str) -> Any:
     return value
 
 
+def project_source(summary: Mapping[str, Any]) -> str:
+    """The project a run stands for, as its ``summary.json`` records it: the file, with a note
+    when the workbench ran edits not saved in it, or "unsaved project" (never the temporary copy
+    the workbench starts its runs from); "-" for a folder that records nothing."""
+    path = summary.get("project_file")
+    if summary.get("project_unsaved"):
+        return f"{path}, with edits not saved in it" if path else "unsaved project"
+    return str(path) if path else "-"
+
+
 def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str] | None = None,
                  *, scene_size: tuple[int, int] = (1200, 560)) -> Path:
     """Write the hazard report of a results folder.
@@ -627,7 +639,7 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
         ["started / finished", f"{summary.get('started_at', '-')} / {summary.get('finished_at', '-')}"],
         ["stages", ", ".join(summary.get("stages") or [])],
         ["materials", ", ".join(summary.get("materials") or [])],
-        ["project file", summary.get("project_file", "-")],
+        ["project file", project_source(summary)],
         ["hazard raster", f"{doc['raster']['shape'][0]} x {doc['raster']['shape'][1]} cells of "
                           f"{_fmt(doc['raster']['cell_size_m'], 'm')}"],
         ["thresholds", ", ".join(f"{k} = {_fmt(v)}" for k, v in th.items())],

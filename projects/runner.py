@@ -182,6 +182,7 @@ def run_project(
     out_dir: str | os.PathLike[str] | None = None,
     *,
     project_path: str | os.PathLike[str] | None = None,
+    unsaved: bool = False,
     arch: str | None = None,
     cancel: Callable[[], bool] | None = None,
     on_frame: Callable[[Frame], None] | None = None,
@@ -201,7 +202,10 @@ def run_project(
         run's results there are replaced only with ``overwrite``; another non-empty folder is
         refused.
     project_path : path-like, optional
-        The project file (for the default folder and the summary).
+        The project file (for the default folder and the summary's ``project_file``).
+    unsaved : bool
+        The project holds edits not saved in ``project_path``, or has no file (a run from the
+        workbench): the summary's ``project_unsaved``.
     arch : {"cpu", "gpu", "auto"}, optional
         Overrides ``numerics.arch``.
     cancel : callable, optional
@@ -258,7 +262,7 @@ def run_project(
     try:
         if initial is not None:
             _start_from(sim, initial, start_from, resolved)
-        meta = _meta(resolved, sim, path)
+        meta = _meta(resolved, sim, path, unsaved)
         if start_from is not None:
             meta["started_from"] = str(Path(start_from).absolute())
         writer = ResultsWriter(out_path, dumps_project(resolved.project), meta, overwrite=overwrite)
@@ -524,7 +528,7 @@ def _outside_structures(arrays: dict[str, Any], resolved: ResolvedRun, source: A
                 f"({structure.name!r}); move the structure or start without --start-from")
 
 
-def _meta(resolved: ResolvedRun, sim: Any, project_path: Path | None) -> dict[str, Any]:
+def _meta(resolved: ResolvedRun, sim: Any, project_path: Path | None, unsaved: bool = False) -> dict[str, Any]:
     """Summary entries known before the run starts."""
     meta = resolved.meta()
     meta["arch"] = sim.arch
@@ -532,6 +536,8 @@ def _meta(resolved: ResolvedRun, sim: Any, project_path: Path | None) -> dict[st
     meta["checkpoint_interval_s"] = resolved.checkpoint_interval_s
     if project_path is not None:
         meta["project_file"] = str(project_path)
+    if unsaved:
+        meta["project_unsaved"] = True
     return meta
 
 

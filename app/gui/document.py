@@ -41,6 +41,10 @@ logger = logging.getLogger(__name__)
 
 SECTIONS: tuple[str, ...] = ("runout", "domain", "materials", "bodies", "structures", "particles", "numerics",
                              "stages", "output", "targets")
+#: Up to this many particles (the estimate from the bodies' area) the workbench seeds the bodies as
+#: the run will, for the particle preview and the Run panel's count (0.3 s at 400,000); above,
+#: seeding on every edit would hold the window up for seconds.
+MAX_SEEDED_PARTICLES = 400_000
 #: The parts of a project drawn as polygons (edited with the same scene tools and vertex table).
 POLYGON_KINDS: tuple[str, ...] = ("bodies", "structures")
 #: What can be selected: a polygon's kind or ``"targets"``.
@@ -391,6 +395,7 @@ class ProjectDocument(QObject):
         self.project: Project | None = None
         self.problems: list[Problem] = []
         self.path: Path | None = None
+        self._seeded: tuple[Project, Any] | None = None  # (project, its seeded run or the error)
         self.reset(data if data is not None else new_project_data(), path)
 
     # -- state ------------------------------------------------------------------------------
@@ -429,6 +434,37 @@ class ProjectDocument(QObject):
     def problems_at(self, prefix: str) -> list[Problem]:
         """Problems whose key path is ``prefix`` or below it."""
         return [p for p in self.problems if p.path == prefix or p.path.startswith(prefix + ".")]
+
+    def seeded_run(self) -> Any:
+        """The run the valid project stands for, its particles seeded as ``runout run`` seeds them
+        (:func:`projects.build.resolve`: overrides, preset and all). Kept until the project
+        changes, so that the particle preview and the Run panel's count share one seeding.
+
+        Returns
+        -------
+        projects.build.ResolvedRun
+
+        Raises
+        ------
+        ProjectError, ValueError, ArithmeticError
+            As :func:`projects.build.resolve` (a body that receives no particles); ValueError
+            while the project has problems.
+        """
+        project = self.project
+        if project is None:
+            raise ValueError("the project has problems")
+        if self._seeded is None or self._seeded[0] is not project:
+            from projects.build import resolve
+
+            try:
+                outcome: Any = resolve(project, seed=True)
+            except (ProjectError, ValueError, ArithmeticError) as err:
+                outcome = err
+            self._seeded = (project, outcome)
+        outcome = self._seeded[1]
+        if isinstance(outcome, Exception):
+            raise outcome
+        return outcome
 
     # -- files ------------------------------------------------------------------------------
 

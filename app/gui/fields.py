@@ -16,8 +16,10 @@ import logging
 from collections.abc import Sequence
 from typing import Any
 
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import QEvent, QObject, Qt, Signal
+from PySide6.QtGui import QKeySequence
 from PySide6.QtWidgets import (
+    QAbstractSpinBox,
     QComboBox,
     QHBoxLayout,
     QLabel,
@@ -43,6 +45,45 @@ def unit_label(unit: str) -> QLabel:
     label.setSizePolicy(QSizePolicy.Policy.Fixed, QSizePolicy.Policy.Preferred)
     label.setStyleSheet("color: #555;")
     return label
+
+
+def forget_typing(edit: QLineEdit) -> None:
+    """The text of ``edit`` is the project's now (committed as an undo step, or equal to the
+    value): clear the field's own undo history, so that Ctrl+Z there undoes the project's step
+    (:class:`TypingUndo`) instead of putting the old text back in the field alone, which the
+    project did not follow (and leaving the field then committed it as one more step)."""
+    if edit.isUndoAvailable() or edit.isRedoAvailable():
+        pos = edit.cursorPosition()
+        edit.setText(edit.text())  # clears the history; emits textChanged, not textEdited
+        edit.setCursorPosition(pos)
+
+
+class TypingUndo(QObject):
+    """Event filter of the text fields of a window with a project-level Undo: Ctrl+Z (and Redo)
+    in a field undoes its own typing, what it holds that the project does not (Qt's undo of the
+    field), and only that; a field with nothing of its own to undo passes the key on to the
+    window's Undo action instead of swallowing it, as a QLineEdit does."""
+
+    def eventFilter(self, obj: QObject, event: QEvent) -> bool:  # noqa: N802 - Qt's name
+        if event.type() not in (QEvent.Type.ShortcutOverride, QEvent.Type.KeyPress):
+            return False
+        # a spin box takes the key for its line edit
+        edit = obj if isinstance(obj, QLineEdit) else obj.findChild(QLineEdit) if isinstance(
+            obj, QAbstractSpinBox) else None
+        if edit is None or edit.isReadOnly():
+            return False
+        if event.matches(QKeySequence.StandardKey.Undo):
+            own = edit.isUndoAvailable()
+        elif event.matches(QKeySequence.StandardKey.Redo):
+            own = edit.isRedoAvailable()
+        else:
+            return False
+        if own:
+            return False
+        # the override left unaccepted, the window's action takes the key; a key press that no
+        # action took (nothing to undo in the project either) does nothing
+        event.ignore()
+        return True
 
 
 class _Bound(QWidget):
@@ -142,9 +183,10 @@ class NumberField(_Bound):
             self.message.emit(f"{self.label}: {self.error}")
             return False
         current = self.value()
-        if value == current and (value is None) == (current is None):
-            return False
-        return self.doc.set_value(self.path, value, f"change {self.label.lower()}")
+        changed = not (value == current and (value is None) == (current is None))
+        done = changed and self.doc.set_value(self.path, value, f"change {self.label.lower()}")
+        forget_typing(self.edit)
+        return done
 
     def set_text(self, text: str) -> None:
         """Type ``text`` and finish editing (what a user does; used by scripts and tests)."""
@@ -213,9 +255,10 @@ class PairField(_Bound):
         self._style()
         if self.error or value is None:
             return False
-        if value == self.value():
-            return False
-        return self.doc.set_value(self.path, value, f"change {self.label.lower()}")
+        done = value != self.value() and self.doc.set_value(self.path, value, f"change {self.label.lower()}")
+        for edit in self.edits:
+            forget_typing(edit)
+        return done
 
     def set_values(self, x: float, y: float) -> None:
         self.edits[0].setText(format_number(x))
@@ -303,6 +346,11 @@ class IntField(_Bound):
     def _commit(self) -> None:
         if self.path is not None and self.spin.value() != self.value():
             self.doc.set_value(self.path, int(self.spin.value()), f"change {self.label.lower()}")
+        edit = self.spin.findChild(QLineEdit)
+        if self.path is not None and edit is not None:
+            self.spin.blockSignals(True)  # the same text again: no valueChanged
+            forget_typing(edit)
+            self.spin.blockSignals(False)
 
     def refresh(self) -> None:
         value = self.value()
@@ -343,9 +391,9 @@ class TextField(_Bound):
         if self.error:
             return False
         value: Any = text if text.strip() or not self.optional else None
-        if value == self.value():
-            return False
-        return self.doc.set_value(self.path, value, f"change {self.label.lower()}")
+        done = value != self.value() and self.doc.set_value(self.path, value, f"change {self.label.lower()}")
+        forget_typing(self.edit)
+        return done
 
     def set_text(self, text: str) -> None:
         self.edit.setText(text)

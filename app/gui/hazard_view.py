@@ -42,6 +42,9 @@ TARGET_COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("max_pressure_pa", "max pressure", "kPa"),
 )
 
+#: Characters of a measure's name before it wraps (the value column stays in view in the pane).
+NAME_CHARS = 26
+
 
 def format_value(value: Any, unit: str = "", digits: int = 4) -> str:
     """A measure as text: ``-`` for a missing value, ``g`` format with ``digits`` digits."""
@@ -129,21 +132,27 @@ class HazardView(QWidget):
         top.addWidget(self.header, 1)
         top.addWidget(self.export_button)
 
-        self.figure = Figure(figsize=(8.0, 9.0))
+        # constrained: the legend above the plots takes its room from them (_draw)
+        self.figure = Figure(figsize=(8.0, 9.0), layout="constrained")
         self.canvas = FigureCanvasQTAgg(self.figure)
         self.canvas.setMinimumHeight(300)
         self.measures = QTableWidget(0, 3)
         self.measures.setHorizontalHeaderLabels(["Measure", "Value", "Threshold"])
         self.targets = QTableWidget(0, 1 + len(TARGET_COLUMNS))
+        # the unit on a second line: the headers, not the values, set these columns' widths
         self.targets.setHorizontalHeaderLabels(
-            ["Target"] + [f"{h} ({u})" for _k, h, u in TARGET_COLUMNS])
+            ["Target"] + [f"{h}\n({u})" for _k, h, u in TARGET_COLUMNS])
         for table in (self.measures, self.targets):
             table.verticalHeader().setVisible(False)
+            table.verticalHeader().setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
             table.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
+            # every column as wide as its header and values, never elided: a stretched last
+            # section kept Qt's default 100 px where there was no room to stretch ("max pressure
+            # (k…"); a table narrower than its columns scrolls
             table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
-            table.horizontalHeader().setStretchLastSection(True)
+            table.setHorizontalScrollMode(QTableWidget.ScrollMode.ScrollPerPixel)
+        # the measures' names wrap, so that each value stands beside its name in a narrow pane
         self.measures.horizontalHeader().setSectionResizeMode(0, QHeaderView.ResizeMode.Interactive)
-        self.measures.setColumnWidth(0, 250)
         self.measures.setWordWrap(True)
         self.context = QLabel("")
         self.context.setWordWrap(True)
@@ -239,6 +248,7 @@ class HazardView(QWidget):
         for r, row in enumerate(rows):
             for c, text in enumerate(row):
                 self.measures.setItem(r, c, QTableWidgetItem(text))
+        self._fit_names(self.measures)
         targets = doc.get("targets") or {}
         self.targets.setRowCount(len(targets))
         for r, (name, t) in enumerate(targets.items()):
@@ -254,6 +264,19 @@ class HazardView(QWidget):
             notes.append(f"Envelopes updated every {sampling['every_steps']} steps "
                          f"({sampling.get('updates', '?')} updates).")
         self.context.setText(" ".join(notes))
+
+    @staticmethod
+    def _fit_names(table: QTableWidget) -> None:
+        """The name column as wide as its names, but at most :data:`NAME_CHARS` characters (the
+        longer names wrap) and never narrower than a name's longest word."""
+        fm = table.fontMetrics()
+        margin = 2 * table.style().pixelMetric(table.style().PixelMetric.PM_FocusFrameHMargin) + 8
+        texts = [table.item(r, 0).text() for r in range(table.rowCount()) if table.item(r, 0) is not None]
+        words = max((fm.horizontalAdvance(w) for t in texts for w in t.split()), default=0) + margin
+        widest = max([fm.horizontalAdvance(t) + margin for t in texts]
+                     + [table.horizontalHeader().sectionSizeHint(0)])
+        table.setColumnWidth(0, max(words, min(widest, fm.averageCharWidth() * NAME_CHARS)))
+        table.resizeRowsToContents()
 
     def _draw(self, doc: dict[str, Any], scene: np.ndarray | None) -> None:
         from app.report import _target_lines
@@ -283,7 +306,9 @@ class HazardView(QWidget):
                         label=f"travel angle {format_value(doc.get('travel_angle_deg'), '°', 3)}")
         ax.set_ylabel("y (m)", fontsize=8)
         ax.set_aspect("auto")
-        ax.legend(fontsize=7, loc="upper right", ncol=2)
+        # above the plots, not in them: in the upper right corner it covered the names of the
+        # targets downstream, where they usually are
+        fig.legend(*ax.get_legend_handles_labels(), fontsize=7, loc="outside upper center", ncols=2)
         series = (
             (axes[1], p["max_speed_m_s"], 1.0, "peak speed (m/s)", "tab:blue"),
             (axes[2], p["max_pressure_pa"], 1e-3, "peak pressure (kPa)", "tab:red"),
@@ -299,7 +324,7 @@ class HazardView(QWidget):
             a.tick_params(labelsize=8)
             a.grid(True, color="#e6e6e6", linewidth=0.6)
             _target_lines(a, doc, label=a is axes[0])
-        fig.subplots_adjust(left=0.12, right=0.98, top=0.98, bottom=0.06, hspace=0.12)
+        fig.get_layout_engine().set(h_pad=0.02, hspace=0.0)
         self.canvas.draw_idle()
 
     # -- the report -------------------------------------------------------------------------------

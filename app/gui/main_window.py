@@ -27,19 +27,23 @@ from typing import Any
 from PySide6.QtCore import QSize, Qt, QTimer, QUrl, qVersion
 from PySide6.QtGui import QAction, QActionGroup, QCloseEvent, QDesktopServices, QKeySequence
 from PySide6.QtWidgets import (
+    QAbstractSpinBox,
     QApplication,
     QDialog,
     QDockWidget,
     QFileDialog,
     QLabel,
+    QLineEdit,
     QMainWindow,
     QMessageBox,
     QProgressDialog,
     QTabWidget,
+    QWidget,
 )
 
 from app.gui.dialogs import ExportDialog, ProblemsDialog, SlopeDialog
 from app.gui.document import ProjectDocument, editable_data
+from app.gui.fields import TypingUndo
 from app.gui.panels import (
     BodiesPanel,
     DomainPanel,
@@ -106,6 +110,9 @@ class MainWindow(QMainWindow):
         The named-material library (default: the user's config folder).
     """
 
+    #: The size a new window opens at (pixels).
+    DEFAULT_SIZE = (1500, 900)
+
     def __init__(self, settings: Settings | None = None, library: MaterialLibrary | None = None) -> None:
         super().__init__()
         self.settings = settings or Settings()
@@ -119,7 +126,7 @@ class MainWindow(QMainWindow):
         self.compare: CompareView | None = None
         self._shut = False
         self.setWindowTitle(APP_NAME)
-        self.resize(1500, 900)
+        self.resize(*self.DEFAULT_SIZE)
 
         self.scene = SceneView(self.doc)
         self.results_view = ResultsView()
@@ -291,6 +298,9 @@ class MainWindow(QMainWindow):
 
     def _connect(self) -> None:
         doc = self.doc
+        # Ctrl+Z in a text field undoes its typing, elsewhere (or with none) the project's step
+        self._typing_undo = TypingUndo(self)
+        QApplication.instance().focusChanged.connect(self._watch_typing)
         doc.cleanChanged.connect(lambda _c: self._update_title())
         doc.pathChanged.connect(self._update_title)
         doc.changed.connect(lambda _s: self._estimate_timer.start())
@@ -893,7 +903,8 @@ class MainWindow(QMainWindow):
             return False
         out_dir, overwrite = chosen
         name = self.doc.path.stem if self.doc.path is not None else "untitled"
-        run = RunProcess(self.doc.text(), out_dir, name, overwrite=overwrite, parent=self)
+        run = RunProcess(self.doc.text(), out_dir, name, overwrite=overwrite, source=self.doc.path,
+                         unsaved=self.doc.path is None or self.doc.is_dirty, parent=self)
         run.runStarted.connect(lambda _e, r=run: self._run_started(r))
         run.progressed.connect(lambda e, r=run: self._run_progressed(r, e))
         run.frameWritten.connect(lambda _e, r=run: self._run_frame(r))
@@ -1171,11 +1182,18 @@ class MainWindow(QMainWindow):
         self.shutdown()
         event.accept()
 
+    def _watch_typing(self, _old: QWidget | None, new: QWidget | None) -> None:
+        """Give a text field of this window that takes the focus the :class:`TypingUndo` filter
+        (once: installing it again only moves it to the front)."""
+        if isinstance(new, (QLineEdit, QAbstractSpinBox)) and new.window() is self:
+            new.installEventFilter(self._typing_undo)
+
     def shutdown(self) -> None:
         """Stop a run, release every VTK view and timer (idempotent)."""
         if self._shut:
             return
         self._shut = True
+        QApplication.instance().focusChanged.disconnect(self._watch_typing)
         self._estimate_timer.stop()
         self._refresh_timer.stop()
         self._poll_timer.stop()

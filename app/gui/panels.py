@@ -48,7 +48,7 @@ from app.gui.document import (
     format_number,
     parse_number,
 )
-from app.gui.fields import ChoiceField, IntField, NumberField, PairField, TextField
+from app.gui.fields import ChoiceField, IntField, NumberField, PairField, TextField, forget_typing
 from app.gui.settings import MaterialLibrary
 from projects.schema import (
     ARCHS,
@@ -395,6 +395,7 @@ class MaterialsPanel(Panel):
     def _rename(self) -> None:
         old, new = self._current, self.name.text().strip()
         if old is None or new == old:
+            forget_typing(self.name)
             return
         if not _NAME.match(new):
             self.show_message("Material names may only use letters, digits, _ and -")
@@ -406,6 +407,7 @@ class MaterialsPanel(Panel):
             return
         self._current = new
         self.doc.rename_material(old, new)
+        forget_typing(self.name)  # the rename is the project's undo step now
 
     def rename(self, new: str) -> None:
         self.name.setText(new)

@@ -94,6 +94,11 @@ class RunProcess(QObject):
         ``--arch`` for the child.
     overwrite : bool
         ``--overwrite``: replace an earlier run's results in ``out_dir`` (the user said so).
+    source : Path, optional
+        ``--source``: the user's project file, which the run's summary names (not the temporary
+        copy it runs).
+    unsaved : bool
+        ``--unsaved``: the project holds edits not saved in ``source``, or has no file.
 
     Signals
     -------
@@ -114,9 +119,12 @@ class RunProcess(QObject):
     ended = Signal(object)
 
     def __init__(self, project_text: str, out_dir: Path, name: str = "untitled", arch: str | None = None,
-                 overwrite: bool = False, parent: QObject | None = None) -> None:
+                 overwrite: bool = False, source: Path | None = None, unsaved: bool = False,
+                 parent: QObject | None = None) -> None:
         super().__init__(parent)
         self.name = name
+        self.source = source
+        self.unsaved = unsaved
         self.title = name
         self.out_dir = Path(out_dir).expanduser().absolute()
         self.project_text = project_text
@@ -160,6 +168,11 @@ class RunProcess(QObject):
             args += ["--arch", self.arch]
         if self.overwrite:
             args.append("--overwrite")  # the user chose to replace an earlier run's results there
+        # the provenance is the user's project, not the temporary copy above
+        if self.source is not None:
+            args += ["--source", str(self.source)]
+        if self.unsaved:
+            args.append("--unsaved")
         return args
 
     def start(self) -> None:

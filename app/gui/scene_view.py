@@ -26,7 +26,7 @@ from PySide6.QtCore import QEvent, QObject, QPointF, Qt, QTimer, Signal
 from PySide6.QtGui import QKeyEvent, QMouseEvent
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
-from app.gui.document import POLYGON_KINDS, ProjectDocument, format_number
+from app.gui.document import MAX_SEEDED_PARTICLES, POLYGON_KINDS, ProjectDocument, format_number
 from app.gui.object_panels import STRUCTURE_COLOR, TARGET_COLOR, contact_text
 from app.gui.panels import material_color
 
@@ -34,7 +34,7 @@ logger = logging.getLogger(__name__)
 
 PICK_PIXELS = 9.0
 MAX_GRID_LINES = 100
-MAX_PREVIEW_PARTICLES = 400_000
+MAX_PREVIEW_PARTICLES = MAX_SEEDED_PARTICLES
 BOUNDARY_STYLE = {
     "fixed": ("#202124", 5),
     "slip": ("#1a73e8", 4),
@@ -596,7 +596,7 @@ class SceneView(QWidget):
             self.message.emit(f"particle preview skipped: about {resolved.particle_count:,} particles")
             return None, empty
         try:
-            particles = resolved.seeded().particles
+            particles = self.doc.seeded_run().particles  # one seeding per edit, shared with the Run panel
         except (ValueError, ArithmeticError) as err:
             self.message.emit(f"particle preview: {err}")
             return None, empty

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PySide6.QtCore import Qt
 
 NX = 16
 CELL_M = 0.05
@@ -104,6 +105,67 @@ def test_the_hazard_tab_shows_the_measures_and_targets_of_a_results_folder(windo
     assert np.nanmax(axes[2].lines[0].get_ydata()) == pytest.approx(2.0 * (1.0 + 0.525) ** 2)
     assert view.export_button.isEnabled()
     assert not window.tabs.isTabVisible(window.tabs.indexOf(window.fos_view))
+
+
+def test_the_hazard_tables_show_every_header_and_value_whole(window, make_results, qtbot):
+    """At the window's default size the tables were cut: the targets' last column kept Qt's
+    default 100 px under its header "max pressure (kPa)" (elided) and the measures' value column
+    began 250 px into a 300 px wide table. Now each column is as wide as its header and values
+    (the measure names wrap), a value stands beside its measure, and a table too narrow for
+    its columns scrolls."""
+    from PySide6.QtCore import QRect
+    from PySide6.QtGui import QFontMetrics
+
+    from app.gui.main_window import MainWindow
+
+    path = make_results()
+    write_hazard(path)
+    window.resize(MainWindow.DEFAULT_SIZE[0], MainWindow.DEFAULT_SIZE[1])
+    window.open_results(path)
+    window.tabs.setCurrentWidget(window.hazard_view)
+    qtbot.waitUntil(lambda: window.hazard_view.targets.viewport().width() > 50)
+    view = window.hazard_view
+    for table in (view.measures, view.targets):
+        header = table.horizontalHeader()
+        fm = QFontMetrics(table.font())
+        for c in range(table.columnCount()):
+            width = table.columnWidth(c)
+            assert width >= header.sectionSizeHint(c), (table.horizontalHeaderItem(c).text(), width)
+            for r in range(table.rowCount()):
+                text = table.item(r, c).text()
+                if table.wordWrap() and c == 0 and table is view.measures:
+                    # wrapped at spaces: every word fits, and the row holds the lines
+                    words = max(fm.horizontalAdvance(w) for w in text.split())
+                    assert words + 8 <= width, text
+                    lines = fm.boundingRect(QRect(0, 0, width - 8, 10_000), Qt.TextFlag.TextWordWrap, text)
+                    assert lines.height() <= table.rowHeight(r), text
+                else:
+                    assert fm.horizontalAdvance(text) + 6 <= width, (text, width)
+        if header.length() > table.viewport().width():
+            assert table.horizontalScrollBar().maximum() > 0  # the rest is a scroll away
+    # the value column beside the measures, without scrolling
+    measures = view.measures
+    assert measures.columnViewportPosition(1) + measures.columnWidth(1) <= measures.viewport().width()
+
+
+def test_the_legend_leaves_the_target_names_readable(window, make_results):
+    """The legend of the scene plot sat in its upper right corner, over the names of the targets
+    downstream (the road and the house here, the dam crest and the road of debris_barrier.toml)."""
+    path = make_results()
+    write_hazard(path)
+    window.open_results(path)
+    window.tabs.setCurrentWidget(window.hazard_view)
+    view = window.hazard_view
+    view.canvas.draw()
+    renderer = view.canvas.get_renderer()
+    names = [t for ax in view.figure.axes for t in ax.texts if t.get_text() in ("road", "house")]
+    assert sorted(t.get_text() for t in names) == ["house", "road"]
+    legends = [ax.get_legend() for ax in view.figure.axes if ax.get_legend() is not None] + view.figure.legends
+    assert legends and "peak flow height" in [t.get_text() for t in legends[0].get_texts()]
+    for legend in legends:
+        box = legend.get_window_extent(renderer)
+        for name in names:
+            assert not box.overlaps(name.get_window_extent(renderer)), name.get_text()
 
 
 def test_a_results_folder_without_hazard_files_says_so(window, make_results):
@@ -470,3 +532,9 @@ def test_a_run_of_the_workbench_ends_with_its_hazard_tab_filled(window, tiny_fil
     assert measures["largest speed"] == f"{doc['max_speed_m_s']:.4g} m/s"
     targets = _cells(view.targets)
     assert targets[0][0] == "gauge (line)" and targets[0][1] == "0.13"
+    # the report built from the workbench names the project the user opened, not the temporary
+    # copy the run was started from (it named /tmp/runout-run-.../tiny.toml)
+    assert window.last_result.summary["project_file"] == str(tiny_file)
+    html = view.export_report()
+    provenance = html.read_text().split("Settings and provenance")[1]
+    assert f"<td>project file</td><td>{tiny_file}</td>" in provenance and "runout-run-" not in provenance

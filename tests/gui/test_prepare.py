@@ -37,9 +37,9 @@ def test_open_example_shows_its_model(window, tiny_file):
     for name in ("grid", "side-left", "side-bottom", "fills", "outlines"):
         assert name in actors, name
     qtbot_wait_until(lambda: window.scene.preview_count == 288)
-    # the estimate before running
+    # what will run: the particles the run seeds, counted by seeding them (as the preview does)
     window.run_panel.update_estimate()
-    assert window.run_panel.particles.text() == "about 288"
+    assert window.run_panel.particles.text() == "288"
     assert window.run_panel.grid.text().startswith("30 × 15")
     assert "250" in window.run_panel.steps.text()
     assert "s on cpu" in window.run_panel.runtime.text()
@@ -55,6 +55,37 @@ def qtbot_wait_until(condition, timeout_s=3.0):
         assert time.monotonic() < end, "condition not met in time"
         QApplication.processEvents()
         time.sleep(0.01)
+
+
+@pytest.mark.parametrize(("example", "seeded"), [("debris_barrier.toml", 998), ("slope_sun_song_2015.toml", 39_143)])
+def test_the_run_panel_counts_the_particles_the_run_seeds(window, example, seeded):
+    """The Run panel said "about 897" for debris_barrier.toml, whose run seeds 998 (the area times
+    the particles per cell, while the lattice also seeds the parts of the sub-cells the tilted
+    outline cuts); it now counts the seeding the run gets (projects.build.resolve)."""
+    from projects.build import resolve
+
+    from tests.gui.conftest import EXAMPLES
+
+    path = EXAMPLES / example
+    assert len(resolve(load_project(path)).particles) == seeded  # what `runout run` seeds
+    window.open_project(path, ask=False)
+    panel = window.run_panel
+    panel.update_estimate()
+    assert panel.particles.text() == f"{seeded:,}"
+    # one seeding per edit, shared with the particle preview
+    qtbot_wait_until(lambda: window.scene.preview_count == seeded, timeout_s=10.0)
+    assert window.doc.seeded_run() is window.doc.seeded_run()
+
+
+def test_the_run_panel_estimates_particles_it_would_take_long_to_seed(window, monkeypatch):
+    import app.gui.run_panel as run_panel
+
+    from tests.gui.conftest import EXAMPLES
+
+    window.open_project(EXAMPLES / "debris_barrier.toml", ask=False)
+    monkeypatch.setattr(run_panel, "MAX_COUNTED_PARTICLES", 500)
+    window.run_panel.update_estimate()
+    assert window.run_panel.particles.text() == "about 897"  # the bodies' area times the density
 
 
 def test_edit_a_material_and_undo_it(window, tiny_file):
@@ -111,6 +142,58 @@ def test_values_are_checked_as_you_type(window, tiny_file, qtbot):
     qtbot.keyClick(field.edit, Qt.Key.Key_Return)
     assert field.error == ""
     assert window.doc.get("materials.sand.poisson_ratio") == 0.25
+
+
+def test_ctrl_z_in_a_field_undoes_its_typing_then_the_project(window, tiny_file, qtbot):
+    """Ctrl+Z with the keyboard in a text field undoes the typing not yet committed to the
+    project (Qt's own undo of the field) and nothing else; once the field holds what the project
+    holds (Enter committed it), Ctrl+Z undoes the project's last step. Before, the field kept its
+    committed typing in its own history: Ctrl+Z after Enter put the old text back in the field while
+    the project kept the new value, and leaving the field committed it again as a new step."""
+    window.open_project(tiny_file)
+    doc = window.doc
+    window.panels.setCurrentWidget(window.materials_panel)
+    window.activateWindow()
+    qtbot.waitUntil(window.isActiveWindow)
+    ctrl = Qt.KeyboardModifier.ControlModifier
+    friction = window.materials_panel.fields["friction_angle_deg"]
+    friction.set_text("25")  # one project step before the typing
+    field = window.materials_panel.fields["cohesion_pa"]
+    field.edit.setFocus()
+    qtbot.waitUntil(field.edit.hasFocus)
+    field.edit.selectAll()
+    qtbot.keyClicks(field.edit, "123")
+    qtbot.keyClick(field.edit, Qt.Key.Key_Z, ctrl)
+    assert field.edit.text() == "0" and field.error == ""  # the typing undone, the field checked again
+    assert doc.undo_stack.index() == 1 and doc.get("materials.sand.friction_angle_deg") == 25.0
+    qtbot.keyClick(field.edit, Qt.Key.Key_Z, ctrl | Qt.KeyboardModifier.ShiftModifier)  # the typing redone
+    assert field.edit.text() == "123" and doc.undo_stack.index() == 1
+    # committed with Enter: the typing is the project's step now, undone and redone as one
+    qtbot.keyClick(field.edit, Qt.Key.Key_Return)
+    assert doc.get("materials.sand.cohesion_pa") == 123.0 and doc.undo_stack.index() == 2
+    qtbot.keyClick(field.edit, Qt.Key.Key_Z, ctrl)
+    assert doc.get("materials.sand.cohesion_pa") == 0.0 and field.edit.text() == "0"
+    assert doc.undo_stack.index() == 1 and field.edit.hasFocus()
+    qtbot.keyClick(field.edit, Qt.Key.Key_Z, ctrl | Qt.KeyboardModifier.ShiftModifier)
+    assert doc.get("materials.sand.cohesion_pa") == 123.0 and field.edit.text() == "123"
+    qtbot.keyClick(field.edit, Qt.Key.Key_Z, ctrl)
+    window.scene.setFocus()  # leaving the field adds no step
+    assert doc.undo_stack.index() == 1 and doc.undo_stack.count() == 2
+    assert doc.get("materials.sand.cohesion_pa") == 0.0
+    # outside text fields Ctrl+Z undoes the project's step
+    qtbot.keyClick(window.scene, Qt.Key.Key_Z, ctrl)
+    assert doc.get("materials.sand.friction_angle_deg") == 30.0 and doc.undo_stack.index() == 0
+    # a red (refused) value is typing of the field: Ctrl+Z there takes it back, the project untouched
+    field = window.materials_panel.fields["poisson_ratio"]
+    field.edit.setFocus()
+    qtbot.waitUntil(field.edit.hasFocus)
+    field.edit.selectAll()
+    qtbot.keyClicks(field.edit, "0.6")
+    qtbot.keyClick(field.edit, Qt.Key.Key_Return)
+    assert field.error and doc.undo_stack.index() == 0
+    qtbot.keyClick(field.edit, Qt.Key.Key_Z, ctrl)
+    assert field.edit.text() == "0.3" and field.error == "" and doc.undo_stack.index() == 0
+    assert doc.undo_stack.canRedo()  # the project's history is as it was
 
 
 def test_problems_involving_several_keys_are_flagged(window, tiny_file):

@@ -4,6 +4,7 @@ through its results folder; cancel (SIGTERM), kill (SIGKILL), several runs, erro
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import sys
 
@@ -40,6 +41,8 @@ def test_a_run_is_a_child_process_shown_live_from_its_folder(window, tiny_file, 
     # the workbench never loaded the solver's runtime; the child did the work
     assert taichi_before or "taichi" not in sys.modules
     assert result.summary["title"] == "edited, not saved"  # the document ran, unsaved edit included
+    # the summary names the user's file (not the temporary copy that ran) and that it was edited
+    assert result.summary["project_file"] == str(tiny_file) and result.summary["project_unsaved"] is True
     assert tiny_file.read_text() == saved_text and window.doc.is_dirty
     # the view read the folder while the run went on, then the finished folder
     assert any(refreshes), "the live view never read the running folder"
@@ -307,3 +310,19 @@ def test_cancel_during_the_run_process_start_up_is_a_stop_not_an_abnormal_end(wi
             assert result.message == "cancelled before the run started"
             assert window.results_view.results is None
             assert "no frame was written" in window.results_view.header.text()
+
+
+def test_the_run_is_told_which_file_it_is_a_copy_of(qtbot, tmp_path):
+    """The run starts from a temporary copy of the window's project; it records the user's file
+    (``--source``) and whether the window held edits not saved in it (``--unsaved``) in
+    summary.json, whose project_file named the temporary copy (and so did the report)."""
+    from app.gui.run_process import RunProcess
+
+    saved = RunProcess("", tmp_path / "a.results", "slope", source=tmp_path / "slope.toml", unsaved=False)
+    args = saved.command()
+    assert args[args.index("--source") + 1] == str(tmp_path / "slope.toml") and "--unsaved" not in args
+    untitled = RunProcess("", tmp_path / "b.results", "untitled", source=None, unsaved=True)
+    args = untitled.command()
+    assert "--source" not in args and "--unsaved" in args
+    for run in (saved, untitled):  # never started: remove their temporary copies here
+        shutil.rmtree(run._tmp)

@@ -99,7 +99,7 @@ def test_the_run_panel_shows_what_a_preset_runs(window, tiny_file):
     assert panel.numerics.text() == "apic-affine, CFL 0.4, f32"
     assert "Preset 'standard' overrides the panels" in panel.preset_note.text()
     assert "cell size 0.02 → 0.006 m" in panel.preset_note.text()
-    assert panel.particles.text() == "about 3,200"  # 0.12 x 0.24 m at 2 x 2 per 6 mm cell
+    assert panel.particles.text() == "3,200"  # 0.12 x 0.24 m at 2 x 2 per 6 mm cell, as seeded
 
 
 # -- importing a slope profile -----------------------------------------------------------------------
