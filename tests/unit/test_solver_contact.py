@@ -224,6 +224,27 @@ def test_structure_contact_nodes_are_those_whose_cell_reaches_into_it(angle_deg)
 
 
 
+@pytest.mark.parametrize("h", [0.02, 0.03, 0.05, 0.07, 0.1, 0.25])
+def test_a_face_exactly_half_a_cell_from_a_node_line_covers_that_node_whichever_way_round_off_falls(h):
+    """A face drawn half a cell from a node line (round numbers: a wall at x = 0.375 m with 3 cm
+    cells) leaves the node's cell touching it; the signed distance lands a hair either side of half a
+    cell by round-off, and where it fell outside, the node stayed free and the at-rest thrust on the
+    face ratcheted up under mpm (1.07 at 0.5 s; tests/integration/test_project_thrust.py). Every
+    such tie is a contact node, with the face's normal, for faces looking either way."""
+    xs = np.arange(40) * h
+    ys = np.array([10 * h])
+    for k in range(3, 30):
+        face = (k + 0.5) * h
+        right = [(face, -h), (face + 5 * h, -h), (face + 5 * h, 30 * h), (face, 30 * h)]  # material at x < face
+        index, normal = node_contacts([right], xs, ys, h)
+        assert index[k, 0] == 0 and index[k - 1, 0] == -1, (h, k)
+        np.testing.assert_allclose(normal[k, 0], (-1.0, 0.0), atol=1e-9)
+        left = [(face - 5 * h, -h), (face, -h), (face, 30 * h), (face - 5 * h, 30 * h)]  # material at x > face
+        index, normal = node_contacts([left], xs, ys, h)
+        assert index[k + 1, 0] == 0 and index[k + 2, 0] == -1, (h, k)
+        np.testing.assert_allclose(normal[k + 1, 0], (1.0, 0.0), atol=1e-9)
+
+
 @pytest.mark.parametrize("reverse", [False, True])
 def test_a_node_at_a_convex_corner_takes_the_normals_of_both_faces(reverse):
     """corner_normals: the node on a ramp's convex top vertex (its signed-distance normal the
