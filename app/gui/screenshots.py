@@ -100,7 +100,9 @@ def make_screenshots(out_dir: Path) -> list[Path]:
         view.add_monitor(float(x1), float(y1), "crest")
         view.add_monitor(float(x1), 0.5 * float(y1), "mid-height")
         view.set_section(0.0, 0.005, float(x1) * 2.5, 0.005)
-        view.side.setCurrentIndex(2)
+        # by its title: the tabs' order changes as tabs are added (the contact forces' tab moved it)
+        titles = [view.side.tabText(i) for i in range(view.side.count())]
+        view.side.setCurrentIndex(titles.index("Monitoring points"))
     _settle(app, 0.8)
     written.append(out_dir / "results.png")
     window.grab().save(str(written[-1]))
