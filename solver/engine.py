@@ -588,10 +588,7 @@ class Engine:
         held_by = -1  # the side that holds the node (the last, at a corner of the box)
         sides_holding = 0
         side_n = ti.Vector.zero(float, 2)
-        corner = 0
-        for side in ti.static(range(4)):
-            if self._on_closed_side(I, side):
-                corner += 1
+        corner = self._closed_sides_at(I)
         for side in ti.static(range(4)):
             axis = ti.static(side // 2)
             low = ti.static(side % 2 == 0)
@@ -723,13 +720,20 @@ class Engine:
         return on_wall and self._closed(self.bc_kind[side])
 
     @ti.func
+    def _closed_sides_at(self, I):
+        """How many closed sides node I lies on or beyond (2: a corner of the box, where the
+        friction law acts node by node, not by wall column)."""
+        count = 0
+        for side in ti.static(range(4)):
+            if self._on_closed_side(I, side):
+                count += 1
+        return count
+
+    @ti.func
     def _held(self, I):
         """Whether node I is a contact node of a closed side or of a structure (where
         :meth:`_contact` acts)."""
-        held = False
-        for side in ti.static(range(4)):
-            if self._on_closed_side(I, side):
-                held = True
+        held = self._closed_sides_at(I) > 0
         if ti.static(self.n_structures > 0):
             if self.node_struct[I] >= 0:
                 held = True
@@ -1030,11 +1034,7 @@ class Engine:
                     mu = self.bc_mu[side]
                     column = False
                     if ti.static(self.COLUMN_FRICTION) and kind == FRICTION:
-                        corner = 0
-                        for s in ti.static(range(4)):
-                            if self._on_closed_side(ghost, s):
-                                corner += 1
-                        column = corner == 1
+                        column = self._closed_sides_at(ghost) == 1  # not a corner of the box
                     if column:
                         mu = 0.0  # the ghost is part of its wall column: friction there (_wall_columns)
                     new = self._ghost_image(kind, axis, inward, vm, vg, mu)

@@ -29,9 +29,6 @@ logger = logging.getLogger(__name__)
 
 #: Seconds a run spends before its first step (Taichi compiles the kernels), added to estimates.
 SETUP_S = 3.0
-#: Up to this many particles (estimated) the panel counts the particles the run seeds; above, it
-#: shows the estimate from the bodies' area.
-MAX_COUNTED_PARTICLES = MAX_SEEDED_PARTICLES
 
 
 def format_duration(seconds: float) -> str:
@@ -247,7 +244,7 @@ class RunPanel(QWidget):
         self.grid.setText(f"{nx} × {ny} = {e['grid_cells']:,} cells")
         self.steps.setText(f"{e['steps']:,} of {e['time_step_s']:.3g} s")
         self.frames.setText(f"{e['frames']:,}, every {effective.output.interval_s:g} s")
-        if e["particles"] <= MAX_COUNTED_PARTICLES:
+        if e["particles"] <= MAX_SEEDED_PARTICLES:  # else the estimate from the area
             # the estimate is the bodies' area times the density; the lattice also seeds the
             # parts of the sub-cells an outline cuts (897 against 998 in debris_barrier.toml):
             # count the seeding the run gets (shared with the particle preview)

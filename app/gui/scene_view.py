@@ -34,7 +34,6 @@ logger = logging.getLogger(__name__)
 
 PICK_PIXELS = 9.0
 MAX_GRID_LINES = 100
-MAX_PREVIEW_PARTICLES = MAX_SEEDED_PARTICLES
 BOUNDARY_STYLE = {
     "fixed": ("#202124", 5),
     "slip": ("#1a73e8", 4),
@@ -592,7 +591,7 @@ class SceneView(QWidget):
         if resolved is None:
             self.message.emit("particle preview: fix the project's problems first")
             return None, empty
-        if resolved.particle_count > MAX_PREVIEW_PARTICLES:
+        if resolved.particle_count > MAX_SEEDED_PARTICLES:
             self.message.emit(f"particle preview skipped: about {resolved.particle_count:,} particles")
             return None, empty
         try:

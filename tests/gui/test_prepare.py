@@ -83,7 +83,7 @@ def test_the_run_panel_estimates_particles_it_would_take_long_to_seed(window, mo
     from tests.gui.conftest import EXAMPLES
 
     window.open_project(EXAMPLES / "debris_barrier.toml", ask=False)
-    monkeypatch.setattr(run_panel, "MAX_COUNTED_PARTICLES", 500)
+    monkeypatch.setattr(run_panel, "MAX_SEEDED_PARTICLES", 500)
     window.run_panel.update_estimate()
     assert window.run_panel.particles.text() == "about 897"  # the bodies' area times the density
 
