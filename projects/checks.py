@@ -8,14 +8,16 @@ workbench shows them):
   deformation;
 - a k0 stage where the ground slopes: geostatic stresses are no equilibrium under a slope
   (many particles yield at once); a gravity stage is the initial stress for sloping ground;
-- a structure thinner than 2 cells at its thickest: the at-rest thrust on it was up to 17 % off at
-  1 cell (its nodes are reached by material at both faces and hold it from one side only), up to
-  2.8 times under one cell, and material thrown at an inclined one half a cell thick was ejected
-  faster than the stability guard allows (apic-affine); from 2 cells on it is within 3 %;
+- a structure thinner than 1 cell at its thickest: the at-rest thrust on a wall half a cell thick
+  was up to 3.7 times the analytic one with faces 0.6-0.9 cells off a node line, and material
+  thrown at an inclined one half a cell thick was ejected faster than the stability guard allows
+  (apic-affine); from 1 cell on it is within 4.3 % at every offset (since session 18 a node whose
+  stencil reaches past a thin part's far face holds the material beyond it,
+  ``solver.structures.far_normals``; before, a wall one cell thick took 0.92-0.97);
 - a vertical or horizontal structure face a body touches, 0.55 to 0.85 cells from the last node
-  line on the material's side (every scheme): the lattice-seeded material stops up to a quarter cell short of
-  such a face and the at-rest thrust on it was 4-6.5 % low, up to 6 % high at 0.8 (docs/validation.md,
-  thrust); elsewhere within 4 %;
+  line on the material's side (every scheme): the lattice-seeded material stops up to a quarter
+  cell short of such a face and the at-rest thrust on it is 2.6-4.3 % low (docs/validation.md,
+  thrust); elsewhere within 2.6 %;
 - a body resting on an inclined frictional contact (a friction side or a friction structure face
   it touches, inclined to gravity's level, its friction angle at least the incline) while the
   first dynamic or strength-reduction stage has no initial-stress stage before it: it starts
@@ -51,10 +53,10 @@ STRUCTURE_TOUCH_CELLS = 0.02
 #: A gravity stage lasts this many fundamental periods ``4 H / c_s`` of the deposit.
 GRAVITY_STAGE_PERIODS = 3.0
 #: Structures thinner than this many cells at their thickest are warned about.
-STRUCTURE_MIN_CELLS = 2.0
+STRUCTURE_MIN_CELLS = 1.0
 #: Axis-aligned structure faces this far (cells) from the last node line on the material's side
-#: (outside the structure) are warned about, in every scheme: walls two cells thick take 0.935-0.956
-#: of the at-rest thrust there (four cells thick: within 4.6 % since the clipped lattice).
+#: (outside the structure) are warned about, in every scheme: walls 1 to 3 cells thick take
+#: 0.957-0.974 of the at-rest thrust there (elsewhere 0.974-1.000; docs/validation.md, thrust).
 FACE_OFFSET_BAND = (0.55, 0.85)
 
 _CLOSED = ("fixed", "slip", "friction")
@@ -245,15 +247,16 @@ def structure_thickness_m(polygon_m, resolution: int = 100, max_points: int = 25
 
 def _thin_structures(project: Project) -> list[str]:
     dx = project.domain.cell_size_m
+    cells = f"{STRUCTURE_MIN_CELLS:g} cell{'' if STRUCTURE_MIN_CELLS == 1 else 's'}"
     warnings = []
     for index, structure in enumerate(project.structures):
         thick = structure_thickness_m(structure.polygon_m)
         if thick < STRUCTURE_MIN_CELLS * dx * (1.0 - 1e-6):  # exactly the minimum is enough
             warnings.append(
                 f"structures.{index} ({structure.name!r}) is {thick:.3g} m thick at its thickest, less than "
-                f"{STRUCTURE_MIN_CELLS:g} cells ({STRUCTURE_MIN_CELLS * dx:g} m): the force on it is unreliable "
-                "(the at-rest thrust was up to 17 % off at 1 cell) and under one cell material thrown at it can be "
-                f"ejected; make it at least {STRUCTURE_MIN_CELLS:g} cells thick or use smaller cells"
+                f"{cells} ({STRUCTURE_MIN_CELLS * dx:g} m): the force on it is unreliable "
+                "(the at-rest thrust on a wall half a cell thick was up to 3.7 times the analytic one) and material thrown "
+                f"at it can be ejected; make it at least {cells} thick or use smaller cells"
             )
     return warnings
 
@@ -294,7 +297,7 @@ def _off_node_faces(project: Project) -> list[str]:
                     warnings.append(
                         f"structures.{index} ({structure.name!r}) has a face at {name} = {a[axis]:g} m, "
                         f"{offset:.2f} cells from the last node line on the material's side: the lattice of "
-                        f"particles stops short of it and the force on it can be 4-6.5 % off the at-rest value; "
+                        f"particles stops short of it and the force on it can be 3-4.5 % below the at-rest value; "
                         f"put it on a node line ({name} = {line:g} m or {line + dx:g} m) or within 0.55 cells "
                         "of the node line on the material's side"
                     )

@@ -40,7 +40,7 @@ from solver.config import SIDES, Boundary, Grid, Material, Structure
 from solver.fieldio import FieldIO
 from solver.materials import MaterialTable
 from solver.scatter import BIG, SCATTER_STATE, make_scatter
-from solver.structures import (corner_normals, corner_zone, node_contacts, segments, signed_distance,
+from solver.structures import (corner_normals, corner_zone, far_normals, node_contacts, segments, signed_distance,
                                 through_sides)
 
 PAD = 2
@@ -196,6 +196,10 @@ class Engine:
         self.has_zone = False
         self.node_zone = ti.field(ti.i32, self.nodes if has else (1, 1))
         self.node_pn = ti.Vector.field(3, float, self.nodes if has else (1, 1))
+        # in a part thinner than a stencil the outward normal of the far face a node's stencil reaches
+        # past (solver.structures.far_normals; zero elsewhere); such nodes are zone nodes too, with
+        # the structure's index + 1 negated where they are not near a convex vertex
+        self.node_far = ti.Vector.field(2, float, self.nodes if has else (1, 1))
         self.st_zone_box = ti.Vector.field(4, float, ns)
         # the step (``hold_step``, counted from the load) after the last one in which the
         # structure held the node at the end of its update (``_contact``)
@@ -254,7 +258,7 @@ class Engine:
     #: the set-up); the scatter strategy's ``STATE`` fields are moved with them.
     HOST_FIELDS = PARTICLE_STATE + COUNTER_STATE + (
         "contact_step", "speed_bound", "bc_kind", "bc_mu", "st_kind", "st_mu", "edge_a", "edge_b",
-        "st_edges", "st_box", "node_struct", "node_normal", "node_normal_b", "node_sd", "node_zone",
+        "st_edges", "st_box", "node_struct", "node_normal", "node_normal_b", "node_sd", "node_zone", "node_far",
         "st_zone_box")
 
     def set_boundaries(self, grid: Grid) -> None:
@@ -289,6 +293,18 @@ class Engine:
                                           (self.origin, self.upper))
         zone, zone_boxes = corner_zone(self.solid_polygons, xs, ys, index, normal, self.dx,
                                        (self.origin, self.upper))
+        far = far_normals(self.solid_polygons, xs, ys, index, normal, self.dx)
+        thin = (np.abs(far).sum(axis=-1) > 0.0) & (zone == 0)
+        zone[thin] = -(index[thin] + 1)
+        if thin.any():
+            X, Y = np.meshgrid(xs, ys, indexing="ij")
+            stencil = 1.5 * self.dx
+            for k in range(len(self.solid_polygons)):
+                mine = thin & (index == k)
+                if mine.any():
+                    b = zone_boxes[k]
+                    zone_boxes[k] = [min(b[0], X[mine].min() - stencil), min(b[1], Y[mine].min() - stencil),
+                                     max(b[2], X[mine].max() + stencil), max(b[3], Y[mine].max() + stencil)]
         self.has_zone = bool(zone.any())
         X, Y = np.meshgrid(xs, ys, indexing="ij")
         sd = np.zeros(index.shape)
@@ -312,6 +328,7 @@ class Engine:
             "node_normal_b": normal_b.astype(f),
             "node_sd": sd.astype(f),
             "node_zone": zone,
+            "node_far": far.astype(f),
             "st_zone_box": np.nan_to_num(zone_boxes, posinf=1e30, neginf=-1e30).astype(f),
         })
 
@@ -678,18 +695,26 @@ class Engine:
         own = True
         material = ti.Vector.zero(float, 2)
         lies = False
+        beyond = False
         if ti.static(self.has_zone):
-            if self.node_zone[I] > 0:
+            zone = self.node_zone[I]
+            if zone != 0:
                 pn = self.node_pn[I]
                 mean = ti.Vector([pn[0], pn[1]])
                 size = mean.norm()
                 if pn[2] > 0.0 and size >= CORNER_COHERENCE * pn[2]:
                     material = mean / size
-                    lies = True
+                    far = self.node_far[I]
+                    beyond = material.dot(far) >= CORNER_COHERENCE
+                    lies = zone > 0
         corner = (nb - n).norm_sqr() > 0.0
         on_a = material.dot(n)
         on_b = material.dot(nb)
-        if lies and corner and ti.max(on_a, on_b) >= OWN_NORMAL:
+        if beyond:
+            # the material lies beyond a thin part's far face (solver.structures.far_normals)
+            n = self.node_far[I]
+            own = False
+        elif lies and corner and ti.max(on_a, on_b) >= OWN_NORMAL:
             # the material lies on one of the corner's faces: the nearer one (both faces within
             # OWN_NORMAL of it, as on a curve drawn with chords under a degree apart, must not
             # leave it to the polygon's orientation, which orders the two)
@@ -1144,7 +1169,7 @@ class Engine:
                             m = self.m[p]
                             for k in range(9):  # a runtime loop: compiled once, not nine times
                                 I = base + ti.Vector([k // 3, k % 3])
-                                if self.node_zone[I] == st + 1:
+                                if ti.abs(self.node_zone[I]) == st + 1:
                                     wm = _bspline(fx[0], k // 3) * _bspline(fx[1], k % 3) * m
                                     self.node_pn[I] += ti.Vector([wm * n[0], wm * n[1], wm])
 

@@ -187,6 +187,56 @@ def node_contacts(polygons: Sequence[Sequence[Sequence[float]]], node_x_m: np.nd
     return index, normal
 
 
+def far_normals(polygons: Sequence[Sequence[Sequence[float]]], node_x_m: np.ndarray, node_y_m: np.ndarray,
+                index: np.ndarray, normal: np.ndarray, cell_m: float) -> np.ndarray:
+    """The outward normal of a thin part's far face at each contact node whose stencil reaches past it.
+
+    A particle's quadratic B-spline weights reach STENCIL_CELLS (1.5) cells along each axis, so in a
+    part thinner than that a contact node takes mass from material on the far side of the part as
+    well as on its own side. Its own normal (its nearer face's) points away from that material: a
+    granular column against a wall one cell thick pushed its node on the wall's back face, which
+    let the push through (0.92-0.97 of the at-rest thrust, the rest taken by the bottom's friction,
+    and the line of action 0.38-0.40 H up instead of H / 3). Here, per contact node with a
+    normal, the ray from it against its normal is followed to the first point beyond the part,
+    within the stencil's reach (the square's edge along that ray); where the surface there faces the
+    node's own (normals within FACING of opposite: a plate or wall, not the apex of a wedge), its
+    outward normal is the node's far normal. The engine imposes it where the material that the node
+    carries lies beyond that face (``Engine._structure_normal``).
+
+    Returns
+    -------
+    far : (nx, ny, 2) float64, the far face's unit outward normal at such nodes, zeros elsewhere
+    """
+    X, Y = np.meshgrid(np.asarray(node_x_m, float), np.asarray(node_y_m, float), indexing="ij")
+    far = np.zeros(X.shape + (2,))
+    h = GRADIENT_STEP_CELLS * cell_m
+    for k, poly in enumerate(polygons):
+        mine = (index == k) & (np.abs(normal).sum(axis=-1) > 0.0)
+        if not mine.any():
+            continue
+        q = np.c_[X[mine], Y[mine]]
+        n = normal[mine]
+        reach = STENCIL_CELLS * cell_m / np.abs(n).max(axis=-1)
+        steps = np.linspace(0.0, 1.0, 61)[1:]
+        found = np.zeros(len(q), bool)
+        exit_point = np.zeros_like(q)
+        entered = signed_distance(q, poly) <= 0.0
+        for t in steps:
+            pts = q - (t * reach)[:, None] * n
+            sd = signed_distance(pts, poly)
+            new = ~found & entered & (sd > 0.0)
+            exit_point[new] = pts[new]
+            found |= new
+            entered |= sd <= 0.0
+        if not found.any():
+            continue
+        grad = _gradient(exit_point[found], poly, h)
+        facing = (grad * n[found]).sum(axis=-1) < -FACING
+        rows = np.flatnonzero(mine.ravel())[np.flatnonzero(found)[facing]]
+        far.reshape(-1, 2)[rows] = grad[facing]
+    return far
+
+
 def _outward_normals(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Unit outward normals of the edges ``a -> b`` of a closed polygon (either orientation)."""
     e = b - a

@@ -108,9 +108,11 @@ def _warnings(structure, scheme="apic-affine"):
     return [w for w in project_warnings(validate_project(data)) if w.startswith("structures.")]
 
 
-@pytest.mark.parametrize("thickness_cells, warned", [(0.5, True), (1.0, True), (1.8, True), (2.2, False), (3.2, False),
-                                                     (6.0, False)])
-def test_a_structure_thinner_than_2_cells_is_warned_about(thickness_cells, warned):
+# thinner than a cell (the thrust on a wall half a cell thick up to 3.7 times); from one cell on the
+# thrust is within 4.3 % (tests/integration/test_project_thrust.py, THIN_WALLS)
+@pytest.mark.parametrize("thickness_cells, warned", [(0.5, True), (0.8, True), (0.98, True), (1.2, False), (1.8, False),
+                                                     (3.2, False), (6.0, False)])
+def test_a_structure_thinner_than_a_cell_is_warned_about(thickness_cells, warned):
     dx = BASE["domain"]["cell_size_m"]  # 2 mm
     t = thickness_cells * dx
     # ~17 deg from vertical: thickness across it t cos(17 deg); the same limit in cells across
@@ -126,12 +128,12 @@ def test_a_structure_thinner_than_2_cells_is_warned_about(thickness_cells, warne
 
 
 @pytest.mark.parametrize("polygon_cells", [
-    [[250, 0], [252, 0], [252, 50], [250, 50]],  # a wall exactly 2 cells thick, 50 high
-    [[50, 0], [350, 0], [350, 2], [50, 2]],  # a slab exactly 2 cells thick, 300 long
-    [[0, 0], [400, 0], [400, 2], [0, 2]],  # the whole domain's width
-    [[250, 0], [253, 0], [253, 50], [250, 50]],  # 3 cells
+    [[250, 0], [251, 0], [251, 50], [250, 50]],  # a wall exactly 1 cell thick, 50 high
+    [[50, 0], [350, 0], [350, 1], [50, 1]],  # a slab exactly 1 cell thick, 300 long
+    [[0, 0], [400, 0], [400, 1], [0, 1]],  # the whole domain's width
+    [[250, 0], [252, 0], [252, 50], [250, 50]],  # 2 cells
     [[250, 0], [265, 0], [265, 60], [250, 60]]])  # 15 cells thick: its thickness to 1e-6
-def test_a_structure_exactly_2_cells_thick_is_not_warned_about(polygon_cells):
+def test_a_structure_exactly_a_cell_thick_is_not_warned_about(polygon_cells):
     from projects.checks import structure_thickness_m
 
     dx = BASE["domain"]["cell_size_m"]

@@ -161,6 +161,50 @@ def test_medial_nodes_of_facing_surfaces_are_held_and_a_wedge_apex_keeps_its_nor
     assert tip and all(np.linalg.norm(normal[i, k]) > 0.99 for i, k in tip)
 
 
+@pytest.mark.parametrize("thick_cells, offset_cells, lean_deg", [
+    (1.0, 0.0, 0.0), (1.0, 0.75, 0.0), (1.3, 0.1, 0.0), (2.0, 0.7, 0.0), (1.0, 0.2, 45.0), (1.3, 0.5, 25.0)])
+def test_far_normals_mark_the_nodes_whose_stencil_reaches_past_a_thin_parts_far_face(thick_cells, offset_cells,
+                                                                                   lean_deg):
+    """far_normals: a contact node whose stencil (1.5 cells along each axis) reaches the outside
+    beyond a thin part's far face gets that face's outward normal, opposite its own; nodes of a
+    thicker part, and nodes whose stencil ends inside the part, get none. Checked against the
+    geometry directly: the node's own normal's ray, followed against it, leaves the part within the
+    stencil's square."""
+    from solver.structures import far_normals, node_contacts, signed_distance
+
+    h = 0.1
+    xs, ys = np.arange(0.0, 2.0001, h), np.arange(0.0, 2.0001, h)
+    t = thick_cells * h / math.cos(math.radians(lean_deg))
+    s = 1.6 * math.tan(math.radians(lean_deg))
+    x0 = 0.6 + offset_cells * h
+    wall = ((x0, -0.2), (x0 + t, -0.2), (x0 + t + s, 1.4), (x0 + s, 1.4))
+    index, normal = node_contacts([wall], xs, ys, h)
+    far = far_normals([wall], xs, ys, index, normal, h)
+    across = np.array([math.cos(math.radians(lean_deg)), -math.sin(math.radians(lean_deg))])  # the right face's
+    marked = 0
+    for i, x in enumerate(xs):
+        for k, y in enumerate(ys):
+            if not 0.2 < y < 1.0 or index[i, k] != 0 or not np.linalg.norm(normal[i, k]) > 0.5:
+                assert not far[i, k].any() or index[i, k] == 0
+                continue
+            n = normal[i, k]
+            reach = 1.5 * h / np.abs(n).max()
+            d = signed_distance(np.array([x, y]) - np.linspace(0.0, reach, 400)[:, None] * n, wall)
+            entered = np.maximum.accumulate(d <= 0.0)  # the ray has been inside the part
+            beyond = bool(np.any(entered[:-1] & (d[1:] > 0.0)))
+            if beyond:
+                marked += 1
+                # the far face's outward normal: opposite the node's own, one of the wall's two faces
+                assert far[i, k] @ n < -0.99
+                assert abs(abs(far[i, k] @ across) - 1.0) < 1e-6
+            else:
+                np.testing.assert_array_equal(far[i, k], [0.0, 0.0])
+    assert marked > 0
+    # a wall three cells thick on node lines: no node reaches past its far face
+    index, normal = node_contacts([((0.6, -0.2), (0.9, -0.2), (0.9, 1.4), (0.6, 1.4))], xs, ys, h)
+    assert not far_normals([((0.6, -0.2), (0.9, -0.2), (0.9, 1.4), (0.6, 1.4))], xs, ys, index, normal, h).any()
+
+
 @pytest.mark.parametrize("scheme, precision, bottom", [
     ("apic-affine", "f32", Boundary("fixed")), ("mpm", "f64", Boundary("slip")),
     ("apic", "f32", Boundary("friction", math.radians(30.0))), ("apic-affine", "f64", Boundary("slip"))])
