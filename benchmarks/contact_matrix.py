@@ -284,10 +284,15 @@ def project_text(contact: str, scheme: str, precision: str, thickness_cells: int
         gravity_s = recommended_initial_stage(validate_project(tomllib.loads(probe.text))).get("duration_s", 1.0)
     travel = TRAVEL_CELLS * 1.15 + 6  # cells of room down the slope
     if start == "gravity":
-        # a sliding block slides during the gravity stage too: at most a t^2 / 6 under the linear ramp
-        # (undamped), about 0.3 of it with the default damping (a 2.9 s stage: 0.83 m at 40/30)
+        # a sliding block slides during the gravity stage too: undamped at most a r^2 / 6 over the
+        # linear ramp of length r, then v h + a h^2 / 2 over the hold h at full gravity; about 0.3
+        # of it with the default damping
+        from solver.config import GRAVITY_RAMP_FRACTION
+
         slide = G * (math.sin(math.radians(theta_deg)) - math.tan(math.radians(delta_deg)) * math.cos(math.radians(theta_deg)))
-        travel += math.ceil(max(slide, 0.0) * gravity_s ** 2 / 6 / dx)
+        r = GRAVITY_RAMP_FRACTION * gravity_s
+        h = gravity_s - r
+        travel += math.ceil(max(slide, 0.0) * (r * r / 6 + r * h / 2 + h * h / 2) / dx)
     th = math.radians(theta_deg)
     s, c = math.sin(th), math.cos(th)
     boundaries = {"left": '"open"', "right": '"open"', "bottom": '"open"', "top": '"open"'}

@@ -137,6 +137,7 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
                 name=stage.label,
                 kind=stage.type,
                 duration_s=stage.duration_s or 0.0,
+                ramp_fraction=stage.ramp_fraction,
                 damping=damping,
                 k0=stage.k0,
                 materials=stage_materials,

@@ -85,6 +85,8 @@ PLASTIC_KEYS: tuple[str, ...] = (
 DEFAULT_CFL = sc.DEFAULT_CFL
 #: Damping coefficient of a gravity stage that gives none.
 DEFAULT_GRAVITY_DAMPING = 0.7
+#: the part of a gravity stage that ramps gravity up when ``ramp_fraction`` is not given (the solver's)
+DEFAULT_GRAVITY_RAMP_FRACTION = sc.GRAVITY_RAMP_FRACTION
 
 _SECTION_ORDER = ("runout", "domain", "materials", "bodies", "structures", "particles", "numerics", "stages", "output",
                   "hazard", "targets")
@@ -364,6 +366,7 @@ PoissonRatio = _number_type(ge=0.0, lt=0.5)
 OptAngleDeg = _number_type(ge=0.0, lt=90.0, optional=True)
 OptCfl = _number_type(gt=0.0, le=1.0, optional=True)
 OptFraction = _number_type(gt=0.0, lt=1.0, optional=True)
+OptRampFraction = _number_type(gt=0.0, le=1.0, optional=True)
 DampingCoefficient = _number_type(ge=0.0, lt=1.0)
 # Stresses, moduli and densities also accept text with a unit ("5 kPa", "18 kN/m3"), kept in SI.
 PositivePa = _number_type(gt=0.0, unit="Pa")
@@ -595,6 +598,8 @@ class Stage(_Model):
     name: OptName = None
     type: Annotated[Literal[STAGE_TYPES], _choice(STAGE_TYPES)]
     duration_s: OptPositive = None
+    #: gravity stages: the part of the stage over which gravity is ramped up (solver.config.Stage)
+    ramp_fraction: OptRampFraction = None
     k0: OptPositive = None
     damping: Damping | None = None
     stop_when_kinetic_energy_below: OptFraction = None
@@ -1237,7 +1242,8 @@ def _strength_rules(stages: list[Any], materials: Mapping[str, Any]) -> list[Pro
         problems.append(Problem(f"stages.{after[1]}.type", kinds[after[1]],
                                 "at most one stage (the dynamic run-out) may follow a strength-reduction stage"))
     stage = stages[first] if isinstance(stages[first], Mapping) else {}
-    for key in ("duration_s", "k0", "stop_when_kinetic_energy_below", "min_duration_s", "material_changes"):
+    for key in ("duration_s", "ramp_fraction", "k0", "stop_when_kinetic_energy_below", "min_duration_s",
+                "material_changes"):
         if key in stage:
             problems.append(Problem(f"{path}.{key}", stage[key], "not allowed on a strength-reduction stage"))
     names = stage.get("materials")
@@ -1274,6 +1280,8 @@ def _stage_keys(path: str, kind: str, stage: Mapping[str, Any]) -> list[Problem]
         problems.append(Problem(f"{path}.damping.coefficient", 0.0, "must be > 0 on a gravity stage"))
     if kind != "k0" and "k0" in stage:
         problems.append(Problem(f"{path}.k0", stage["k0"], "only allowed on a k0 stage"))
+    if kind != "gravity" and "ramp_fraction" in stage:
+        problems.append(Problem(f"{path}.ramp_fraction", stage["ramp_fraction"], "only allowed on a gravity stage"))
     if kind != "dynamic":
         for key in ("stop_when_kinetic_energy_below", "min_duration_s"):
             if key in stage:

@@ -376,8 +376,9 @@ class StrengthReduction:
         self.initial_stress_steps = sim.steps - steps0
         if sim.status == "stopped":
             return
-        # settle at full gravity and the file's strengths (a gravity stage ends while its ramp
-        # is still loading, a k0 stress is not in equilibrium on a slope), then from rest
+        # settle at full gravity and the file's strengths (a gravity stage ramped to its end,
+        # ramp_fraction = 1, ends while still loading; a k0 stress is not in equilibrium on a
+        # slope), then from rest
         st = sim.engine.state(("active", "m", "x"))
         active = st["active"].astype(bool)
         mass = float(np.sum(st["m"][active]))

@@ -543,7 +543,7 @@ class Simulation:
                     # step size: the configured one, landing exactly on outputs and the stage end
                     h = step_length(self.time_s, min(c.next_output_s, stage_end), c.dt_s)
                     if stage.kind == "gravity":
-                        ramp = min(1.0, (self.time_s + h - c.stage_start_s) / stage.duration_s)
+                        ramp = min(1.0, (self.time_s + h - c.stage_start_s) / stage.ramp_s)
                         gravity = g_full * ramp
                     else:
                         gravity = g_full

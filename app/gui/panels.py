@@ -53,6 +53,7 @@ from app.gui.settings import MaterialLibrary
 from projects.schema import (
     ARCHS,
     BOUNDARY_TYPES,
+    DEFAULT_GRAVITY_RAMP_FRACTION,
     DEFAULT_MOHR_COULOMB_MATCH,
     MATERIAL_MODELS,
     MOHR_COULOMB_MATCHES,
@@ -988,9 +989,12 @@ class StagesPanel(Panel):
         self.stop_ke = NumberField(doc, None, "Stop when kinetic energy below", "× peak", optional=True,
                                    placeholder="run the full duration")
         self.min_duration = NumberField(doc, None, "Minimum duration", "s", optional=True)
+        self.ramp = NumberField(doc, None, "Gravity ramp", "× duration", optional=True,
+                                placeholder=f"{DEFAULT_GRAVITY_RAMP_FRACTION:g} (then held at full value)")
         form.addRow("Name", self.name)
         form.addRow("Type", self.kind)
         form.addRow("Duration", self.duration)
+        form.addRow("Gravity ramp", self.ramp)
         form.addRow("K0", self.k0)
         form.addRow("Damping", self.damping)
         form.addRow("Stop at KE below", self.stop_ke)
@@ -1055,6 +1059,7 @@ class StagesPanel(Panel):
         timed = kind in ("gravity", "dynamic")  # the stages that have a duration and damping
         self.duration.set_path(f"{base}.duration_s" if base and timed else None)
         self.k0.set_path(f"{base}.k0" if base and kind == "k0" else None)
+        self.ramp.set_path(f"{base}.ramp_fraction" if base and kind == "gravity" else None)
         self.damping.set_path(f"{base}.damping.coefficient" if base and timed else None)
         if base and kind == "gravity" and self.doc.get(f"{base}.damping") is None:
             self.damping.edit.setPlaceholderText("0.7 (default for gravity)")
@@ -1063,7 +1068,7 @@ class StagesPanel(Panel):
         dynamic = base is not None and kind == "dynamic"
         self.stop_ke.set_path(f"{base}.stop_when_kinetic_energy_below" if dynamic else None)
         self.min_duration.set_path(f"{base}.min_duration_s" if dynamic else None)
-        for f in (self.duration, self.k0, self.damping, self.stop_ke, self.min_duration):
+        for f in (self.duration, self.ramp, self.k0, self.damping, self.stop_ke, self.min_duration):
             if f.path is None:
                 f.edit.setText("")
         self.change_material.clear()

@@ -382,6 +382,14 @@ def test_stages_boundaries_numerics_and_output_edit_the_model(window, tiny_file)
     window.stages_panel.add_stage("gravity")
     assert [s["type"] for s in doc.get("stages")][:1] == ["gravity"]
     assert doc.problems and "only one k0 or gravity stage" in doc.problems[0].message
+    # the gravity ramp is a gravity stage's own field: bound there, not on the other stages
+    window.stages_panel.select(0)
+    assert window.stages_panel.ramp.path == "stages.0.ramp_fraction"
+    window.stages_panel.ramp.set_text("0.8")
+    assert doc.get("stages.0.ramp_fraction") == 0.8
+    window.stages_panel.select(2)
+    assert window.stages_panel.ramp.path is None and window.stages_panel.ramp.edit.text() == ""
+    window.stages_panel.select(0)
     window.stages_panel.remove_stage()
     window.stages_panel.add_stage("strength-reduction")  # after the initial stress, no duration
     assert [s["type"] for s in doc.get("stages")] == ["k0", "strength-reduction", "dynamic"]

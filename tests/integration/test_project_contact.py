@@ -85,10 +85,16 @@ NEAR_LIMIT = [
     # Until local damping was left off the contact nodes (docs/solver.md, local damping) the damped
     # stage itself let the base creep 5 mm (apic-affine, 1 s stage), and the block went on in the
     # dynamic stage: 0.40 % of the frictionless distance. Measured after: 0.006-0.074 %.
+    # Until the gravity stage held full gravity over its second half (solver.config.
+    # GRAVITY_RAMP_FRACTION) the block still moved at the stage's end (9 mm/s, unbalanced-force
+    # ratio 0.004, apic) and slipped in the dynamic stage: apic 0.101-0.11 %, mpm 0.074 %,
+    # apic-affine 0.006 %. After: 0.000 %.
     ("bottom", "apic-affine", "f32", 20, 1e6, 40, 45, None),
     ("left", "apic-affine", "f64", 20, 1e6, 40, 45, None),
     ("right", "mpm", "f32", 20, 1e6, 40, 45, None),
     ("ramp", "apic", "f32", 20, 1e6, 40, 45, None),
+    ("bottom", "apic", "f32", 20, 1e6, 40, 45, None),  # 0.101 % before
+    ("left", "mpm", "f64", 20, 1e6, 40, 45, None),
 ]
 
 
@@ -149,10 +155,6 @@ LIMITS = [
         reason="sliding 4 deg above the friction limit at high friction (mu = 0.73): +23.9 %, the "
                "frictional flutter of near-limit slides (docs/validation.md, contact; the one "
                "failure of 30 random cases of the matrix, session 16)")),
-    pytest.param("bottom", "apic", "f32", 20, 1e6, 40, 45, "recommended", marks=_limit(
-        reason="after the recommended stage the soft 20-cell block still creeps 0.101 % with apic "
-               "(0.074 % mpm, 0.006 % apic-affine): the undamped dynamic stage's flutter "
-               "(docs/validation.md, contact)")),
 ]
 
 

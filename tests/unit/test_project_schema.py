@@ -174,6 +174,17 @@ GOLDEN = [
     ("stages.1.duration_s", -1.0, "stages.1.duration_s = -1.0: must be > 0"),
     ("stages.0.duration_s", 1.0, "stages.0.duration_s = 1.0: not allowed on a k0 stage (it takes no time)"),
     ("stages.1.k0", 0.5, "stages.1.k0 = 0.5: only allowed on a k0 stage"),
+    ("stages.1.ramp_fraction", 0.5, "stages.1.ramp_fraction = 0.5: only allowed on a gravity stage"),
+    (
+        "stages",
+        [{"type": "gravity", "duration_s": 1.0, "ramp_fraction": 0.0}],
+        "stages.0.ramp_fraction = 0.0: must be > 0 and <= 1",
+    ),
+    (
+        "stages",
+        [{"type": "gravity", "duration_s": 1.0, "ramp_fraction": 1.5}],
+        "stages.0.ramp_fraction = 1.5: must be > 0 and <= 1",
+    ),
     (
         "stages.1.min_duration_s",
         0.5,
