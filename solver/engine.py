@@ -56,6 +56,9 @@ MIRROR_REACH_CELLS = 2.2
 #: particles' normals agree this well (the length of their weighted mean; 0.9 = cos 26 deg: material
 #: against one face, or spread over a corner's region); else its own normals.
 CORNER_COHERENCE = 0.9
+#: A thin part's node holds the material both ways across it where each of its faces has more
+#: than this share of the node's mass (solver.structures.far_normals, Engine._structure_normal).
+TWO_SIDED_SHARE = 0.02
 #: The material's normal is the node's own (its surface's) within this cosine (0.8 deg).
 OWN_NORMAL = 0.9999
 #: Unit normal of each side (SIDES order), out of the wall into the domain.
@@ -696,23 +699,36 @@ class Engine:
         material = ti.Vector.zero(float, 2)
         lies = False
         beyond = False
+        both = False
+        far = ti.Vector.zero(float, 2)
         if ti.static(self.has_zone):
             zone = self.node_zone[I]
             if zone != 0:
                 pn = self.node_pn[I]
                 mean = ti.Vector([pn[0], pn[1]])
                 size = mean.norm()
+                far = self.node_far[I]
+                if pn[2] > 0.0 and far.dot(far) > 0.25:
+                    # the node's mass beyond the far face and on its own side (the particles'
+                    # outward normals are the two faces': the sum along far is their difference)
+                    beyond_mass = 0.5 * (pn[2] + mean.dot(far))
+                    both = ti.min(beyond_mass, pn[2] - beyond_mass) > TWO_SIDED_SHARE * pn[2]
                 if pn[2] > 0.0 and size >= CORNER_COHERENCE * pn[2]:
                     material = mean / size
-                    far = self.node_far[I]
                     beyond = material.dot(far) >= CORNER_COHERENCE
                     lies = zone > 0
         corner = (nb - n).norm_sqr() > 0.0
         on_a = material.dot(n)
         on_b = material.dot(nb)
-        if beyond:
+        if both:
+            # material on both faces of a thin part: held both ways across it (by the face the
+            # velocity moves into), so that neither side's push passes through to the other
+            if v.dot(far) < v.dot(n):
+                n = far
+            own = False
+        elif beyond:
             # the material lies beyond a thin part's far face (solver.structures.far_normals)
-            n = self.node_far[I]
+            n = far
             own = False
         elif lies and corner and ti.max(on_a, on_b) >= OWN_NORMAL:
             # the material lies on one of the corner's faces: the nearer one (both faces within
@@ -1223,7 +1239,10 @@ class Engine:
                 for i, j in ti.static(ti.ndrange(3, 3)):
                     I = ibase + ti.Vector([i, j])
                     if self._in_box(I) and not self._held(I):
-                        if self.g_mass[I] > 0.0:
+                        # only nodes on the particle's side of the surface: beyond a thin part
+                        # the image's stencil reaches the material on its far side
+                        xi = ti.Vector(self.origin) + ti.cast(I - PAD, float) * self.dx
+                        if self.g_mass[I] > 0.0 and (xi - q).dot(n) > 0.0:
                             grad = ti.Vector([idw[i][0] * iw[j][1], iw[i][0] * idw[j][1]]) * self.inv_dx
                             f = -vol * mat_vec(sig, grad) + iw[i][0] * iw[j][1] * body
                             self.g_f[I] += f
