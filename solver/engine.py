@@ -40,8 +40,8 @@ from solver.config import SIDES, Boundary, Grid, Material, Structure
 from solver.fieldio import FieldIO
 from solver.materials import MaterialTable
 from solver.scatter import BIG, SCATTER_STATE, make_scatter
-from solver.structures import (corner_normals, corner_zone, far_normals, node_contacts, segments, signed_distance,
-                                through_sides)
+from solver.structures import (STENCIL_CELLS, corner_normals, corner_zone, far_normals, node_contacts, segments,
+                                signed_distance, through_sides)
 
 PAD = 2
 BOUNDARY_CODES = {"fixed": 0, "slip": 1, "friction": 2, "open": 3, "periodic": 4}
@@ -301,7 +301,7 @@ class Engine:
         zone[thin] = -(index[thin] + 1)
         if thin.any():
             X, Y = np.meshgrid(xs, ys, indexing="ij")
-            stencil = 1.5 * self.dx
+            stencil = STENCIL_CELLS * self.dx  # a particle's weights reach this far from it
             for k in range(len(self.solid_polygons)):
                 mine = thin & (index == k)
                 if mine.any():
