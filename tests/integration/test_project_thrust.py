@@ -50,14 +50,23 @@ HEIGHT_TOLERANCE = 0.02
 
 
 def _project(scheme: str, precision: str, thick_cells: float, offset_cells: float, *, cell: float = CELL,
-             width: float = WIDTH, duration_s: float = 0.075):
+             width: float = WIDTH, duration_s: float = 0.075, low_height: float | None = None):
+    """The sand column (``width`` wide, HEIGHT high) against a wall ``thick_cells`` thick whose
+    face is ``offset_cells`` off the node line; with ``low_height`` a second column of that height,
+    ``width`` wide, on the wall's other face."""
     face = width + offset_cells * cell
     back = face + thick_cells * cell
+    size = back + width if low_height is not None else width + 0.2
+    low = "" if low_height is None else f"""
+[[bodies]]
+name = "low"
+material = "sand"
+polygon_m = [[{back}, 0.0], [{size}, 0.0], [{size}, {low_height}], [{back}, {low_height}]]"""
     text = f"""
 [runout]
 schema_version = 1
 [domain]
-size_m = [{width + 0.2}, 0.4]
+size_m = [{size}, 0.4]
 cell_size_m = {cell}
 [domain.boundaries]
 left = "slip"
@@ -75,7 +84,7 @@ dilatancy_angle_deg = 0.0
 [[bodies]]
 name = "column"
 material = "sand"
-polygon_m = [[0.0, 0.0], [{face}, 0.0], [{face}, {HEIGHT}], [0.0, {HEIGHT}]]
+polygon_m = [[0.0, 0.0], [{face}, 0.0], [{face}, {HEIGHT}], [0.0, {HEIGHT}]]{low}
 [[structures]]
 name = "wall"
 polygon_m = [[{face}, 0.0], [{back}, 0.0], [{back}, 0.4], [{face}, 0.4]]
@@ -202,60 +211,6 @@ def test_walls_thinner_than_a_cell_or_with_a_face_in_the_band_are_warned_about(t
     assert bool(project_warnings(_project("apic", "f32", thick_cells, offset_cells))) == warned
 
 
-def _two_sided(scheme: str, thick_cells: float, offset_cells: float):
-    """Sand columns on both faces of a wall: 0.24 m high on its left, 0.12 m on its right."""
-    face = WIDTH + offset_cells * CELL
-    back = face + thick_cells * CELL
-    size = back + WIDTH
-    text = f"""
-[runout]
-schema_version = 1
-[domain]
-size_m = [{size}, 0.4]
-cell_size_m = {CELL}
-[domain.boundaries]
-left = "slip"
-right = "slip"
-bottom = "fixed"
-top = "open"
-[materials.sand]
-model = "drucker-prager"
-density_kg_m3 = {DENSITY}
-youngs_modulus_pa = 2.0e7
-poisson_ratio = 0.3
-cohesion_pa = 0.0
-friction_angle_deg = {PHI}
-dilatancy_angle_deg = 0.0
-[[bodies]]
-name = "high"
-material = "sand"
-polygon_m = [[0.0, 0.0], [{face}, 0.0], [{face}, {HEIGHT}], [0.0, {HEIGHT}]]
-[[bodies]]
-name = "low"
-material = "sand"
-polygon_m = [[{back}, 0.0], [{size}, 0.0], [{size}, {HEIGHT / 2}], [{back}, {HEIGHT / 2}]]
-[[structures]]
-name = "wall"
-polygon_m = [[{face}, 0.0], [{back}, 0.0], [{back}, 0.4], [{face}, 0.4]]
-contact = "slip"
-[particles]
-per_cell = 2
-[numerics]
-scheme = "{scheme}"
-precision = "f32"
-arch = "cpu"
-[[stages]]
-type = "k0"
-[[stages]]
-type = "dynamic"
-duration_s = 0.075
-[output]
-interval_s = 0.025
-fields = ["displacement"]
-"""
-    return loads_project(text)
-
-
 # A wall with material on both faces takes the difference of the two at-rest thrusts. Thinner than
 # a stencil, the images of one column's particles (mirrored across its face) reached the free nodes
 # of the other column beyond the far face and pushed on them: 0.43-0.65 of the difference on walls
@@ -269,7 +224,8 @@ TWO_SIDED = [("mpm", 1, 0.3), ("mpm", 1.25, 0.7), ("apic", 1, 0.7), ("apic", 1.5
 @pytest.mark.parametrize("scheme, thick_cells, offset_cells", TWO_SIDED)
 def test_a_thin_wall_between_two_columns_takes_the_difference_of_their_thrusts(tmp_path, scheme, thick_cells,
                                                                                offset_cells):
-    result = run_project(_two_sided(scheme, thick_cells, offset_cells), tmp_path / "results")
+    result = run_project(_project(scheme, "f32", thick_cells, offset_cells, low_height=HEIGHT / 2),
+                         tmp_path / "results")
     assert result.status == "completed", result.message
     wall = read_contacts(tmp_path / "results")["wall"]
     later = wall["time_s"] > 0.0
