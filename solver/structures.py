@@ -210,28 +210,38 @@ def far_normals(polygons: Sequence[Sequence[Sequence[float]]], node_x_m: np.ndar
     X, Y = np.meshgrid(np.asarray(node_x_m, float), np.asarray(node_y_m, float), indexing="ij")
     far = np.zeros(X.shape + (2,))
     h = GRADIENT_STEP_CELLS * cell_m
+    tol = TIE_CELLS * cell_m
     for k, poly in enumerate(polygons):
         mine = (index == k) & (np.abs(normal).sum(axis=-1) > 0.0)
         if not mine.any():
             continue
         q = np.c_[X[mine], Y[mine]]
-        n = normal[mine]
-        reach = STENCIL_CELLS * cell_m / np.abs(n).max(axis=-1)
-        steps = np.linspace(0.0, 1.0, 61)[1:]
-        found = np.zeros(len(q), bool)
-        exit_point = np.zeros_like(q)
-        entered = signed_distance(q, poly) <= 0.0
-        for t in steps:
-            pts = q - (t * reach)[:, None] * n
-            sd = signed_distance(pts, poly)
-            new = ~found & entered & (sd > 0.0)
-            exit_point[new] = pts[new]
-            found |= new
-            entered |= sd <= 0.0
+        d = -normal[mine]  # into the part
+        reach = STENCIL_CELLS * cell_m / np.abs(d).max(axis=-1)
+        # where the ray q + t d crosses each edge a + s e (0 <= s <= 1): one pass over the edges
+        a, b = segments(poly)
+        e = b - a
+        aq = a[None] - q[:, None]
+        denom = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (aq[..., 0] * e[None, :, 1] - aq[..., 1] * e[None, :, 0]) / denom
+            s_ = (aq[..., 0] * d[:, None, 1] - aq[..., 1] * d[:, None, 0]) / denom
+        t = np.where((denom != 0.0) & (s_ >= 0.0) & (s_ <= 1.0) & (t > tol), t, np.inf)
+        # the exit: the first crossing from inside (a node on the surface is inside a hair along
+        # d); from a node outside (its cell reaches in), the one after the entry (crossings closer
+        # than the tie are one, at a vertex)
+        first = t.min(axis=1)
+        second = np.where(t > first[:, None] + tol, t, np.inf).min(axis=1)
+        exit_t = np.where(signed_distance(q + tol * d, poly) <= 0.0, first, second)
+        # exactly at the reach the far material's weight vanishes: a tie is not past it, whichever
+        # way round-off falls
+        found = exit_t < reach - tol
+        beyond = q + (np.where(found, exit_t, 0.0) + tol)[:, None] * d
+        found[found] = signed_distance(beyond[found], poly) > 0.0
         if not found.any():
             continue
-        grad = _gradient(exit_point[found], poly, h)
-        facing = (grad * n[found]).sum(axis=-1) < -FACING
+        grad = _gradient(beyond[found], poly, h)
+        facing = (grad * -d[found]).sum(axis=-1) < -FACING
         rows = np.flatnonzero(mine.ravel())[np.flatnonzero(found)[facing]]
         far.reshape(-1, 2)[rows] = grad[facing]
     return far
