@@ -40,8 +40,8 @@ from solver.config import SIDES, Boundary, Grid, Material, Structure
 from solver.fieldio import FieldIO
 from solver.materials import MaterialTable
 from solver.scatter import BIG, SCATTER_STATE, make_scatter
-from solver.structures import (STENCIL_CELLS, corner_normals, corner_zone, far_normals, node_contacts, segments,
-                                signed_distance, through_sides)
+from solver.structures import (corner_normals, far_normals, node_contacts, segments, signed_distance, through_sides,
+                               zone_nodes)
 
 PAD = 2
 BOUNDARY_CODES = {"fixed": 0, "slip": 1, "friction": 2, "open": 3, "periodic": 4}
@@ -192,16 +192,16 @@ class Engine:
         self.node_normal_b = ti.Vector.field(2, float, self.nodes if has else (1, 1))
         # and its signed distance to that structure's surface (m, negative inside)
         self.node_sd = ti.field(float, self.nodes if has else (1, 1))
-        # near a convex vertex (solver.structures.corner_zone): the structure's index + 1 at such a
-        # node, per structure the box of the particles that reach its zone nodes, and at each zone
-        # node the sums over those particles of weight x mass x their outward normal and of weight
-        # x mass (rebuilt every step: _corner_particle_normals). has_zone: any zone node at all
+        # near a convex vertex or in a thin part (solver.structures.zone_nodes): the structure's index
+        # + 1 at such a node (negated at a thin part's node away from a vertex), per structure the
+        # box of the particles that reach its zone nodes, and at each zone node the sums over those
+        # particles of weight x mass x their outward normal and of weight x mass (rebuilt every
+        # step: _corner_particle_normals). has_zone: any zone node at all
         self.has_zone = False
         self.node_zone = ti.field(ti.i32, self.nodes if has else (1, 1))
         self.node_pn = ti.Vector.field(3, float, self.nodes if has else (1, 1))
         # in a part thinner than a stencil the outward normal of the far face a node's stencil reaches
-        # past (solver.structures.far_normals; zero elsewhere); such nodes are zone nodes too, with
-        # the structure's index + 1 negated where they are not near a convex vertex
+        # past (solver.structures.far_normals; zero elsewhere)
         self.node_far = ti.Vector.field(2, float, self.nodes if has else (1, 1))
         self.st_zone_box = ti.Vector.field(4, float, ns)
         # the step (``hold_step``, counted from the load) after the last one in which the
@@ -294,20 +294,9 @@ class Engine:
         index, normal = node_contacts(self.solid_polygons, xs, ys, self.dx)
         normal, normal_b = corner_normals(self.solid_polygons, xs, ys, index, normal, self.dx,
                                           (self.origin, self.upper))
-        zone, zone_boxes = corner_zone(self.solid_polygons, xs, ys, index, normal, self.dx,
-                                       (self.origin, self.upper))
         far = far_normals(self.solid_polygons, xs, ys, index, normal, self.dx)
-        thin = (np.abs(far).sum(axis=-1) > 0.0) & (zone == 0)
-        zone[thin] = -(index[thin] + 1)
-        if thin.any():
-            X, Y = np.meshgrid(xs, ys, indexing="ij")
-            stencil = STENCIL_CELLS * self.dx  # a particle's weights reach this far from it
-            for k in range(len(self.solid_polygons)):
-                mine = thin & (index == k)
-                if mine.any():
-                    b = zone_boxes[k]
-                    zone_boxes[k] = [min(b[0], X[mine].min() - stencil), min(b[1], Y[mine].min() - stencil),
-                                     max(b[2], X[mine].max() + stencil), max(b[3], Y[mine].max() + stencil)]
+        zone, zone_boxes = zone_nodes(self.solid_polygons, xs, ys, index, normal, far, self.dx,
+                                      (self.origin, self.upper))
         self.has_zone = bool(zone.any())
         X, Y = np.meshgrid(xs, ys, indexing="ij")
         sd = np.zeros(index.shape)

@@ -312,10 +312,39 @@ def corner_zone(polygons: Sequence[Sequence[Sequence[float]]], node_x_m: np.ndar
         near[mine] = close
         if near.any():
             zone[near] = k + 1
-            stencil = STENCIL_CELLS * cell_m  # a particle's weights reach this far from it
-            boxes[k] = [X[near].min() - stencil, Y[near].min() - stencil, X[near].max() + stencil,
-                        Y[near].max() + stencil]
+            boxes[k] = _reach_box(X[near], Y[near], cell_m, boxes[k])
     return zone, boxes
+
+
+def zone_nodes(polygons: Sequence[Sequence[Sequence[float]]], node_x_m: np.ndarray, node_y_m: np.ndarray,
+               index: np.ndarray, normal: np.ndarray, far: np.ndarray, cell_m: float,
+               box_m: tuple[Sequence[float], Sequence[float]] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Every contact node whose normal the engine decides from the material next to it: those near a
+    convex vertex (:func:`corner_zone`) and those of a part thinner than a stencil (a far normal,
+    :func:`far_normals`), and the box the particles that reach them lie in.
+
+    Returns
+    -------
+    zone : (nx, ny) int32, the structure's index + 1 at its corner-zone nodes, minus that at its
+        other thin nodes (``Engine._structure_normal`` tells them apart), 0 elsewhere
+    boxes : (len(polygons), 4) float64, as :func:`corner_zone`'s, over both kinds
+    """
+    zone, boxes = corner_zone(polygons, node_x_m, node_y_m, index, normal, cell_m, box_m)
+    thin = (np.abs(far).sum(axis=-1) > 0.0) & (zone == 0)
+    zone[thin] = -(index[thin] + 1)
+    X, Y = np.meshgrid(np.asarray(node_x_m, float), np.asarray(node_y_m, float), indexing="ij")
+    for k in range(len(polygons)):
+        mine = thin & (index == k)
+        if mine.any():
+            boxes[k] = _reach_box(X[mine], Y[mine], cell_m, boxes[k])
+    return zone, boxes
+
+
+def _reach_box(x: np.ndarray, y: np.ndarray, cell_m: float, box: np.ndarray) -> list[float]:
+    """``box`` grown to hold every point whose stencil reaches one of the nodes ``(x, y)``."""
+    stencil = STENCIL_CELLS * cell_m  # a particle's weights reach this far from it
+    return [min(box[0], x.min() - stencil), min(box[1], y.min() - stencil),
+            max(box[2], x.max() + stencil), max(box[3], y.max() + stencil)]
 
 
 def corner_normals(polygons: Sequence[Sequence[Sequence[float]]], node_x_m: np.ndarray, node_y_m: np.ndarray,
