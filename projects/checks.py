@@ -26,7 +26,13 @@ workbench shows them):
 - a gravity stage shorter than the fundamental period ``4 H / c_s`` of the bodies: they cannot
   settle in it, and start the next stage moving (a 20-cell block of 1e6 Pa held by friction 5
   degrees from its limit, after a 0.2 s stage where its period is 0.95 s, crept 3.4 % of the
-  frictionless distance; a finite-element model of it 9.6 %).
+  frictionless distance; a finite-element model of it 9.6 %);
+- a body that slides on an inclined frictional contact just above the friction limit at high
+  friction (friction angle at least NEAR_LIMIT_FRICTION_DEG, the friction at least
+  NEAR_LIMIT_RATIO times the net driving force): there the undamped elastic body flutters under
+  Coulomb friction and slides further than a rigid block would (5 degrees above the limit, blocks
+  5 and 20 cells thick: up to +30 % at 40 on 35 degrees, up to +9 % at 35 on 30; one-cell sheets
+  within 0.3 %; docs/validation.md, near-limit slides).
 
 :func:`recommended_initial_stage` is the default initial-stress stage for a new project (the
 slope template): gravity loading where the ground slopes, k0 where it is level.
@@ -58,6 +64,13 @@ STRUCTURE_MIN_CELLS = 1.0
 #: (outside the structure) are warned about, in every scheme: walls 1 to 3 cells thick take
 #: 0.957-0.974 of the at-rest thrust there (elsewhere 0.974-1.000; docs/validation.md, thrust).
 FACE_OFFSET_BAND = (0.55, 0.85)
+#: Slides on a frictional contact with at least this friction angle (degrees) and a friction at
+#: least NEAR_LIMIT_RATIO times the net driving force, ``tan d / (tan th - tan d)``, are warned
+#: about (measured through the project path, docs/validation.md: 40/35 deg (ratio 5.0) +5.7 to
+#: +30 %, 35/30 (4.7) up to +9 %, 40/32 (2.9) +5.6 %, 40/30 (2.2) +2.3 %, 30/25 (4.2) +0.8 %,
+#: 20/15 (2.8) +0.08 %, 24/21 on a ramp (6.3) +16.5 %).
+NEAR_LIMIT_FRICTION_DEG = 20.0
+NEAR_LIMIT_RATIO = 2.5
 
 _CLOSED = ("fixed", "slip", "friction")
 
@@ -412,6 +425,32 @@ def _short_gravity_stage(project: Project) -> list[str]:
     return []
 
 
+def _near_limit_slides(project: Project) -> list[str]:
+    """A body sliding on a frictional contact just above a high friction limit (the flutter)."""
+    if not float(np.linalg.norm(project.domain.gravity_m_s2)) > 0:
+        return []
+    up = _up(project)
+    lo_cos = math.cos(math.radians(WALL_ANGLE_DEG))
+    for index, where, friction, normal in _contact_faces(project):
+        carries = float(normal @ up)
+        if friction is None or not carries > lo_cos or friction < NEAR_LIMIT_FRICTION_DEG:
+            continue
+        incline = math.degrees(math.acos(min(1.0, carries)))
+        if not incline > friction:
+            continue  # held by friction
+        ratio = math.tan(math.radians(friction)) / (math.tan(math.radians(incline)) - math.tan(math.radians(friction)))
+        if ratio >= NEAR_LIMIT_RATIO:
+            body = project.bodies[index]
+            return [
+                f"bodies.{index} ({body.name!r}) slides on {where} inclined {incline:.3g} degrees against friction "
+                f"{friction:g} degrees, the friction {ratio:.2g} times the net driving force: so close to a high "
+                "friction limit an elastic body flutters on the contact and slides further than a rigid block "
+                "(5 degrees above the limit, blocks 5-20 cells thick: up to +30 % at 40 on 35 degrees; "
+                "docs/validation.md, near-limit slides)"
+            ]
+    return []
+
+
 def project_warnings(project: Project) -> list[str]:
     """Everything about a valid project that probably is not what the engineer meant.
 
@@ -427,7 +466,7 @@ def project_warnings(project: Project) -> list[str]:
     with np.errstate(all="ignore"):  # absurd coordinates (1e300 m) are the size limits' business
         return [*_wall_gaps(project), *_structure_gaps(project), *_k0_on_slope(project),
                 *_thin_structures(project), *_off_node_faces(project), *_stress_free_on_friction(project),
-                *_short_gravity_stage(project)]
+                *_short_gravity_stage(project), *_near_limit_slides(project)]
 
 
 def recommended_initial_stage(project: Project) -> dict[str, Any]:
