@@ -274,6 +274,17 @@ def test_no_flutter_warning_far_from_the_limit_at_low_friction_or_where_it_holds
     # 40/30: friction 2.2 times the drive, +2.3 % at worst; 20/15: low friction (+0.08 %); 40/45 holds
     assert _warnings(theta=theta, delta=delta, start="gravity", gravity_s=None) == []
 
+
+@pytest.mark.parametrize("contact", ["bottom", "ramp"])
+def test_no_flutter_warning_for_a_plastic_body(contact):
+    # measured for elastic blocks only; a granular body dissipates (a debris flow down a steep
+    # frictional chute is not told that it flutters)
+    case = project_text(contact, "apic-affine", "f32", 5, 1e6, 40, 35, start="gravity", gravity_s=1.0)
+    data = tomllib.loads(case.text)
+    assert project_warnings(validate_project(data))  # the elastic block is warned about
+    data["materials"]["block"].update(model="drucker-prager", cohesion_pa=0.0, friction_angle_deg=38.0)
+    assert project_warnings(validate_project(data)) == []
+
 # --- material resting at a structure's convex edge -------------------------------------------------
 
 def _platform_text(scheme: str, contact: str, youngs: float) -> str:
