@@ -896,6 +896,11 @@ class MainWindow(QMainWindow):
             self.run_dock.show()
             self.show_error("Cannot run", "The project has problems:\n" + "\n".join(str(p) for p in self.doc.problems))
             return False
+        self.run_panel.update_estimate()  # the panel's view of this very project (edits may be pending)
+        if self.run_panel.build_error:
+            self.run_dock.show()
+            self.show_error("Cannot run", "The project cannot be built:\n" + self.run_panel.build_error)
+            return False
         if self.scene.mode == "draw":
             self.scene.set_mode("select")
         chosen = self._choose_out_dir()

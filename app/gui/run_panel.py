@@ -158,6 +158,9 @@ class RunPanel(QWidget):
             lambda item: self.problemActivated.emit(item.data(Qt.ItemDataRole.UserRole) or ""))
         vbox.addWidget(self.problems)
         self.problems.setMaximumHeight(220)
+        self.warnings: list[str] = []
+        #: why a valid project still cannot be built for a run (update_estimate), or None
+        self.build_error: str | None = None
         self.remove_unknown = QPushButton("Remove unknown keys")
         self.remove_unknown.setToolTip("Keys the project format does not know (a typo in the file) are "
                                        "never used; remove them so that the project can run")
@@ -200,6 +203,7 @@ class RunPanel(QWidget):
             self.problems.addItem(f"warning: {text}")
             self.problems.item(self.problems.count() - 1).setForeground(QColor("#b06000"))
         self.warnings = warnings
+        self.build_error = None
         title = f"Problems ({n})" if n else "Problems (none)"
         self.problems_box.setTitle(title + (f", {len(warnings)} warning(s)" if warnings else ""))
         self.remove_unknown.setVisible(bool(self.doc.unknown_keys()))
@@ -217,7 +221,7 @@ class RunPanel(QWidget):
         try:
             resolved = resolve(project, seed=False)  # what the run will use, preset applied
         except (ValueError, ZeroDivisionError, ProjectError) as err:
-            self.runtime.setText(str(err))
+            self._build_problem(err)
             return None
         e = dict(resolved.estimate)
         effective = resolved.project
@@ -252,7 +256,7 @@ class RunPanel(QWidget):
                 e["particles"] = len(self.doc.seeded_run().particles)
             except (ProjectError, ValueError, ArithmeticError) as err:
                 self.particles.setText("–")
-                self.runtime.setText(str(err))  # what the run would stop at
+                self._build_problem(err)  # what the run would stop at
                 return None
             self.particles.setText(f"{e['particles']:,}")
         else:
@@ -265,6 +269,27 @@ class RunPanel(QWidget):
         self.rate_info.setText(f"{rate / 1e6:.3g} M particle-steps/s, {source}")
         e["run_time_s"] = seconds
         return e
+
+    def _build_problem(self, err: Exception) -> None:
+        """A valid project the run could still not build (a body every particle of which a later
+        body or a structure covers): listed with the problems, so that Run refuses it up front
+        instead of starting a process that ends at once."""
+        from PySide6.QtGui import QColor
+
+        problems = list(getattr(err, "problems", None) or [])
+        lines = [str(p) for p in problems] or [str(err)]
+        first = len(self.doc.problems)  # after the schema's problems, before the warnings
+        for k, line in enumerate(lines):
+            self.problems.insertItem(first + k, line)
+            item = self.problems.item(first + k)
+            item.setForeground(QColor("#b3261e"))
+            if k < len(problems):
+                item.setData(Qt.ItemDataRole.UserRole, problems[k].path)
+        self.build_error = "\n".join(lines)
+        n = len(self.doc.problems) + len(lines)
+        self.problems_box.setTitle(f"Problems ({n})" + (f", {len(self.warnings)} warning(s)" if self.warnings else ""))
+        self.problems.setMaximumHeight(260)
+        self.runtime.setText("fix the problems below first")
 
     # -- progress ---------------------------------------------------------------------------------
 

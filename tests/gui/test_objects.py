@@ -244,3 +244,27 @@ def test_results_without_contacts_show_an_empty_plot(window, make_results):
     assert plot.curves == {} and plot.lines == {}
     assert "No contacts.csv" in plot.axes[0].get_title()
     assert window.results_view.scene.structure_count == 0
+
+
+def test_a_body_a_structure_covers_is_a_problem_and_run_refuses_it(window, tiny_file, monkeypatch):
+    # valid to the schema, but the run could not seed the body: listed with the problems (not only
+    # in the run-time label) and Run says why at once, instead of a process that ends in an error
+    assert window.open_project(tiny_file)
+    window.structures_panel.add_structure([[0.0, 0.0], [0.14, 0.0], [0.14, 0.26], [0.0, 0.26]], name="cover")
+    panel = window.run_panel
+    panel.update_estimate()
+    assert window.doc.project is not None
+    texts = [panel.problems.item(i).text() for i in range(panel.problems.count())]
+    assert any(t.startswith("bodies.0.polygon_m") and "receives no particles" in t for t in texts), texts
+    assert panel.problems_box.title().startswith("Problems (1)")
+    assert panel.runtime.text() == "fix the problems below first"
+    errors = []
+    monkeypatch.setattr(window, "show_error", lambda title, text: errors.append((title, text)))
+    assert window.start_run() is False
+    assert errors and errors[0][0] == "Cannot run" and "receives no particles" in errors[0][1]
+    assert not window.runs
+    # undone, the project builds again: no problem left, a run-time estimate
+    window.doc.undo_stack.undo()
+    panel.update_estimate()
+    assert panel.build_error is None and panel.problems_box.title() == "Problems (none)"
+    assert panel.runtime.text().startswith("about ")

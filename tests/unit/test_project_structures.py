@@ -227,3 +227,28 @@ def test_a_body_within_a_cell_of_a_structure_is_warned_about_as_near_a_wall(gap_
     if warned:
         assert lines[0].startswith(f"bodies.0 ('block') is {g:.3g} m from structures.0 ('wall') without touching it")
         assert "\n" not in lines[0]
+
+
+# the block is [0, 0.2] x [0, 0.1] m in 2 mm cells: a wall dragged across it by d cells
+@pytest.mark.parametrize("overlap_cells, warned", [(-1.0, False), (0.0, False), (0.3, False), (1.0, True),
+                                                   (5.0, True), (30.0, True)])
+@pytest.mark.parametrize("where", ["beside", "above"])
+def test_a_body_drawn_into_a_structure_is_warned_about(overlap_cells, warned, where):
+    """The part of a body inside a structure is not seeded (docs/project-format.md): meant for a
+    slide drawn loosely into bedrock, a surprise for a wall dragged across a body. Warned about from
+    a cell's area on (under it: a body drawn to a face with rounded coordinates); the warning says
+    how much of the body is lost."""
+    from projects.checks import project_warnings
+
+    dx = BASE["domain"]["cell_size_m"]
+    d = overlap_cells * dx
+    polygon = ([[0.2 - d, 0.0], [0.26 - d, 0.0], [0.26 - d, 0.1], [0.2 - d, 0.1]] if where == "beside"
+               else [[0.0, 0.1 - d], [0.3, 0.1 - d], [0.3, 0.14], [0.0, 0.14]])
+    lines = [w for w in project_warnings(validate_project(with_structures({**WALL, "polygon_m": polygon})))
+             if "into structures" in w]
+    assert bool(lines) == warned, lines
+    if warned:
+        area = d * (0.1 if where == "beside" else 0.2)
+        assert lines[0].startswith(f"bodies.0 ('block') extends {area:.3g} m2 ({100 * area / 0.02:.3g} % of its "
+                                   "area) into structures.0 ('wall'): that part is not seeded")
+        assert "\n" not in lines[0]
