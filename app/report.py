@@ -22,7 +22,7 @@ import html
 import logging
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -198,14 +198,36 @@ def _target_lines(ax, doc: Mapping[str, Any], label: bool = False) -> None:
                         fontsize=8, rotation=90, va="top")
 
 
-def profiles_png(doc: Mapping[str, Any], path: Path) -> Path:
-    """Envelope profiles along the section, targets and run-out points marked."""
+def structure_patches(ax, structures: Sequence[Mapping[str, Any]] | None) -> None:
+    """The run's rigid structures (``summary.json`` ``structures``) on a section plot: grey,
+    hatched and named as in the scene views, so that a wall or a dam is not read as deposit in the
+    surface line that runs over it. One legend entry for them all."""
+    from matplotlib.patches import Polygon as PolygonPatch
+
+    first = True
+    for structure in structures or []:
+        pts = np.asarray(structure.get("polygon_m") or [], dtype=float).reshape(-1, 2)
+        if len(pts) < 3:
+            continue
+        ax.add_patch(PolygonPatch(pts, closed=True, facecolor="#b4b4b4", edgecolor="0.3", hatch="///", lw=0.8,
+                                  zorder=3, label="structure" if first else None))
+        first = False
+        top = pts[np.argmax(pts[:, 1])]
+        ax.annotate(str(structure.get("name", "")), (top[0], top[1]), xytext=(0, 3), textcoords="offset points",
+                    ha="center", va="bottom", fontsize=7, color="0.25", zorder=4)
+
+
+def profiles_png(doc: Mapping[str, Any], path: Path,
+                 structures: Sequence[Mapping[str, Any]] | None = None) -> Path:
+    """Envelope profiles along the section, targets and run-out points marked; ``structures``
+    (``summary.json``'s) drawn on the surfaces."""
     p = doc["profile"]
     x = p["x_m"]
     fig = _figure(9.0, 10.5)
     axes = fig.subplots(5, 1, sharex=True)
     ax = axes[0]
     ax.fill_between(x, p["floor_m"], p["ground_m"], color="0.85", step="mid", label="material at the release")
+    structure_patches(ax, structures)
     ax.step(x, p["ground_m"] + p["peak_flow_height_m"], where="mid", color="tab:orange",
             label="ground + peak flow height")
     ax.step(x, p["surface_m"], where="mid", color="tab:brown", lw=1.6, label="surface at the end")
@@ -537,7 +559,7 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
         after = "displacement" if "displacement" in have else before
         pictures["scene_before"] = render_frame(res, 0, before, out / "scene_before.png", size=scene_size)
         pictures["scene_after"] = render_frame(res, -1, after, out / "scene_after.png", size=scene_size)
-    pictures["profiles"] = profiles_png(doc, out / "profiles.png")
+    pictures["profiles"] = profiles_png(doc, out / "profiles.png", summary.get("structures"))
     pictures["energy"] = energy_png(res.series, doc, out / "energy.png")
     pictures["targets"] = targets_png(doc, out / "targets.png")
     contact_table = _read_contacts(res.path / CONTACTS_CSV)

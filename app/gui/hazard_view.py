@@ -67,6 +67,18 @@ def has_hazard(path: str | os.PathLike[str]) -> bool:
     return (p / HAZARD_JSON).is_file() and (p / PROFILE_CSV).is_file()
 
 
+def _summary_structures(path: Path) -> list:
+    """The structures of a results folder's ``summary.json`` (none where it cannot be read)."""
+    import json
+
+    from projects.results import SUMMARY_NAME
+
+    try:
+        return json.loads((path / SUMMARY_NAME).read_text(encoding="utf-8")).get("structures") or []
+    except (OSError, ValueError, AttributeError):
+        return []
+
+
 def measure_rows(doc: dict[str, Any]) -> list[tuple[str, str, str]]:
     """(label, value with unit, threshold) of each measure of :data:`app.report.MEASURES` in ``doc``."""
     from app.report import MEASURES, measure_value
@@ -226,6 +238,7 @@ class HazardView(QWidget):
             return False
         self.path, self.doc, self._stamp = p, doc, stamp
         scene = None
+        structures = results.summary.get("structures") if results is not None else _summary_structures(p)
         if results is not None and len(results):
             try:
                 frame = results.frame(len(results) - 1)
@@ -233,7 +246,7 @@ class HazardView(QWidget):
                 scene = np.asarray(frame["positions"])[keep]
             except Exception:  # a frame being written: the envelopes are drawn without the scene
                 logger.debug("no scene under the envelopes", exc_info=True)
-        self._draw(doc, scene)
+        self._draw(doc, scene, structures)
         self._fill_tables(doc)
         status = doc.get("status", "?")
         self.header.setText(f"Hazard of {p}   [{status}]   released at t = "
@@ -278,8 +291,8 @@ class HazardView(QWidget):
         table.setColumnWidth(0, max(words, min(widest, fm.averageCharWidth() * NAME_CHARS)))
         table.resizeRowsToContents()
 
-    def _draw(self, doc: dict[str, Any], scene: np.ndarray | None) -> None:
-        from app.report import _target_lines
+    def _draw(self, doc: dict[str, Any], scene: np.ndarray | None, structures: list | None = None) -> None:
+        from app.report import _target_lines, structure_patches
 
         p = doc["profile"]
         fig = self.figure
@@ -291,6 +304,7 @@ class HazardView(QWidget):
         axes = fig.subplots(5, 1, sharex=True, gridspec_kw={"height_ratios": [2.2, 1, 1, 1, 1]})
         ax = axes[0]
         ax.fill_between(x, p["floor_m"], p["ground_m"], color="0.88", step="mid", label="material at the release")
+        structure_patches(ax, structures)
         if scene is not None and len(scene):
             ax.plot(scene[:, 0], scene[:, 1], ",", color="0.45", alpha=0.6, label="particles (last frame)")
         ax.fill_between(x, p["ground_m"], p["ground_m"] + np.nan_to_num(p["peak_flow_height_m"]), step="mid",

@@ -538,3 +538,20 @@ def test_a_run_of_the_workbench_ends_with_its_hazard_tab_filled(window, tiny_fil
     html = view.export_report()
     provenance = html.read_text().split("Settings and provenance")[1]
     assert f"<td>project file</td><td>{tiny_file}</td>" in provenance and "runout-run-" not in provenance
+
+
+def test_the_hazard_profile_draws_the_structures(window, make_results):
+    # a wall on the section was only a step of the "surface at the end" line, read as deposit
+    path = make_results()
+    write_hazard(path)
+    summary = json.loads((path / "summary.json").read_text(encoding="utf-8"))
+    wall = [[0.5, 0.0], [0.54, 0.0], [0.54, 0.06], [0.5, 0.06]]
+    summary["structures"] = [{"name": "wall", "polygon_m": wall}]
+    (path / "summary.json").write_text(json.dumps(summary), encoding="utf-8")
+    assert window.open_results(path)
+    window.tabs.setCurrentWidget(window.hazard_view)
+    ax = window.hazard_view.figure.axes[0]
+    hatched = [p for p in ax.patches if p.get_hatch()]
+    assert len(hatched) == 1 and np.allclose(hatched[0].get_xy()[:4], wall)
+    assert "wall" in [t.get_text() for t in ax.texts]
+    assert "structure" in [t.get_text() for legend in window.hazard_view.figure.legends for t in legend.get_texts()]

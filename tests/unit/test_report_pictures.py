@@ -52,3 +52,25 @@ def test_the_profiles_legend_leaves_the_target_names_readable(tmp_path, monkeypa
 ])
 def test_the_provenance_names_the_project_the_user_had(summary, shown):
     assert report.project_source(summary) == shown
+
+
+def test_the_profiles_show_the_structures_named_and_in_the_legend(tmp_path, monkeypatch):
+    """A dam on the section was only a step of the surface line, read as deposit beyond the run-out
+    point (found by a walkthrough): it is drawn as the scene views draw it, hatched and named."""
+    figures = []
+    make = report._figure
+    monkeypatch.setattr(report, "_figure", lambda *size: figures.append(make(*size)) or figures[-1])
+    dam = {"name": "check-dam", "polygon_m": [[21.0, 0.0], [21.5, 0.0], [21.5, 2.5], [21.0, 2.5]]}
+    bedrock = {"name": "bedrock", "polygon_m": [[0.0, 0.0], [16.0, 0.0], [0.0, 13.4]]}
+    report.profiles_png(_doc(), tmp_path / "profiles.png", [bedrock, dam])
+    ax = figures[0].axes[0]
+    patches = [p for p in ax.patches if p.get_hatch()]
+    assert len(patches) == 2
+    assert np.allclose(patches[1].get_xy()[:4], dam["polygon_m"])
+    assert {"check-dam", "bedrock"} <= {t.get_text() for t in ax.texts}
+    labels = [t.get_text() for legend in figures[0].legends for t in legend.get_texts()]
+    assert labels.count("structure") == 1
+    # none: the plot as before
+    figures.clear()
+    report.profiles_png(_doc(), tmp_path / "none.png", None)
+    assert not [p for p in figures[0].axes[0].patches if p.get_hatch()]
