@@ -38,6 +38,7 @@ import numpy as np
 
 from geometry.polygons import (
     counter_clockwise,
+    edge_text,
     is_simple,
     remove_spikes,
     self_intersections,
@@ -129,7 +130,8 @@ def _outline_from_points(name: str, pts: np.ndarray, base_y_m: float | None) -> 
         polygon = _close_profile(name, pts, base_y_m)
     crossings = self_intersections(polygon)
     if crossings or not is_simple(polygon):
-        detail = f": edges {crossings[0][0]} and {crossings[0][1]} cross" if crossings else ""
+        detail = (f": edges {edge_text(polygon, crossings[0][0])} and {edge_text(polygon, crossings[0][1])} cross"
+                  if crossings else "")
         hint = (
             "" if closed else "; for a profile with its lowest point inside, pass base_y_m below it"
         )

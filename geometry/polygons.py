@@ -182,6 +182,15 @@ def _cross(ax, ay, bx, by):
     return ax * by - ay * bx
 
 
+def edge_text(polygon_m: np.ndarray, i: int) -> str:
+    """Edge ``i`` (vertex ``i`` to the next) by its end points, ``"(0, 0)-(0.1, 0.1)"``: what a
+    message names it by, the same to a reader of the file (who counts points from 0) and of the
+    workbench's table (from 1)."""
+    p = as_polygon(polygon_m)
+    a, b = p[i % len(p)], p[(i + 1) % len(p)]
+    return f"({a[0]:g}, {a[1]:g})-({b[0]:g}, {b[1]:g})"
+
+
 def self_intersections(polygon_m: np.ndarray) -> list[tuple[int, int]]:
     """Pairs of edges that cross or touch where they should not.
 

@@ -42,7 +42,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from geometry.polygons import distinct_vertex_count, has_zero_area, self_intersections
+from geometry.polygons import distinct_vertex_count, edge_text, has_zero_area, self_intersections
 from projects.units import QuantityError, parse_quantity
 from solver import config as sc
 
@@ -328,7 +328,7 @@ def _simple_polygon(points: tuple[tuple[float, float], ...]) -> tuple[tuple[floa
         raise _fail("needs at least 3 distinct points")
     crossings = self_intersections(arr)
     if crossings:
-        shown = ", ".join(f"{i} and {j}" for i, j in crossings[:3])
+        shown = ", ".join(f"{edge_text(arr, i)} and {edge_text(arr, j)}" for i, j in crossings[:3])
         more = f" (and {len(crossings) - 3} more pairs)" if len(crossings) > 3 else ""
         raise _fail(f"not a simple polygon: edges {shown} cross or touch{more}")
     if has_zero_area(arr):

@@ -49,7 +49,7 @@ def test_closed_outline_is_read_as_given(tmp_path):
         ("# only a comment\n", r"no header row"),
         ("x_m,y_m\n0,0\n2,1\n1,3\n3,0\n", r"x strictly increasing or decreasing"),
         ("x_m,y_m\n0,1\n1,0\n2,1\n", r"not a simple polygon.*base_y_m below"),
-        ("x_m,y_m\n0,0\n1,1\n1,0\n0,1\n0,0\n", r"not a simple polygon: edges 0 and 2 cross"),
+        ("x_m,y_m\n0,0\n1,1\n1,0\n0,1\n0,0\n", r"not a simple polygon: edges \(0, 0\)-\(1, 1\) and \(1, 0\)-\(0, 1\) cross"),
         ("x_m,y_m\n0,0\n1,inf\n2,0\n", r"line 3: non-finite value"),
     ],
 )

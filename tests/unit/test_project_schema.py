@@ -146,7 +146,7 @@ GOLDEN = [
         "bodies.0.polygon_m",
         [[0.0, 0.0], [0.1, 0.1], [0.1, 0.0], [0.0, 0.1]],
         "bodies.0.polygon_m = [[0.0, 0.0], [0.1, 0.1], [0.1, 0.0], [0.0, 0.1]]: "
-        "not a simple polygon: edges 0 and 2 cross or touch",
+        "not a simple polygon: edges (0, 0)-(0.1, 0.1) and (0.1, 0)-(0, 0.1) cross or touch",
     ),
     (
         "bodies.0.polygon_m",
