@@ -34,6 +34,8 @@ logger = logging.getLogger(__name__)
 
 #: The colour of structures in the scene and results views (grey like :mod:`app.render`'s pictures).
 STRUCTURE_COLOR = "#b4b4b4"
+#: A structure's friction angle when its contact first becomes friction (degrees).
+DEFAULT_FRICTION_DEG = 20.0
 #: The colour of targets in the scene view.
 TARGET_COLOR = "#9334e6"
 
@@ -74,6 +76,8 @@ class StructuresPanel(PolygonPanel):
         return [self.add_button]
 
     def _form_rows(self, form: QFormLayout) -> None:
+        #: each structure's last friction angle (by name), for a return to friction after slip or fixed
+        self._angles: dict[str, float] = {}
         self.contact = QComboBox()
         self.contact.addItems(list(CONTACT_TYPES))
         self.contact.setAccessibleName("Structure contact")
@@ -119,23 +123,27 @@ class StructuresPanel(PolygonPanel):
         return index
 
     def set_contact(self, kind: str) -> bool:
-        """Give the selected structure the contact ``kind`` (friction starts at 20° or the old angle)."""
+        """Give the selected structure the contact ``kind`` (friction at the angle it had before in
+        this session, else DEFAULT_FRICTION_DEG)."""
         sel = self.selected
         if sel is None or kind not in CONTACT_TYPES:
             return False
         old = self.doc.get(f"structures.{sel}.contact")
         if contact_kind(old) == kind:
             return False
-        value: Any = {"type": "friction", "friction_angle_deg": 20.0} if kind == "friction" else kind
-        return self.doc.set_value(f"structures.{sel}.contact", value,
-                                  f"set {self._items()[sel].get('name', sel)} contact to {kind}")
+        name = self._items()[sel].get("name", sel)
+        if contact_kind(old) == "friction":  # kept for a return to friction in this session
+            self._angles[name] = old.get("friction_angle_deg", DEFAULT_FRICTION_DEG)
+        angle = self._angles.get(name, DEFAULT_FRICTION_DEG)
+        value: Any = {"type": "friction", "friction_angle_deg": angle} if kind == "friction" else kind
+        return self.doc.set_value(f"structures.{sel}.contact", value, f"set {name} contact to {kind}")
 
     def set_friction_angle(self, angle_deg: float) -> bool:
         sel = self.selected
         if sel is None or contact_kind(self.doc.get(f"structures.{sel}.contact")) != "friction":
             return False
         return self.doc.set_value(f"structures.{sel}.contact.friction_angle_deg", float(angle_deg),
-                                  "change structure friction angle")
+                                  f"change {self._items()[sel].get('name', sel)} friction angle")
 
 
 class TargetsPanel(Panel):

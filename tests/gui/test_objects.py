@@ -45,6 +45,10 @@ def test_structure_through_its_panel_is_saved_and_undone(window, tiny_file, tmp_
     assert panel.angle.commit()
     assert doc.get("structures.0.contact.friction_angle_deg") == 25.0
     assert panel.list.item(0).text() == "barrier   (friction 25°)"
+    # to slip and back: the angle typed before comes back, not the default
+    assert panel.set_contact("slip") and doc.get("structures.0.contact") == "slip"
+    assert panel.set_contact("friction")
+    assert doc.get("structures.0.contact") == {"type": "friction", "friction_angle_deg": 25.0}
     # a bad angle is refused where it is typed, and the document keeps the last good one
     panel.angle.edit.setText("95")
     assert not panel.angle.commit()
