@@ -248,6 +248,21 @@ def _structures(results: Results, shift: np.ndarray | None = None) -> list[pyvis
     return out
 
 
+def structure_labels(structures, shift=(0.0, 0.0), lift_m: float = 0.0) -> tuple[np.ndarray, list[str]]:
+    """Where each structure's name goes (centred above its highest vertex, ``lift_m`` higher, at
+    z = 0.05 over the particles; less ``shift``) and the names, so that a picture's structures can
+    be matched with the contact-force curves they name."""
+    points, names = [], []
+    for structure in structures or []:
+        pts = np.asarray(structure.get("polygon_m") or [], dtype=float).reshape(-1, 2)
+        if len(pts) < 3:
+            continue
+        top = pts[np.argmax(pts[:, 1])]
+        points.append([float(pts[:, 0].mean()) - shift[0], float(top[1]) + lift_m - shift[1], 0.05])
+        names.append(str(structure.get("name", "?")))
+    return np.asarray(points, dtype=float).reshape(-1, 3), names
+
+
 def _structure_box(results: Results) -> tuple[float, float, float, float] | None:
     pts = [p for st in results.summary.get("structures") or [] for p in st.get("polygon_m") or []]
     if not pts:
@@ -361,6 +376,11 @@ class _Scene:
             pl.add_mesh(structure.triangulate(), color="#b4b4b4", show_edges=False, lighting=False)
             ring = np.vstack([structure.points, structure.points[:1]])
             pl.add_mesh(pv.MultipleLines(ring), color="#505050", line_width=2)
+        points, names = structure_labels(self.results.summary.get("structures"), self._shift, 0.01 * (y1 - y0))
+        if names:
+            pl.add_point_labels(points, names, name="structure-labels", font_size=self._font, text_color="#303030",
+                                shape=None, show_points=False, always_visible=True, reset_camera=False,
+                                justification_horizontal="center", justification_vertical="bottom")
         pl.show_bounds(
             bounds=[x0 - sx, x1 - sx, y0 - sy, y1 - sy, 0.0, 0.0],
             axes_ranges=[x0, x1, y0, y1, 0.0, 0.0],  # the labels in the project's coordinates

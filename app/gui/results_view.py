@@ -36,7 +36,7 @@ from PySide6.QtWidgets import (
 
 from app.gui.curves import ContactCurves, HistoryCurve, MonitorCurves, ProfileCurve, SeriesCurves, write_curves_csv
 from app.gui.document import parse_number
-from app.render import FIELDS, bar_format, field_info, field_values, value_range
+from app.render import FIELDS, bar_format, field_info, field_values, structure_labels, value_range
 
 logger = logging.getLogger(__name__)
 
@@ -147,7 +147,7 @@ class ParticleScene(QWidget):
         with an outline, as in :mod:`app.render`'s pictures."""
         import pyvista as pv
 
-        for name in ("structures", "structure-outlines"):
+        for name in ("structures", "structure-outlines", "structure-names-labels"):
             self.plotter.remove_actor(name, render=False)
         faces, segments = [], []
         for structure in structures:
@@ -170,6 +170,12 @@ class ParticleScene(QWidget):
             outline = pv.MultipleLines(lines) if lines is not None else pv.merge([pv.MultipleLines(r) for r in segments])
             self.plotter.add_mesh(outline, color="#5f6368", line_width=1.5, name="structure-outlines", render=False,
                                   reset_camera=False, pickable=False)
+            # named, as the contact-force curves name them
+            points, names = structure_labels(structures, tuple(self.offset))
+            self.plotter.add_point_labels(points, names, name="structure-names", font_size=10, text_color="#3c4043",
+                                          shape=None, show_points=False, always_visible=True, render=False,
+                                          reset_camera=False, justification_horizontal="center",
+                                          justification_vertical="bottom")
         self.structure_count = len(faces)
 
     def show_arrays(self, arrays: dict[str, np.ndarray], time_s: float, caption: str = "") -> None:

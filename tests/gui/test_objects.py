@@ -222,6 +222,7 @@ def test_contact_forces_and_structures_in_the_results(window, make_results, qtbo
     assert window.open_results(path)
     view = window.results_view
     assert view.scene.structure_count == 1 and "structures" in view.scene.plotter.actors
+    assert "structure-names-labels" in view.scene.plotter.actors  # named as the curves name it
     plot = view.contact_plot
     assert list(plot.curves) == ["bottom", "barrier"]
     t, mean, peak = plot.curves["barrier"]

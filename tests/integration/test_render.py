@@ -217,3 +217,25 @@ def test_a_scene_in_real_world_coordinates_is_drawn_as_at_the_origin(tmp_path):
     for masks in (coloured, grey):
         assert masks["origin"].sum() > 300
         assert (masks["origin"] != masks["utm"]).sum() <= 0.02 * masks["origin"].sum()
+
+
+def test_structures_are_named_in_pictures(tmp_path):
+    """The contact-force curves name each structure; a picture with two grey shapes must say which
+    is which (found by a walkthrough): the name stands above the structure's top."""
+    from app.render import structure_labels
+
+    dam = [[0.6, 0.0], [0.7, 0.0], [0.65, 0.12]]
+    points, names = structure_labels([{"name": "dam", "polygon_m": dam}, {"name": "bad", "polygon_m": []}],
+                                     (0.5, 0.0), 0.01)
+    assert names == ["dam"] and np.allclose(points, [[0.15, 0.13, 0.05]])
+    pictures = {}
+    for label in ("dam", ""):
+        meta = {**SYNTHETIC_META, "structures": [{"name": label, "polygon_m": dam}]}
+        writer = ResultsWriter(tmp_path / f"{label or 'none'}.results", "", dict(meta))
+        for frame in synthetic_frames(2):
+            writer.write_frame(frame)
+        writer.close("completed")
+        pictures[label] = imageio.imread(render_frame(tmp_path / f"{label or 'none'}.results", -1, "displacement",
+                                                      tmp_path / f"{label or 'none'}.png", size=SMALL))[..., :3]
+    dark = {k: (img.astype(int).max(axis=-1) < 110) for k, img in pictures.items()}
+    assert dark["dam"].sum() > dark[""].sum() + 20  # the letters
