@@ -1142,22 +1142,47 @@ def read_contacts(path: str | os.PathLike[str]) -> dict[str, dict[str, np.ndarra
     return {name: {k: np.asarray(v) for k, v in cols.items()} for name, cols in out.items()}
 
 
-def contact_curves(contacts: dict[str, dict[str, np.ndarray]]) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+#: The force components :func:`contact_curves` gives: key -> (label, mean column, peak column).
+#: The mean of a component is its interval mean; the peak's, the component of the largest single
+#: step's force (normal and tangential have no peak vector: the peak's magnitude there).
+CONTACT_COMPONENTS = {
+    "magnitude": ("|F|", None, "peak_force_N_per_m"),
+    "x": ("F x", "force_x_N_per_m", "peak_force_x_N_per_m"),
+    "y": ("F y", "force_y_N_per_m", "peak_force_y_N_per_m"),
+    "normal": ("F normal (sides)", "force_normal_N_per_m", "peak_force_N_per_m"),
+    "tangential": ("F tangential (sides)", "force_tangential_N_per_m", "peak_force_N_per_m"),
+}
+
+
+def contact_curves(contacts: dict[str, dict[str, np.ndarray]],
+                   component: str = "magnitude") -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Per contact ``(time_s, mean_N_per_m, peak_N_per_m)`` from :func:`projects.results.read_contacts`.
 
-    The mean force of an output interval is the magnitude of its mean components
-    ``hypot(force_x, force_y)`` (N per metre out of plane); the peak is the largest single-step force
-    in it (``peak_force_N_per_m``). Each value belongs to the interval that *ends* at its time.
+    ``component`` (:data:`CONTACT_COMPONENTS`): ``"magnitude"``, the magnitude of the interval's
+    mean components ``hypot(force_x, force_y)`` (N per metre out of plane) and the largest
+    single-step force in it (``peak_force_N_per_m``); ``"x"`` or ``"y"``, that signed component of
+    both (a force that reverses shows as one); ``"normal"`` or ``"tangential"``, the closed sides'
+    components (structures have none: left out) and the peak magnitude. Each value belongs to the
+    interval that *ends* at its time.
     """
+    if component not in CONTACT_COMPONENTS:
+        raise ValueError(f"component {component!r}: one of {', '.join(CONTACT_COMPONENTS)}")
+    _label, mean_key, peak_key = CONTACT_COMPONENTS[component]
     out = {}
     for name, columns in contacts.items():
         t = np.asarray(columns.get("time_s", []), dtype=float)
-        fx = np.asarray(columns.get("force_x_N_per_m", np.full(len(t), np.nan)), dtype=float)
-        fy = np.asarray(columns.get("force_y_N_per_m", np.full(len(t), np.nan)), dtype=float)
-        peak = np.asarray(columns.get("peak_force_N_per_m", np.full(len(t), np.nan)), dtype=float)
-        if not (len(t) == len(fx) == len(fy) == len(peak)):
+        nan = np.full(len(t), np.nan)
+        if mean_key is None:
+            mean = np.hypot(np.asarray(columns.get("force_x_N_per_m", nan), dtype=float),
+                            np.asarray(columns.get("force_y_N_per_m", nan), dtype=float))
+        else:
+            mean = np.asarray(columns.get(mean_key, nan), dtype=float)
+            if component in ("normal", "tangential") and not np.isfinite(mean).any():
+                continue  # a structure: no normal or tangential
+        peak = np.asarray(columns.get(peak_key, nan), dtype=float)
+        if not (len(t) == len(mean) == len(peak)):
             continue
-        out[name] = (t, np.hypot(fx, fy), peak)
+        out[name] = (t, mean, peak)
     return out
 
 

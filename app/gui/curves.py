@@ -235,53 +235,114 @@ class ProfileCurve(_Canvas):
 class ContactCurves(_Canvas):
     """The force the material exerts on each closed side and structure against time: the mean
     over each output interval (left) and the largest single-step force in it (right), N/m, one
-    line per contact, drawn as steps over the interval each value belongs to."""
+    line per contact, drawn as steps over the interval each value belongs to.
+
+    Above the plots, the component to show (:data:`projects.results.CONTACT_COMPONENTS`: the
+    magnitude, the signed x or y component, which shows a force that reverses, or the sides'
+    normal and tangential force); the legend stands beside the plots, not over the curves, and a
+    click on a contact's entry hides or shows it (a large base force flattened the curves of the
+    walls and dams beside it)."""
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(2, parent)
-        self.axes[0].set_ylabel("Mean force (N/m)", fontsize=8)
-        self.axes[1].set_ylabel("Peak force (N/m)", fontsize=8)
+        from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel
+
+        from projects.results import CONTACT_COMPONENTS
+
+        self.figure.subplots_adjust(right=0.8)  # the legend's room
+        self.component = QComboBox()
+        for key, (label, _m, _p) in CONTACT_COMPONENTS.items():
+            self.component.addItem(label, key)
+        self.component.setAccessibleName("Contact force component")
+        self.component.setToolTip("The force shown: its magnitude, its signed x or y component (a force that "
+                                  "reverses shows as one), or the sides' normal and tangential parts")
+        self.component.currentIndexChanged.connect(lambda _i: self.set_contacts(self.contacts))
+        row = QHBoxLayout()
+        row.addWidget(QLabel("Force"))
+        row.addWidget(self.component)
+        row.addStretch(1)
+        self.layout().insertLayout(0, row)
         self.axes[0].set_title("No contacts.csv in these results", fontsize=8)
+        self.contacts: dict[str, dict[str, np.ndarray]] = {}
         self.curves: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self.lines: dict[str, tuple[Any, Any]] = {}
+        #: contacts the user hid (by a click on the legend); kept across rereads of a live run
+        self.hidden: set[str] = set()
+        self._legend_lines: dict[Any, str] = {}
         self.markers = [ax.axvline(0.0, color="#5f6368", linewidth=0.8, linestyle="--") for ax in self.axes]
         for m in self.markers:
             m.set_visible(False)
+        self.canvas.mpl_connect("pick_event", self._picked)
+        self._label_axes()
+
+    def _label_axes(self) -> None:
+        label = self.component.currentText()
+        self.axes[0].set_ylabel(f"Mean {label} (N/m)", fontsize=8)
+        self.axes[1].set_ylabel(f"Peak {label} (N/m)", fontsize=8)
 
     def clear(self) -> None:
         self.set_contacts({})
 
+    def set_component(self, key: str) -> None:
+        """Show another component (a key of :data:`projects.results.CONTACT_COMPONENTS`)."""
+        index = self.component.findData(key)
+        if index < 0:
+            raise ValueError(f"component {key!r}: not one of the choices")
+        self.component.setCurrentIndex(index)
+
     def set_contacts(self, contacts: dict[str, dict[str, np.ndarray]], now: bool = True) -> None:
         """Show ``contacts.csv`` as :func:`projects.results.read_contacts` gives it (redrawn at once,
         or with the next scheduled redraw when ``now`` is False: a run under way)."""
-        curves = contact_curves(contacts)
+        self.contacts = contacts
+        curves = contact_curves(contacts, self.component.currentData() or "magnitude")
         if list(curves) != list(self.curves):
             for first, second in self.lines.values():
                 first.remove()
                 second.remove()
             self.lines = {}
-            for i, name in enumerate(curves):
-                color = CONTACT_COLORS[i % len(CONTACT_COLORS)]
+            for name in curves:
+                # a contact keeps its colour whichever component is shown (its place in the file)
+                color = CONTACT_COLORS[list(contacts).index(name) % len(CONTACT_COLORS)]
                 (mean,) = self.axes[0].plot([], [], color=color, linewidth=1.4, drawstyle="steps-pre", label=name)
                 (peak,) = self.axes[1].plot([], [], color=color, linewidth=1.2, drawstyle="steps-pre", label=name)
                 self.lines[name] = (mean, peak)
-            legend = self.axes[0].get_legend()
-            if legend is not None:
+            for legend in self.figure.legends:
                 legend.remove()
+            self._legend_lines = {}
             if curves:
-                self.axes[0].legend(fontsize=7, loc="best")
+                legend = self.figure.legend(*self.axes[0].get_legend_handles_labels(), fontsize=7, loc="center right",
+                                            title="click: hide", title_fontsize=6)
+                for handle, name in zip(legend.legend_handles, curves):
+                    handle.set_picker(6)
+                    self._legend_lines[handle] = name
         self.curves = curves
         for name, (t, mean, peak) in curves.items():
-            self.lines[name][0].set_data(t, mean)
-            self.lines[name][1].set_data(t, peak)
+            for line, values in zip(self.lines[name], (mean, peak)):
+                line.set_data(t, values)
+                line.set_visible(name not in self.hidden)
+        for handle, name in self._legend_lines.items():
+            handle.set_alpha(0.25 if name in self.hidden else 1.0)
         if curves:
             title = f"{len(curves)} contact{'' if len(curves) == 1 else 's'}: mean over each output interval"
+        elif contacts:
+            title = f"No contact has a {self.component.currentText()} component"
         else:
             title = "No contacts.csv in these results"
         self.axes[0].set_title(title, fontsize=8)
+        self._label_axes()
         self.schedule()
         if now:
             self.redraw_now()
+
+    def toggle(self, name: str) -> None:
+        """Hide a shown contact's curves, or show a hidden one's (the axes rescale to what is shown)."""
+        self.hidden ^= {name}
+        self.set_contacts(self.contacts)
+
+    def _picked(self, event) -> None:
+        name = self._legend_lines.get(event.artist)
+        if name is not None:
+            self.toggle(name)
 
     def set_time(self, time_s: float | None) -> None:
         for m in self.markers:

@@ -232,6 +232,23 @@ def test_contact_forces_and_structures_in_the_results(window, make_results, qtbo
     x, y = plot.lines["bottom"][0].get_data()
     assert np.allclose(y, [0.0, 100.0, 200.0, 300.0])
     assert plot.lines["bottom"][0].get_drawstyle() == "steps-pre"  # each mean belongs to the interval before it
+    # the legend beside the plots, not over them; the signed components; the sides' normal force
+    assert plot.figure.legends and not any(ax.get_legend() for ax in plot.axes)
+    plot.set_component("x")
+    assert np.allclose(plot.curves["barrier"][1], [0.0, 30.0, 60.0, 90.0])
+    assert np.allclose(plot.curves["barrier"][2], [0.0, 48.0, 96.0, 144.0])  # the peak step's x component
+    assert plot.axes[0].get_ylabel() == "Mean F x (N/m)"
+    plot.set_component("normal")
+    assert list(plot.curves) == ["bottom"]  # a structure has no normal and tangential columns
+    assert np.allclose(plot.curves["bottom"][1], [0.0, 100.0, 200.0, 300.0])
+    plot.set_component("magnitude")
+    # a click on a legend entry hides that contact (a large base force flattened the others)
+    plot.toggle("bottom")
+    assert not plot.lines["bottom"][0].get_visible() and plot.lines["barrier"][0].get_visible()
+    plot.redraw_now()
+    assert plot.axes[0].get_ylim()[1] < 200.0  # scaled to the barrier's 150 N/m, not the base's 300
+    plot.toggle("bottom")
+    assert plot.lines["bottom"][0].get_visible()
     view.show_frame(1)
     assert plot.markers[0].get_visible() and plot.markers[0].get_xdata()[0] == pytest.approx(view.results.times[1])
     # the folder is the interface: rows appended while a run goes on show at the next reread
