@@ -307,15 +307,19 @@ def _thin_structures(project: Project) -> list[str]:
 def _off_node_faces(project: Project) -> list[str]:
     from geometry.polygons import counter_clockwise
 
+    if not project.structures:
+        return []
     dx = project.domain.cell_size_m
     origin = project.domain.origin_m
     lo, hi = FACE_OFFSET_BAND
-    # the bodies' outlines, sampled a quarter cell apart: a face is judged only where a body touches it
+    # the bodies' outlines, sampled a quarter cell apart (at most 4096 points an edge, also where a
+    # subnormal cell size makes the count infinite): a face is judged only where a body touches it
     outline = []
     for body in project.bodies:
         b = np.asarray(body.polygon_m, dtype=np.float64)
         for p, q in zip(b, np.roll(b, -1, axis=0)):
-            count = min(4096, max(1, int(math.ceil(4.0 * float(np.hypot(*(q - p))) / dx))))
+            samples = 4.0 * float(np.hypot(*(q - p))) / dx
+            count = min(4096, max(1, int(math.ceil(samples)))) if math.isfinite(samples) else 4096
             outline.append(p + np.linspace(0.0, 1.0, count + 1)[:, None] * (q - p))
     outline = np.concatenate(outline) if outline else np.zeros((0, 2))
     warnings = []
@@ -442,6 +446,8 @@ def _short_gravity_stage(project: Project) -> list[str]:
     if not float(np.linalg.norm(project.domain.gravity_m_s2)) > 0 or not project.bodies:
         return []
     period = deposit_period(project)
+    if not math.isfinite(period):
+        return []  # no stiffness to speak of (a wave speed that underflows): the time step's business
     for index, stage in enumerate(project.stages):
         if stage.type == "gravity" and stage.duration_s < period:
             recommended = _gravity_stage(project)["duration_s"]
@@ -526,7 +532,8 @@ def recommended_initial_stage(project: Project) -> dict[str, Any]:
 
 def deposit_period(project: Project) -> float:
     """The deposit's fundamental period ``4 H / c_s`` (s): ``H`` the bodies' height along gravity,
-    ``c_s`` the slowest shear-wave speed of the materials."""
+    ``c_s`` the slowest shear-wave speed of the materials (infinite where that speed underflows to
+    zero: a modulus of 5e-324 Pa)."""
     up = _up(project)
     heights = np.concatenate([np.asarray(b.polygon_m, dtype=np.float64) @ up for b in project.bodies])
     height = float(heights.max() - heights.min())
@@ -534,12 +541,15 @@ def deposit_period(project: Project) -> float:
     for material in project.materials.values():
         shear = material.youngs_modulus_pa / (2.0 * (1.0 + material.poisson_ratio))
         speeds.append(math.sqrt(shear / material.density_kg_m3))
-    return 4.0 * height / min(speeds)
+    slowest = min(speeds)
+    return 4.0 * height / slowest if slowest > 0.0 else math.inf
 
 
 def _gravity_stage(project: Project) -> dict[str, Any]:
     """The gravity stage :func:`recommended_initial_stage` gives for sloping ground."""
-    duration = max(1.0, float(f"{GRAVITY_STAGE_PERIODS * deposit_period(project):.2g}"))
+    period = deposit_period(project)
+    # at least 1 s; an infinite period (no stiffness) gives the 1 s too, the time step refuses it
+    duration = max(1.0, float(f"{GRAVITY_STAGE_PERIODS * period:.2g}")) if math.isfinite(period) else 1.0
     return {
         "name": "initial stress",
         "type": "gravity",

@@ -281,8 +281,14 @@ def _to_str(value: Any) -> str:
 
 
 def _nonempty(value: str) -> str:
+    """A name: not empty, one line, no spaces at its ends (it names a column of contacts.csv, a
+    curve, a table row: "wall " and "wall" would read as one and be two)."""
     if not value.strip():
         raise _fail("must not be empty")
+    if value != value.strip():
+        raise _fail("must not begin or end with spaces")
+    if any(ord(c) < 32 or ord(c) == 127 for c in value):
+        raise _fail("must be one line of printable characters")
     return value
 
 

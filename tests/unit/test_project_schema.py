@@ -302,6 +302,9 @@ GOLDEN = [
     ("bodies", [], "bodies = []: needs at least one body ([[bodies]])"),
     ("bodies.0", "block", 'bodies.0 = "block": must be a table'),
     ("bodies.0.name", "", 'bodies.0.name = "": must not be empty'),
+    # "wall " and "wall" would name two contacts.csv rows that read as one
+    ("bodies.0.name", "  block ", 'bodies.0.name = "  block ": must not begin or end with spaces'),
+    ("bodies.0.name", "blo\nck", 'bodies.0.name = "blo\\nck": must be one line of printable characters'),
     ("stages.1.name", 3, "stages.1.name = 3: must be a string"),
     (
         "bodies.0.initial_velocity_m_s",
