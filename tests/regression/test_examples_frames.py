@@ -25,7 +25,9 @@ check-dam example, then compiled the CPU kernels without Taichi's advanced-optim
 of f32 (9e-8 m/s in the first frame of the check dam), written again. Session 17 stopped the walls'
 mirror image from pulling the ghost back and gave its friction to the wall column (issue 11):
 the three examples whose material touches a friction or slip side in these steps (aluminium bars,
-slope, tiny column) written again; the sand column and the check dam kept theirs. Each example runs 200 to 400 steps with its own settings and the
+slope, tiny column) written again; the sand column and the check dam kept theirs. Session 19 found four examples' digests different on its machine with the code unchanged (the landed commit d4e484d gives
+the new digests there too; numpy 2.4.5 and 2.4.6 alike: the CPU's code from Taichi's LLVM or another
+library, in the last bits): written again on the machine CI runs on. Each example runs 200 to 400 steps with its own settings and the
 scatter ``auto`` picks on this machine (serial below 10,000 particles, split above, on a CPU with
 few threads: both repeat bit for bit). A change that alters the numbers of a scene fails here; if
 the change is meant (a physics fix), write the digests again and say so in the commit.
