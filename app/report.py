@@ -204,6 +204,8 @@ def structure_patches(ax, structures: Sequence[Mapping[str, Any]] | None) -> Non
     surface line that runs over it. One legend entry for them all."""
     from matplotlib.patches import Polygon as PolygonPatch
 
+    from app.render import structure_labels
+
     first = True
     for structure in structures or []:
         pts = np.asarray(structure.get("polygon_m") or [], dtype=float).reshape(-1, 2)
@@ -212,9 +214,9 @@ def structure_patches(ax, structures: Sequence[Mapping[str, Any]] | None) -> Non
         ax.add_patch(PolygonPatch(pts, closed=True, facecolor="#b4b4b4", edgecolor="0.3", hatch="///", lw=0.8,
                                   zorder=3, label="structure" if first else None))
         first = False
-        top = pts[np.argmax(pts[:, 1])]
-        ax.annotate(str(structure.get("name", "")), (top[0], top[1]), xytext=(0, 3), textcoords="offset points",
-                    ha="center", va="bottom", fontsize=7, color="0.25", zorder=4)
+    for (x, y, _z), name in zip(*structure_labels(structures)):
+        ax.annotate(name, (x, y), xytext=(0, 3), textcoords="offset points", ha="center", va="bottom", fontsize=7,
+                    color="0.25", zorder=4)
 
 
 def profiles_png(doc: Mapping[str, Any], path: Path,

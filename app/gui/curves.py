@@ -276,9 +276,13 @@ class ContactCurves(_Canvas):
         self._label_axes()
 
     def _label_axes(self) -> None:
-        label = self.component.currentText()
+        from projects.results import CONTACT_COMPONENTS
+
+        label, _mean, peak = CONTACT_COMPONENTS[self.component.currentData() or "magnitude"]
         self.axes[0].set_ylabel(f"Mean {label} (N/m)", fontsize=8)
-        self.axes[1].set_ylabel(f"Peak {label} (N/m)", fontsize=8)
+        # normal and tangential: the peak step's magnitude (contacts.csv has no peak vector along them)
+        peak_label = label if peak != CONTACT_COMPONENTS["magnitude"][2] else CONTACT_COMPONENTS["magnitude"][0]
+        self.axes[1].set_ylabel(f"Peak {peak_label} (N/m)", fontsize=8)
 
     def clear(self) -> None:
         self.set_contacts({})

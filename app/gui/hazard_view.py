@@ -67,18 +67,6 @@ def has_hazard(path: str | os.PathLike[str]) -> bool:
     return (p / HAZARD_JSON).is_file() and (p / PROFILE_CSV).is_file()
 
 
-def _summary_structures(path: Path) -> list:
-    """The structures of a results folder's ``summary.json`` (none where it cannot be read)."""
-    import json
-
-    from projects.results import SUMMARY_NAME
-
-    try:
-        return json.loads((path / SUMMARY_NAME).read_text(encoding="utf-8")).get("structures") or []
-    except (OSError, ValueError, AttributeError):
-        return []
-
-
 def measure_rows(doc: dict[str, Any]) -> list[tuple[str, str, str]]:
     """(label, value with unit, threshold) of each measure of :data:`app.report.MEASURES` in ``doc``."""
     from app.report import MEASURES, measure_value
@@ -238,7 +226,7 @@ class HazardView(QWidget):
             return False
         self.path, self.doc, self._stamp = p, doc, stamp
         scene = None
-        structures = results.summary.get("structures") if results is not None else _summary_structures(p)
+        structures = results.summary.get("structures") if results is not None else None
         if results is not None and len(results):
             try:
                 frame = results.frame(len(results) - 1)

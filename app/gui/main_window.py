@@ -896,7 +896,9 @@ class MainWindow(QMainWindow):
             self.run_dock.show()
             self.show_error("Cannot run", "The project has problems:\n" + "\n".join(str(p) for p in self.doc.problems))
             return False
-        self.run_panel.update_estimate()  # the panel's view of this very project (edits may be pending)
+        if self._estimate_timer.isActive():  # an edit's estimate still pending: the panel's view of this project
+            self._estimate_timer.stop()
+            self.run_panel.update_estimate()
         if self.run_panel.build_error:
             self.run_dock.show()
             self.show_error("Cannot run", "The project cannot be built:\n" + self.run_panel.build_error)

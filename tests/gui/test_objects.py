@@ -240,6 +240,7 @@ def test_contact_forces_and_structures_in_the_results(window, make_results, qtbo
     assert plot.axes[0].get_ylabel() == "Mean F x (N/m)"
     plot.set_component("normal")
     assert list(plot.curves) == ["bottom"]  # a structure has no normal and tangential columns
+    assert plot.axes[1].get_ylabel() == "Peak |F| (N/m)"  # no peak vector along the normal
     assert np.allclose(plot.curves["bottom"][1], [0.0, 100.0, 200.0, 300.0])
     plot.set_component("magnitude")
     # a click on a legend entry hides that contact (a large base force flattened the others)
