@@ -63,6 +63,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--gravity-s", default="recommended",
                     help="project path: the gravity stage's duration (s), or 'recommended' (default): the one "
                          "projects.checks.recommended_initial_stage gives the project, at least 1 s")
+    ap.add_argument("--damping-ratio", type=float, default=0.0,
+                    help="project path: the block's material damping, this fraction of critical at its first "
+                         "shear mode on the base (docs/solver.md, material damping; default 0, undamped)")
     ap.add_argument("--work", type=Path, default=None, help="project path: results folder (default: a temporary one)")
     ap.add_argument("--table", nargs="+", type=Path, help="print the summary of saved CSVs and stop")
     args = ap.parse_args(argv)
@@ -147,7 +150,8 @@ def _project_matrix(args, angles) -> int:
                 t0 = time.perf_counter()
                 gravity_s = None if args.gravity_s == "recommended" else float(args.gravity_s)
                 case = project_text(contact, scheme, precision, thickness, youngs, theta, delta, cell_m=args.cell,
-                                    start=start, aspect=args.aspect, gravity_s=gravity_s)
+                                    start=start, aspect=args.aspect, gravity_s=gravity_s,
+                                    damping_ratio=args.damping_ratio)
                 try:
                     o, _ = run_case(case, work / "run")
                 except RuntimeError as err:  # a failed run (e.g. the stability guard) is a row, not the end
@@ -251,7 +255,7 @@ def _f(value: float) -> str:
 def project_text(contact: str, scheme: str, precision: str, thickness_cells: int, youngs_pa: float,
                  theta_deg: float, delta_deg: float, *, cell_m: float = PROJECT_CELL_M, start: str = "gravity",
                  aspect: float = 4.0, duration_s: float | None = None, gravity_s: float | None = GRAVITY_STAGE_S,
-                 per_cell: int = 2, start_cells: float = 1.0) -> ProjectCase:
+                 per_cell: int = 2, start_cells: float = 1.0, damping_ratio: float = 0.0) -> ProjectCase:
     """A block at rest on a frictional contact as a project file.
 
     ``contact``: ``"bottom"``, ``"left"`` or ``"right"`` (a friction side, the incline made by
@@ -261,7 +265,9 @@ def project_text(contact: str, scheme: str, precision: str, thickness_cells: int
     ``"free"`` (the dynamic stage only). The dynamic stage lasts ``duration_s`` (default: the
     analytic travel of 20 cells plus 5 %, :func:`studies.contact_scenes.run_time`); one frame at
     its end. ``start_cells``: on the ramp, how far down the face from the ramp's convex top vertex
-    the block's upslope end starts (cells).
+    the block's upslope end starts (cells). ``damping_ratio``: the block's material damping
+    (docs/solver.md), that fraction of critical at the block's first shear mode on its base,
+    ``c_s / (4 H)``.
     """
     import numpy as np
 
@@ -275,7 +281,7 @@ def project_text(contact: str, scheme: str, precision: str, thickness_cells: int
         # the recommended stage depends on the block alone, not on the room around it
         probe = project_text(contact, scheme, precision, thickness_cells, youngs_pa, theta_deg, delta_deg,
                              cell_m=cell_m, start=start, aspect=aspect, duration_s=duration_s, gravity_s=1.0,
-                             per_cell=per_cell, start_cells=start_cells)
+                             per_cell=per_cell, start_cells=start_cells, damping_ratio=damping_ratio)
         import tomllib
 
         from projects.checks import recommended_initial_stage
@@ -340,6 +346,10 @@ def project_text(contact: str, scheme: str, precision: str, thickness_cells: int
                       f'contact = {friction}\n')
     else:
         raise ValueError(f"contact {contact!r}: one of bottom, left, right, ramp")
+    damping = ""
+    if damping_ratio > 0.0:
+        c_s = math.sqrt(youngs_pa / (2.0 * (1.0 + POISSON)) / DENSITY)
+        damping = f"damping_ratio = {_f(damping_ratio)}\ndamping_frequency_hz = {_f(c_s / (4.0 * n * dx))}\n"
     stages = ""
     if start == "gravity":
         stages += '[[stages]]\nname = "initial stress"\ntype = "gravity"\nduration_s = GRAVITY_S\n\n'
@@ -368,7 +378,7 @@ model = "linear-elastic"
 density_kg_m3 = {_f(DENSITY)}
 youngs_modulus_pa = {_f(youngs_pa)}
 poisson_ratio = {_f(POISSON)}
-
+{damping}
 [[bodies]]
 name = "block"
 material = "block"

@@ -52,6 +52,8 @@ def solver_material(name: str, material: schema.Material) -> sc.Material:
         tensile_strength_pa=material.tensile_strength_pa if plastic else None,
         mohr_coulomb_match=(material.mohr_coulomb_match or sc.DEFAULT_MOHR_COULOMB_MATCH) if plastic
         else sc.DEFAULT_MOHR_COULOMB_MATCH,
+        damping_ratio=material.damping_ratio or 0.0,
+        damping_frequency_hz=material.damping_frequency_hz or 0.0,
     )
 
 
@@ -400,6 +402,8 @@ MAX_COUNT = 2**62
 #: Engine state per particle: floats (x, x0, v: 2 each; C, stress: 4 each; mass, density,
 #: plastic strain) and bytes (material id int32; active, yielded, band int8).
 ENGINE_FLOATS_PER_PARTICLE = 17
+#: and the damping stress (3 floats) where a material has damping
+VISCOUS_FLOATS_PER_PARTICLE = 3
 ENGINE_BYTES_PER_PARTICLE = 7
 #: Host copies per particle: the built particles (float64 positions, volumes, velocities,
 #: int64 material and body ids), bytes.
@@ -446,8 +450,9 @@ def estimate(project: Project) -> dict[str, object]:
 
     A pure function of the project as it runs (preset applied: :func:`resolve` does that). The particle count is the bodies'
     total area times ``(per_cell / cell_size_m)**2`` (overlaps counted twice; exact for
-    grid-aligned rectangles with lattice seeding). With ``cfl`` the time step is
-    ``cfl * dx / c_p`` with the largest p-wave speed of all materials of all stages; the solver
+    grid-aligned rectangles with lattice seeding). With ``cfl`` the time step is ``cfl`` times the
+    smallest stability limit of all materials of all stages (``dx / c_p``, less for a damped
+    material: :meth:`solver.config.Material.critical_time_step_s`); the solver
     also counts the particle speed in the critical step, so its steps are at least as many as
     estimated. Memory counts the engine's particle and grid fields, the host copies of the
     particles and the frames in flight; disk counts the frame files uncompressed (zlib saves
@@ -485,14 +490,14 @@ def estimate(project: Project) -> dict[str, object]:
     nx, ny = max(1, nx), max(1, ny)
     cells = _count(float(nx) * float(ny))
     nodes = _count(float(nx + 1 + 2 * GRID_PAD) * float(ny + 1 + 2 * GRID_PAD))
-    speeds = [solver_material(n, m).p_wave_speed_m_s for t in material_tables(project) for n, m in t.items()]
-    speeds.extend(solver_material(n, m).p_wave_speed_m_s for n, m in project.materials.items())
-    c_p = max(speeds)
+    materials = [solver_material(n, m) for t in material_tables(project) for n, m in t.items()]
+    materials.extend(solver_material(n, m) for n, m in project.materials.items())
+    c_p = max(m.p_wave_speed_m_s for m in materials)
     numerics = project.numerics
     if numerics.time_step_s is not None:
         dt, source = numerics.time_step_s, "time_step_s"
-    else:
-        dt, source = numerics.cfl * dx / c_p, "cfl"
+    else:  # the solver's own limit (solver.config.Material.critical_time_step_s)
+        dt, source = numerics.cfl * min(m.critical_time_step_s(dx) for m in materials), "cfl"
     durations = [stage.duration_s or 0.0 for stage in project.stages]
     steps = _count(sum(_ratio(d, dt) for d in durations if d > 0.0))
     total = float(sum(durations))
@@ -501,7 +506,9 @@ def estimate(project: Project) -> dict[str, object]:
 
     float_bytes = 8 if numerics.precision == "f64" else 4
     per_particle = (
-        ENGINE_FLOATS_PER_PARTICLE * float_bytes + ENGINE_BYTES_PER_PARTICLE + HOST_BYTES_PER_PARTICLE
+        (ENGINE_FLOATS_PER_PARTICLE + (VISCOUS_FLOATS_PER_PARTICLE if any(m.rayleigh_beta_s > 0.0 for m in materials)
+                                       else 0)) * float_bytes
+        + ENGINE_BYTES_PER_PARTICLE + HOST_BYTES_PER_PARTICLE
         + FRAMES_IN_MEMORY * (FRAME_FLOATS_PER_PARTICLE * float_bytes + FRAME_BYTES_PER_PARTICLE)
     )
     per_node = FLOATS_PER_NODE * float_bytes

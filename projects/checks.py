@@ -34,7 +34,9 @@ workbench shows them):
   NEAR_LIMIT_RATIO times the net driving force): there the undamped elastic body flutters under
   Coulomb friction and slides further than a rigid block would (5 degrees above the limit, blocks
   5 and 20 cells thick: up to +30 % at 40 on 35 degrees, up to +9 % at 35 on 30; one-cell sheets
-  within 0.3 %; docs/validation.md, near-limit slides).
+  within 0.3 %; docs/validation.md, near-limit slides), unless its material is damped by at
+  least NEAR_LIMIT_DAMPING of critical at the body's first shear mode on the contact, which
+  removes the flutter (docs/solver.md, material damping); the warning gives the keys to set.
 
 :func:`recommended_initial_stage` is the default initial-stress stage for a new project (the
 slope template): gravity loading where the ground slopes, k0 where it is level.
@@ -70,9 +72,17 @@ FACE_OFFSET_BAND = (0.55, 0.85)
 #: least NEAR_LIMIT_RATIO times the net driving force, ``tan d / (tan th - tan d)``, are warned
 #: about (measured through the project path, docs/validation.md: 40/35 deg (ratio 5.0) +5.7 to
 #: +30 %, 35/30 (4.7) up to +9 %, 40/32 (2.9) +5.6 %, 40/30 (2.2) +2.3 %, 30/25 (4.2) +0.8 %,
-#: 20/15 (2.8) +0.08 %, 24/21 on a ramp (6.3) +16.5 %).
+#: 20/15 (2.8) +0.08 %, 24/21 on a ramp (6.3) +16.5 %, 40/30 on a ramp (2.2) +10.2 % for a soft
+#: 20-cell block after the recommended gravity stage). Bodies thinner than NEAR_LIMIT_MIN_CELLS cells
+#: along the contact's normal are not: one-cell sheets slide within 0.3 %.
 NEAR_LIMIT_FRICTION_DEG = 20.0
-NEAR_LIMIT_RATIO = 2.5
+NEAR_LIMIT_RATIO = 2.0
+NEAR_LIMIT_MIN_CELLS = 1.5
+#: Damping (fraction of critical at the body's first shear mode on the contact, ``c_s / (4 H)``)
+#: that takes the flutter away in every scheme (measured 5 degrees above the limit, blocks 5 and 20
+#: cells thick, docs/validation.md, near-limit slides with material damping: 0.05 leaves classic
+#: mpm's 20-cell block at 40/35 +5.5 %, 0.1 brings every case within 0.5 %).
+NEAR_LIMIT_DAMPING = 0.1
 
 _CLOSED = ("fixed", "slip", "friction")
 
@@ -470,21 +480,37 @@ def _near_limit_slides(project: Project) -> list[str]:
         carries = float(normal @ up)
         if friction is None or not carries > lo_cos or friction < NEAR_LIMIT_FRICTION_DEG:
             continue
-        if project.materials[project.bodies[index].material].model != "linear-elastic":
+        body = project.bodies[index]
+        name = body.material
+        if project.materials[name].model != "linear-elastic":
             continue
         incline = math.degrees(math.acos(min(1.0, carries)))
         if not incline > friction:
             continue  # held by friction
         ratio = math.tan(math.radians(friction)) / (math.tan(math.radians(incline)) - math.tan(math.radians(friction)))
-        if ratio >= NEAR_LIMIT_RATIO:
-            body = project.bodies[index]
-            return [
-                f"bodies.{index} ({body.name!r}) slides on {where} inclined {incline:.3g} degrees against friction "
-                f"{friction:g} degrees, the friction {ratio:.2g} times the net driving force: so close to a high "
-                "friction limit an elastic body flutters on the contact and slides further than a rigid block "
-                "(5 degrees above the limit, blocks 5-20 cells thick: up to +30 % at 40 on 35 degrees; "
-                "docs/validation.md, near-limit slides)"
-            ]
+        if ratio < NEAR_LIMIT_RATIO:
+            continue
+        # the body's first shear mode on the contact, c_s / (4 H), H its depth along the normal
+        from projects.build import solver_material
+
+        material = solver_material(name, project.materials[name])
+        depth = float(np.ptp(np.asarray(body.polygon_m, dtype=np.float64) @ normal))
+        if not depth >= NEAR_LIMIT_MIN_CELLS * project.domain.cell_size_m:
+            continue  # a sheet a cell or so thick has no body modes to flutter with
+        c_s = math.sqrt(material.shear_modulus_pa / material.density_kg_m3)
+        f1 = c_s / (4.0 * depth) if depth > 0.0 else math.inf
+        damped = material.rayleigh_beta_s * math.pi * f1  # zeta = beta omega / 2
+        if not math.isfinite(f1) or damped >= 0.99 * NEAR_LIMIT_DAMPING:  # 0.99: the 3 digits the warning gives
+            continue
+        return [
+            f"bodies.{index} ({body.name!r}) slides on {where} inclined {incline:.3g} degrees against friction "
+            f"{friction:g} degrees, the friction {ratio:.2g} times the net driving force: so close to a high "
+            "friction limit an undamped elastic body flutters on the contact and slides further than a rigid "
+            "block (5 degrees above the limit, blocks 5-20 cells thick: up to +30 % at 40 on 35 degrees); "
+            f"material damping removes it: set materials.{name}.damping_ratio = {NEAR_LIMIT_DAMPING:g} and "
+            f"damping_frequency_hz = {f1:.3g} (the body's first shear mode; the time step shrinks with it; "
+            "docs/validation.md, near-limit slides)"
+        ]
     return []
 
 

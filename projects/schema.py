@@ -370,6 +370,8 @@ OptPositive = _number_type(gt=0.0, optional=True)
 OptNonNegative = _number_type(ge=0.0, optional=True)
 PoissonRatio = _number_type(ge=0.0, lt=0.5)
 OptAngleDeg = _number_type(ge=0.0, lt=90.0, optional=True)
+#: a material's damping, the fraction of critical at its frequency (docs/solver.md, material damping)
+OptDampingRatio = _number_type(ge=0.0, lt=1.0, optional=True)
 OptCfl = _number_type(gt=0.0, le=1.0, optional=True)
 OptFraction = _number_type(gt=0.0, lt=1.0, optional=True)
 OptRampFraction = _number_type(gt=0.0, le=1.0, optional=True)
@@ -472,6 +474,8 @@ class Material(_Model):
     dilatancy_angle_deg: OptAngleDeg = None
     tensile_strength_pa: OptNonNegativePa = None
     mohr_coulomb_match: Annotated[Literal[MOHR_COULOMB_MATCHES], _choice(MOHR_COULOMB_MATCHES)] | None = None
+    damping_ratio: OptDampingRatio = None
+    damping_frequency_hz: OptPositive = None
 
 
 class MaterialChange(_Model):
@@ -484,6 +488,8 @@ class MaterialChange(_Model):
     friction_angle_deg: OptAngleDeg = None
     dilatancy_angle_deg: OptAngleDeg = None
     tensile_strength_pa: OptNonNegativePa = None
+    damping_ratio: OptDampingRatio = None
+    damping_frequency_hz: OptPositive = None
 
 
 class Body(_Model):
@@ -1054,7 +1060,19 @@ def _material_rules(materials: Mapping[str, Any]) -> list[Problem]:
                     problems.append(
                         Problem(f"{path}.{key}", material[key], 'only allowed with model "drucker-prager"')
                     )
+        problems += _damping_rule(path, material)
     return problems
+
+
+def _damping_rule(path: str, values: Mapping[str, Any]) -> list[Problem]:
+    """A damping ratio above zero needs the frequency it holds at; a frequency needs a ratio."""
+    ratio = _num(values.get("damping_ratio"))
+    if ratio is not None and 0.0 < ratio < 1.0 and "damping_frequency_hz" not in values:
+        return [Problem(f"{path}.damping_frequency_hz", None, "required with damping_ratio > 0: the frequency (Hz) at "
+                        "which the material is damped by that fraction of critical, e.g. the body's first mode")]
+    if "damping_frequency_hz" in values and "damping_ratio" not in values:
+        return [Problem(f"{path}.damping_frequency_hz", values["damping_frequency_hz"], "only allowed with damping_ratio")]
+    return []
 
 
 def _valid_angle(value: Any) -> float | None:
@@ -1314,6 +1332,7 @@ def _change_rules(path: str, changes: Mapping[str, Any], current: dict[str, dict
         if not isinstance(change, Mapping):
             continue
         material = current[name]
+        problems += _damping_rule(change_path, {**material, **change})
         if material.get("model") == "linear-elastic":
             for key in PLASTIC_KEYS:
                 if key in change:

@@ -529,7 +529,8 @@ class StrengthReduction:
         to_solver = {"cohesion_pa": "cohesion_pa", "friction_angle_deg": "friction_angle_rad",
                      "dilatancy_angle_deg": "dilatancy_angle_rad", "tensile_strength_pa": "tensile_strength_pa",
                      "density_kg_m3": "density_kg_m3", "youngs_modulus_pa": "youngs_modulus_pa",
-                     "poisson_ratio": "poisson_ratio"}
+                     "poisson_ratio": "poisson_ratio", "damping_ratio": "damping_ratio",
+                     "damping_frequency_hz": "damping_frequency_hz"}
         for name, change in project_stage.material_changes.items():
             i = names.index(name)
             given = solver_material(name, file_table[name])  # the file's values with the changes

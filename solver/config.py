@@ -72,6 +72,19 @@ class Material:
     dilatancy_angle_rad: float = 0.0
     tensile_strength_pa: float | None = None
     mohr_coulomb_match: str = DEFAULT_MOHR_COULOMB_MATCH
+    #: stiffness-proportional (Rayleigh) damping: the critical-damping fraction ``damping_ratio`` at
+    #: ``damping_frequency_hz`` (0: undamped; docs/solver.md, material damping)
+    damping_ratio: float = 0.0
+    damping_frequency_hz: float = 0.0
+
+    @property
+    def rayleigh_beta_s(self) -> float:
+        """The stiffness-proportional damping coefficient ``beta = zeta / (pi f)`` (s): the viscous
+        stress is ``beta C : D``, so a mode of angular frequency ``omega`` is damped by the fraction
+        ``beta omega / 2`` of critical, ``zeta`` at ``f``."""
+        if self.damping_ratio <= 0.0 or self.damping_frequency_hz <= 0.0:
+            return 0.0
+        return self.damping_ratio / (math.pi * self.damping_frequency_hz)
 
     @property
     def bulk_modulus_pa(self) -> float:
@@ -86,6 +99,19 @@ class Material:
         """Speed of the dilatational wave, sqrt((K + 4G/3) / rho)."""
         constrained = self.bulk_modulus_pa + 4.0 * self.shear_modulus_pa / 3.0
         return math.sqrt(constrained / self.density_kg_m3)
+
+    def critical_time_step_s(self, cell_size_m: float, max_speed_m_s: float = 0.0) -> float:
+        """The explicit step's stability limit in this material: ``dx / (c_p + v_max)``, with damping
+        shortened by ``sqrt(1 + xi^2) - xi`` (the central-difference limit under stiffness-proportional
+        damping, ``omega_max dt <= 2 (sqrt(1 + xi^2) - xi)`` with ``xi = beta omega_max / 2`` the
+        damping fraction of the grid's highest mode, ``omega_max = 2 c_p / dx``; Belytschko, Liu and
+        Moran, Nonlinear Finite Elements for Continua and Structures, 2000, sec. 6.3)."""
+        step = cell_size_m / (self.p_wave_speed_m_s + max_speed_m_s)
+        beta = self.rayleigh_beta_s
+        if beta > 0.0:
+            xi = beta * self.p_wave_speed_m_s / cell_size_m
+            step /= math.hypot(1.0, xi) + xi  # times sqrt(1 + xi^2) - xi, without the cancellation
+        return step
 
     @property
     def default_k0(self) -> float:

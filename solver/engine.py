@@ -117,7 +117,7 @@ class Engine:
     def __init__(self, grid: Grid, materials: tuple[Material, ...], n_particles: int, scheme: str,
                  np_float=np.float32, speed_bound_m_s: float = 1e30, remove_unstable: bool = False,
                  damping: bool = True, scatter: str = "auto", bands: int | None = None,
-                 structures: tuple[Structure, ...] = ()):
+                 structures: tuple[Structure, ...] = (), viscous: bool | None = None):
         if scheme not in ("mpm", "apic", "apic-affine"):
             raise ValueError(f"unknown scheme {scheme!r}; allowed: mpm, apic, apic-affine")
         self.scheme = scheme
@@ -154,6 +154,11 @@ class Engine:
         self.mat = ti.field(ti.i32, n)
         self.active = ti.field(ti.i8, n)
         self.yielded = ti.field(ti.i8, n)
+        # the materials' damping stress (docs/solver.md, material damping), only where a material
+        # has some (``viscous``: in any stage; by default, in the materials given here). Written by
+        # the constitutive update and read by the force passes of the same step, so never state.
+        self.viscous = (any(m.rayleigh_beta_s > 0.0 for m in materials) if viscous is None else bool(viscous))
+        self.sv = ti.Vector.field(3, float, n if self.viscous else 1)
 
         # Grid: what every scheme needs, plus the force and old-velocity fields only where used.
         # ``g_mom`` holds momentum after P2G and the new velocity after the grid update.
@@ -914,12 +919,24 @@ class Engine:
         W = 0.5 * (L - Lt)
         s, deq, yielded = self.materials.stress_update(self.mat[p], self.s[p], D, W, dt)
         self.s[p] = s
+        if ti.static(self.viscous):
+            self.sv[p] = self.materials.viscous_stress(self.mat[p], D)
         self.eps_p[p] += deq
         self.yielded[p] = ti.cast(yielded, ti.i8)
         rho = self.rho[p] / (1.0 + (D[0, 0] + D[1, 1]) * dt)  # eq 24
         rho = ti.max(rho, DENSITY_FLOOR * self.materials.rho0[self.mat[p]])
         self.rho[p] = rho
         return self.m[p] / rho
+
+    @ti.func
+    def _force_stress(self, p):
+        """The stress particle p's force passes use (2x2, Pa): its stress, plus its damping stress."""
+        s = self.s[p]
+        sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
+        if ti.static(self.viscous):
+            d = self.sv[p]
+            sig += ti.Matrix([[d[0], d[2]], [d[2], d[1]]])
+        return sig
 
     @ti.func
     def _reset_grid(self):
@@ -1212,8 +1229,7 @@ class Engine:
             F = -ti.Matrix.identity(float, 2)
             if self.st_kind[st] == SLIP:
                 F = R
-            s = self.s[p]
-            sig = F @ ti.Matrix([[s[0], s[2]], [s[2], s[1]]]) @ R
+            sig = F @ self._force_stress(p) @ R
             m = self.m[p]
             vol = m / self.rho[p]
             body = F @ (m * g)
@@ -1288,8 +1304,7 @@ class Engine:
             ghost_lo[d] = base[d] == PAD - 1 and self._closed(self.bc_kind[2 * d])
             ghost_hi[d] = base[d] == PAD + self.cells[d] - 1 and self._closed(self.bc_kind[2 * d + 1])
         if ghost_lo[0] or ghost_lo[1] or ghost_hi[0] or ghost_hi[1]:
-            s = self.s[p]
-            sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
+            sig = self._force_stress(p)
             m = self.m[p]
             vol = m / self.rho[p]
             for k in range(9):  # a runtime loop: this rare path compiles once, not nine times
@@ -1362,8 +1377,7 @@ class Engine:
         """Mass, APIC momentum and (fused or apart) internal and body force of particle p."""
         base, fx, w, dw = self._stencil(self.x[p])
         self.to_grid.cover(self, base)
-        s = self.s[p]
-        sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
+        sig = self._force_stress(p)
         m = self.m[p]
         mv = m * self.v[p]
         mC = m * self.C[p]
@@ -1462,8 +1476,7 @@ class Engine:
     @ti.func
     def _force_particle(self, p, vol, g):
         base, fx, w, dw = self._stencil(self.x[p])
-        s = self.s[p]
-        sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
+        sig = self._force_stress(p)
         m = self.m[p]
         for i, j in ti.static(ti.ndrange(3, 3)):
             weight = w[i][0] * w[j][1]

@@ -127,13 +127,18 @@ class Progress:
     particle_steps_per_s: float
 
 
-def critical_time_step(config: SimulationConfig, max_speed_m_s: float = 0.0) -> float:
-    """``dx / (c_p + v_max)`` with the largest p-wave speed of all materials of all stages."""
+def all_materials(config: SimulationConfig) -> list[Material]:
+    """The materials of the run and of every stage's changes."""
     mats = list(config.materials)
     for st in config.stages:
         mats.extend(st.materials or ())
-    c_p = max(m.p_wave_speed_m_s for m in mats)
-    return config.grid.cell_size_m / (c_p + max_speed_m_s)
+    return mats
+
+
+def critical_time_step(config: SimulationConfig, max_speed_m_s: float = 0.0) -> float:
+    """The smallest stability limit of all materials of all stages
+    (:meth:`solver.config.Material.critical_time_step_s`: ``dx / (c_p + v_max)``, less with damping)."""
+    return min(m.critical_time_step_s(config.grid.cell_size_m, max_speed_m_s) for m in all_materials(config))
 
 
 def validate(config: SimulationConfig, particles: Particles) -> None:
@@ -215,6 +220,7 @@ class Simulation:
             local_grid, config.materials, len(particles), config.numerics.scheme, np_float,
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
             damping=damping_support or any(st.damping > 0 for st in config.stages), scatter=config.numerics.scatter,
+            viscous=any(m.rayleigh_beta_s > 0.0 for m in all_materials(config)),
             # the structures in the engine's coordinates too (relative to the grid origin)
             structures=tuple(dataclasses.replace(st, polygon_m=tuple(
                 (float(x - self.origin_m[0]), float(y - self.origin_m[1])) for x, y in st.polygon_m))
@@ -437,9 +443,12 @@ class Simulation:
                 f"largest unbalanced acceleration {check['max_unbalanced_acceleration_m_s2']:.3g} m/s2, "
                 f"largest speed at its end {max_speed_m_s:.3g} m/s")
         if not ratio <= EQUILIBRIUM_WARN_RATIO:
+            # what leaves each kind of stage out of equilibrium
+            cause = ("free faces, or K0 under sloping ground: use a gravity stage there" if stage.kind == "k0" else
+                     "a body its contacts cannot hold, sliding on (friction below the slope), or a stage too "
+                     "short for the bodies to settle in")
             log.warning("%s: above %g, the initial state is not in equilibrium and the next stage starts "
-                        "with motion of its own (free faces, or K0 under sloping ground: use a gravity "
-                        "stage there)", text, EQUILIBRIUM_WARN_RATIO)
+                        "with motion of its own (%s)", text, EQUILIBRIUM_WARN_RATIO, cause)
         else:
             log.info(text)
         return check

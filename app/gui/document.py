@@ -27,6 +27,7 @@ from PySide6.QtCore import QObject, Signal
 from PySide6.QtGui import QUndoCommand, QUndoStack
 
 from projects.document import dumps_project, loads_project, parse_toml, save_project
+from projects.schema import PLASTIC_KEYS as FILE_PLASTIC_KEYS
 from projects.schema import (
     OUTPUT_FIELDS,
     SCHEMA_VERSION,
@@ -59,6 +60,8 @@ FIELD_INFO: dict[str, tuple[str, str]] = {
     "friction_angle_deg": ("Friction angle", "°"),
     "dilatancy_angle_deg": ("Dilatancy angle", "°"),
     "tensile_strength_pa": ("Tensile strength", "Pa"),
+    "damping_ratio": ("Damping ratio", "–"),
+    "damping_frequency_hz": ("Damping frequency", "Hz"),
     "cell_size_m": ("Cell size", "m"),
     "duration_s": ("Duration", "s"),
     "k0": ("K0 (empty: 1 − sin φ)", "–"),
@@ -78,8 +81,17 @@ MATERIAL_KEYS: tuple[str, ...] = (
     "friction_angle_deg",
     "dilatancy_angle_deg",
     "tensile_strength_pa",
+    "damping_ratio",
+    "damping_frequency_hz",
 )
-PLASTIC_KEYS: tuple[str, ...] = MATERIAL_KEYS[3:]
+#: the keys only a Drucker-Prager material has (the file's rule: projects.schema.PLASTIC_KEYS)
+PLASTIC_KEYS: tuple[str, ...] = tuple(k for k in MATERIAL_KEYS if k in FILE_PLASTIC_KEYS)
+#: keys a material may leave out, with what an empty field means
+OPTIONAL_MATERIAL_KEYS: dict[str, str] = {
+    "tensile_strength_pa": "no cut-off",
+    "damping_ratio": "undamped",
+    "damping_frequency_hz": "with a damping ratio",
+}
 
 
 def new_project_data() -> dict[str, Any]:

@@ -42,6 +42,7 @@ from PySide6.QtWidgets import (
 from app.gui.document import (
     FIELD_INFO,
     MATERIAL_KEYS,
+    OPTIONAL_MATERIAL_KEYS,
     PLASTIC_KEYS,
     ProjectDocument,
     check_value,
@@ -271,9 +272,9 @@ class MaterialsPanel(Panel):
         self.fields: dict[str, NumberField] = {}
         for key in MATERIAL_KEYS:
             label, unit = FIELD_INFO[key]
-            optional = key == "tensile_strength_pa"
+            optional = key in OPTIONAL_MATERIAL_KEYS
             field = NumberField(doc, None, label, unit, optional=optional,
-                                placeholder="no cut-off" if optional else "")
+                                placeholder=OPTIONAL_MATERIAL_KEYS.get(key, ""))
             self.fields[key] = field
             form.addRow(label, field)
             self.watch(field)

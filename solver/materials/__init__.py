@@ -18,7 +18,7 @@ from solver.materials import drucker_prager, linear_elastic
 
 MODEL_CODES = {"linear-elastic": 0, "drucker-prager": 1}
 #: Columns of the per-material table (one Taichi field each).
-MATERIAL_COLUMNS = ("model", "K", "G", "alpha", "kc", "alpha_psi", "t_cut", "rho0")
+MATERIAL_COLUMNS = ("model", "K", "G", "alpha", "kc", "alpha_psi", "t_cut", "rho0", "beta")
 
 
 def material_rows(materials: Sequence[Material]) -> dict[str, np.ndarray]:
@@ -41,6 +41,7 @@ def material_rows(materials: Sequence[Material]) -> dict[str, np.ndarray]:
         rows["alpha_psi"].append(alpha_psi)
         rows["t_cut"].append(min(t_cut, 1e30))
         rows["rho0"].append(m.density_kg_m3)
+        rows["beta"].append(m.rayleigh_beta_s)
     return {k: np.asarray(v, dtype=np.int32 if k == "model" else np.float64) for k, v in rows.items()}
 
 
@@ -65,6 +66,7 @@ class MaterialTable:
         self.alpha_psi = ti.field(float, n)
         self.t_cut = ti.field(float, n)
         self.rho0 = ti.field(float, n)
+        self.beta = ti.field(float, n)  # stiffness-proportional damping coefficient, s
         #: the table's fields by column name
         self.columns = {name: getattr(self, name) for name in MATERIAL_COLUMNS}
         #: the table as loaded, numpy columns in the fields' dtypes
@@ -106,6 +108,17 @@ class MaterialTable:
                 trial, K, G, self.alpha[mat], self.kc[mat], self.alpha_psi[mat], self.t_cut[mat]
             )
         return out, deq, yielded
+
+    @ti.func
+    def viscous_stress(self, mat, D):
+        """The stiffness-proportional (Rayleigh) damping stress ``beta C^e : D`` in plane (xx, yy,
+        xy; Pa): a Kelvin-Voigt dashpot beside the material's own response, zero for rigid motion."""
+        K = self.K[mat]
+        G = self.G[mat]
+        beta = self.beta[mat]
+        lam = K - 2.0 * G / 3.0
+        tr = D[0, 0] + D[1, 1]
+        return beta * ti.Vector([lam * tr + 2.0 * G * D[0, 0], lam * tr + 2.0 * G * D[1, 1], 2.0 * G * D[0, 1]])
 
 
 @ti.data_oriented

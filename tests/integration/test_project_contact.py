@@ -13,14 +13,17 @@ issue's tolerances). The whole matrix: ``python -m benchmarks.contact_matrix --p
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
+import re
 import tomllib
 
 import pytest
 
 from benchmarks.contact_matrix import project_text, run_case
 from projects.checks import project_warnings
+from projects.document import dumps_project
 from projects.results import read_contacts
 from projects.schema import validate_project
 
@@ -66,7 +69,11 @@ def test_a_block_slides_or_sticks_as_coulomb_says_through_the_project_path(
         tmp_path, contact, scheme, precision, thickness, youngs, theta, delta):
     # bodies at rest: after the gravity stage the tool recommends (projects.checks.recommended_initial_stage)
     case = project_text(contact, scheme, precision, thickness, youngs, theta, delta, gravity_s=None)
-    assert project_warnings(validate_project(tomllib.loads(case.text))) == []
+    warnings = project_warnings(validate_project(tomllib.loads(case.text)))
+    # the slides at 40/30 (friction 2.2 times the drive) of blocks thicker than a cell are warned
+    # about (the flutter, up to +10 % on the ramp; LIMITS); they are run undamped all the same
+    flutter = theta == 40 and delta == 30 and thickness > 1
+    assert len(warnings) == flutter and all("flutters" in w for w in warnings), warnings
     outcome, result = run_case(case, tmp_path / "run")
     assert outcome.slides == (delta < theta)
     _check(outcome)
@@ -265,7 +272,7 @@ def test_no_creep_warning_with_an_initial_stress_stage_or_where_it_would_not_cre
 
 @pytest.mark.parametrize("contact,where", [("bottom", "the bottom wall"), ("left", "the left wall"),
                                            ("right", "the right wall"), ("ramp", "structures.0 ('ramp')")])
-@pytest.mark.parametrize("theta,delta", [(40, 35), (35, 30), (40, 32), (24, 21)])
+@pytest.mark.parametrize("theta,delta", [(40, 35), (35, 30), (40, 32), (24, 21), (40, 30)])
 def test_a_slide_just_above_a_high_friction_limit_is_a_warning(contact, where, theta, delta):
     warnings = _warnings(contact, theta=theta, delta=delta, start="gravity", gravity_s=None)
     assert len(warnings) == 1
@@ -275,10 +282,56 @@ def test_a_slide_just_above_a_high_friction_limit_is_a_warning(contact, where, t
     assert "flutter" in warnings[0]
 
 
-@pytest.mark.parametrize("theta,delta", [(40, 30), (20, 15), (30, 20), (40, 45), (38, 36 - 20)])
+@pytest.mark.parametrize("theta,delta", [(40, 28), (20, 15), (30, 20), (40, 45), (38, 36 - 20)])
 def test_no_flutter_warning_far_from_the_limit_at_low_friction_or_where_it_holds(theta, delta):
-    # 40/30: friction 2.2 times the drive, +2.3 % at worst; 20/15: low friction (+0.08 %); 40/45 holds
+    # 40/28 and 30/20: friction 1.7 times the drive; 20/15: low friction (+0.08 %); 40/45 holds
     assert _warnings(theta=theta, delta=delta, start="gravity", gravity_s=None) == []
+
+
+@pytest.mark.parametrize("contact", ["bottom", "left", "ramp"])
+def test_no_flutter_warning_for_a_one_cell_sheet(contact):
+    # one-cell sheets slide within 0.3 % at 40/35 and 35/30 (no body modes to flutter with)
+    case = project_text(contact, "apic-affine", "f32", 1, 1e6, 40, 35, start="gravity", gravity_s=1.0)
+    assert project_warnings(validate_project(tomllib.loads(case.text))) == []
+    thick = project_text(contact, "apic-affine", "f32", 2, 1e6, 40, 35, start="gravity", gravity_s=1.0)
+    assert len(project_warnings(validate_project(tomllib.loads(thick.text)))) == 1
+
+
+# Near-limit slides with the material damping the warning gives (damping_ratio 0.1 at the body's
+# first shear mode on the contact; docs/solver.md, material damping): undamped these slid +13.8 %,
+# +30 %, +7.9 %, +23.9 % (LIMITS above; docs/validation/contact/project-near-limit-5deg-s19.csv).
+# A stiffness-proportional damping leaves rigid motion alone, so the rigid block's distance is the
+# answer again, within the 3 %.
+DAMPED_NEAR_LIMIT = [
+    ("bottom", "apic-affine", "f32", 5, 1e6, 40, 35),
+    ("bottom", "apic-affine", "f32", 20, 1e6, 40, 35),
+    ("bottom", "mpm", "f32", 20, 1e6, 40, 35),
+    ("right", "mpm", "f32", 5, 1e6, 40, 36),
+    ("left", "apic", "f64", 5, 1e8, 35, 30),
+    ("ramp", "apic", "f32", 5, 1e6, 40, 35),
+]
+
+
+@pytest.mark.parametrize("contact,scheme,precision,thickness,youngs,theta,delta", DAMPED_NEAR_LIMIT,
+                         ids=[f"{c}-{s}-{p}-{n}cells-E{e:g}-{t}on{d}" for c, s, p, n, e, t, d in DAMPED_NEAR_LIMIT])
+def test_the_damping_the_flutter_warning_gives_makes_the_slide_right(tmp_path, contact, scheme, precision, thickness,
+                                                                     youngs, theta, delta):
+    case = project_text(contact, scheme, precision, thickness, youngs, theta, delta, gravity_s=None)
+    data = tomllib.loads(case.text)
+    [warning] = project_warnings(validate_project(data))
+    found = re.search(r"set materials\.block\.damping_ratio = (\S+) and damping_frequency_hz = (\S+) ", warning)
+    assert found, warning
+    ratio, frequency = float(found.group(1)), float(found.group(2))
+    # the first shear mode of the block on its base, c_s / (4 H)
+    c_s = math.sqrt(youngs / (2 * (1 + 0.3)) / 2000.0)
+    assert frequency == pytest.approx(c_s / (4 * thickness * case.cell_m), rel=5e-3)  # 3 digits
+    data["materials"]["block"].update(damping_ratio=ratio, damping_frequency_hz=frequency)
+    project = validate_project(data)
+    assert project_warnings(project) == []  # damped enough: no warning any more
+    damped = dataclasses.replace(case, text=dumps_project(project))
+    outcome, _ = run_case(damped, tmp_path / "run")
+    assert outcome.slides
+    _check(outcome)
 
 
 @pytest.mark.parametrize("contact", ["bottom", "ramp"])

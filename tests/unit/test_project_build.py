@@ -298,3 +298,21 @@ def test_estimate_counts_stiffer_materials_of_later_stages():
     base = estimate(loads_project(MINIMAL))
     stiff = estimate(project)
     assert stiff["max_p_wave_speed_m_s"] == pytest.approx(2.0 * base["max_p_wave_speed_m_s"])
+
+
+@pytest.mark.parametrize("where", ["materials.soil", "stages.1.material_changes.soil"])
+@pytest.mark.parametrize("ratio,frequency", [(0.05, 2.0), (0.2, 0.5)])
+def test_estimate_counts_the_shorter_step_of_a_damped_material(where, ratio, frequency):
+    # the solver's own limit (solver.config.Material.critical_time_step_s), in whichever stage
+    project = apply_overrides(loads_project(MINIMAL), [f"{where}.damping_ratio={ratio}",
+                                                       f"{where}.damping_frequency_hz={frequency}"])
+    base = estimate(loads_project(MINIMAL))
+    damped = estimate(project)
+    beta = ratio / (math.pi * frequency)
+    xi = beta * base["max_p_wave_speed_m_s"] / 0.1
+    assert damped["time_step_s"] == pytest.approx(base["time_step_s"] * (math.sqrt(1 + xi * xi) - xi))
+    assert damped["steps"] == math.ceil(0.25 / damped["time_step_s"])
+    assert damped["memory_bytes"] > base["memory_bytes"]  # the damping stress per particle
+    config = solver_config(project)
+    assert damped["time_step_s"] == pytest.approx(0.5 * min(
+        m.critical_time_step_s(0.1) for m in (*config.materials, *(config.stages[1].materials or ()))))

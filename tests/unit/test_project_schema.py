@@ -221,7 +221,23 @@ GOLDEN = [
         {"bars": {"friction_angle": 10.0}},
         "stages.1.material_changes.bars.friction_angle: unknown key; allowed: density_kg_m3, "
         "youngs_modulus_pa, poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, "
-        "tensile_strength_pa",
+        "tensile_strength_pa, damping_ratio, damping_frequency_hz",
+    ),
+    (
+        "stages.1.material_changes",
+        {"bars": {"damping_ratio": 0.05}},
+        "stages.1.material_changes.bars.damping_frequency_hz: required with damping_ratio > 0: the frequency (Hz) "
+        "at which the material is damped by that fraction of critical, e.g. the body's first mode",
+    ),
+    (
+        "materials.bars.damping_ratio",
+        1.0,
+        "materials.bars.damping_ratio = 1.0: must be >= 0 and < 1",
+    ),
+    (
+        "materials.bars.damping_frequency_hz",
+        2.0,
+        "materials.bars.damping_frequency_hz = 2.0: only allowed with damping_ratio",
     ),
     (
         "stages.1.material_changes",
@@ -329,6 +345,24 @@ def test_linear_elastic_rejects_every_plastic_key():
         'materials.bars.friction_angle_deg = 19.8: only allowed with model "drucker-prager"',
         'materials.bars.dilatancy_angle_deg = 0.0: only allowed with model "drucker-prager"',
     ]
+
+
+@pytest.mark.parametrize("model", ["linear-elastic", "drucker-prager"])
+def test_material_damping_takes_a_ratio_below_one_and_a_positive_frequency(model):
+    data = copy.deepcopy(BASE)
+    data["materials"]["bars"]["damping_ratio"] = 0.05
+    data["materials"]["bars"]["damping_frequency_hz"] = 0.0
+    if model == "linear-elastic":
+        data["materials"]["bars"] = {k: v for k, v in data["materials"]["bars"].items()
+                                     if k not in ("cohesion_pa", "friction_angle_deg", "dilatancy_angle_deg")}
+        data["materials"]["bars"]["model"] = model
+    assert problems_of(data) == ["materials.bars.damping_frequency_hz = 0.0: must be > 0"]
+    data["materials"]["bars"]["damping_frequency_hz"] = 3.5
+    material = validate_project(data).materials["bars"]
+    assert (material.damping_ratio, material.damping_frequency_hz) == (0.05, 3.5)
+    data["materials"]["bars"]["damping_ratio"] = 0.0  # zero: undamped, no frequency needed
+    del data["materials"]["bars"]["damping_frequency_hz"]
+    assert validate_project(data).materials["bars"].damping_ratio == 0.0
 
 
 def test_linear_elastic_material_without_plastic_keys_is_valid():
