@@ -278,6 +278,13 @@ class MaterialsPanel(Panel):
             self.fields[key] = field
             form.addRow(label, field)
             self.watch(field)
+        self.fields["damping_ratio"].setToolTip(
+            "Stiffness-proportional (Rayleigh) damping: the fraction of critical damping at the damping "
+            "frequency, in proportion to frequency elsewhere; rigid motion is not damped. Empty: undamped "
+            "(the paper's model). The time step shrinks with it (docs/solver.md, material damping)")
+        self.fields["damping_frequency_hz"].setToolTip(
+            "The frequency the damping ratio holds at, usually the body's first mode: c_s / (4 H) for a "
+            "block or layer of depth H on its base, c_s = sqrt(G / density)")
         # which Drucker-Prager cone stands for the Mohr-Coulomb c and phi (docs/solver.md)
         self.match = ChoiceField(doc, None, "Mohr-Coulomb match", MOHR_COULOMB_MATCHES,
                                  default=DEFAULT_MOHR_COULOMB_MATCH)
