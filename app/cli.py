@@ -617,7 +617,13 @@ def validate(
     grid = resolved.config.grid
     nx, ny = grid.cells
     numerics = resolved.config.numerics
-    step = f"dt {numerics.time_step_s:g} s" if numerics.time_step_s is not None else f"cfl {numerics.cfl:g}"
+    e = resolved.estimate
+    if numerics.time_step_s is not None:
+        step = f"dt {numerics.time_step_s:g} s"
+    else:  # the step cfl gives, and what material damping costs of it (docs/solver.md)
+        damping = (f", {e['time_step_shrink_by_damping']:.2g}x shorter for the damping of "
+                   f"{e['damping_key'].rsplit('.', 1)[0]}" if e.get("damping_key") else "")
+        step = f"cfl {numerics.cfl:g} (dt {e['time_step_s']:.3g} s{damping})"
     preset = f" (preset {resolved.project.numerics.preset})" if resolved.project.numerics.preset else ""
     out.print(
         f"ok: {resolved.particle_count:,} particles, {len(resolved.config.materials)} materials, "

@@ -498,6 +498,10 @@ def estimate(project: Project) -> dict[str, object]:
         dt, source = numerics.time_step_s, "time_step_s"
     else:  # the solver's own limit (solver.config.Material.critical_time_step_s)
         dt, source = numerics.cfl * min(m.critical_time_step_s(dx) for m in materials), "cfl"
+    # how many times shorter material damping makes the stability limit, and whose damping
+    undamped_limit = min(_ratio(dx, m.p_wave_speed_m_s) for m in materials)
+    damped_limit, damped = min(((m.critical_time_step_s(dx), m) for m in materials), key=lambda x: x[0])
+    shrink = _ratio(undamped_limit, damped_limit) if damped.rayleigh_beta_s > 0.0 else 1.0
     durations = [stage.duration_s or 0.0 for stage in project.stages]
     steps = _count(sum(_ratio(d, dt) for d in durations if d > 0.0))
     total = float(sum(durations))
@@ -527,6 +531,8 @@ def estimate(project: Project) -> dict[str, object]:
         "seeding_candidates": candidates,
         "time_step_s": dt,
         "time_step_source": source,
+        "time_step_shrink_by_damping": shrink,
+        "damping_key": _damping_key(project, damped.name) if shrink > 1.0 else None,
         "max_p_wave_speed_m_s": c_p,
         "simulated_time_s": total,
         "steps": steps,
@@ -541,6 +547,16 @@ def estimate(project: Project) -> dict[str, object]:
     }
 
 
+def _damping_key(project: Project, name: str) -> str:
+    """Where material ``name``'s damping ratio is given: the material, or the last stage change of it."""
+    key = f"materials.{name}.damping_ratio"
+    for index, stage in enumerate(project.stages):
+        change = stage.material_changes.get(name)
+        if change is not None and change.damping_ratio is not None:
+            key = f"stages.{index}.material_changes.{name}.damping_ratio"
+    return key
+
+
 def describe(project: Project) -> str:
     """One line summarising :func:`estimate` (for logs and the command line).
 
@@ -553,8 +569,10 @@ def describe(project: Project) -> str:
     str
     """
     e = resolve(project, seed=False).estimate
+    damping = (f", {e['time_step_shrink_by_damping']:.2g}x shorter for {e['damping_key']}"
+               if e["time_step_source"] == "cfl" and e["damping_key"] else "")
     return (
         f"about {e['particles']} particles, {e['grid_shape'][0]} x {e['grid_shape'][1]} cells, "
-        f"dt {e['time_step_s']:.3g} s ({e['time_step_source']}), {e['steps']} steps "
+        f"dt {e['time_step_s']:.3g} s ({e['time_step_source']}{damping}), {e['steps']} steps "
         f"over {e['simulated_time_s']:g} s"
     )

@@ -44,6 +44,7 @@ slope template): gravity loading where the ground slopes, k0 where it is level.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -469,16 +470,48 @@ def _short_gravity_stage(project: Project) -> list[str]:
     return []
 
 
+def _first_shear_mode_hz(material, depth_m: float) -> float:
+    """A body's first shear mode on its base, ``c_s / (4 H)`` (Hz; infinite for no depth)."""
+    c_s = math.sqrt(material.shear_modulus_pa / material.density_kg_m3)
+    return c_s / (4.0 * depth_m) if depth_m > 0.0 else math.inf
+
+
+def _damping_at(material, frequency_hz: float) -> float:
+    """The fraction of critical damping a solver material gives a mode of ``frequency_hz``."""
+    return material.rayleigh_beta_s * math.pi * frequency_hz  # zeta = beta omega / 2
+
+
+def _damping_path(project: Project, name: str, stage_index: int) -> str:
+    """Where material ``name``'s damping in force in stage ``stage_index`` is set: the last stage
+    change up to it that sets a damping key, else the material itself."""
+    path = f"materials.{name}"
+    for index, stage in enumerate(project.stages[: stage_index + 1]):
+        change = stage.material_changes.get(name)
+        if change is not None and (change.damping_ratio is not None or change.damping_frequency_hz is not None):
+            path = f"stages.{index}.material_changes.{name}"
+    return path
+
+
 def _near_limit_slides(project: Project) -> list[str]:
     """A linear-elastic body sliding on a frictional contact just above a high friction limit (the
-    flutter, measured for elastic blocks; a plastic body dissipates and is not warned about)."""
+    flutter, measured for elastic blocks; a plastic body dissipates and is not warned about), in a
+    dynamic stage where its material is damped by less than NEAR_LIMIT_DAMPING at the body's first
+    shear mode on the contact. One warning per body, naming the keys that remove it."""
+    from projects.build import material_tables, solver_material
+
     if not float(np.linalg.norm(project.domain.gravity_m_s2)) > 0:
         return []
+    dynamic = [i for i, stage in enumerate(project.stages) if stage.type == "dynamic"]
+    if not dynamic:
+        return []
+    tables = material_tables(project)
     up = _up(project)
     lo_cos = math.cos(math.radians(WALL_ANGLE_DEG))
+    dx = project.domain.cell_size_m
+    warnings: dict[int, str] = {}
     for index, where, friction, normal in _contact_faces(project):
         carries = float(normal @ up)
-        if friction is None or not carries > lo_cos or friction < NEAR_LIMIT_FRICTION_DEG:
+        if index in warnings or friction is None or not carries > lo_cos or friction < NEAR_LIMIT_FRICTION_DEG:
             continue
         body = project.bodies[index]
         name = body.material
@@ -490,28 +523,69 @@ def _near_limit_slides(project: Project) -> list[str]:
         ratio = math.tan(math.radians(friction)) / (math.tan(math.radians(incline)) - math.tan(math.radians(friction)))
         if ratio < NEAR_LIMIT_RATIO:
             continue
-        # the body's first shear mode on the contact, c_s / (4 H), H its depth along the normal
-        from projects.build import solver_material
-
-        material = solver_material(name, project.materials[name])
         depth = float(np.ptp(np.asarray(body.polygon_m, dtype=np.float64) @ normal))
-        if not depth >= NEAR_LIMIT_MIN_CELLS * project.domain.cell_size_m:
+        if not depth >= NEAR_LIMIT_MIN_CELLS * dx:
             continue  # a sheet a cell or so thick has no body modes to flutter with
-        c_s = math.sqrt(material.shear_modulus_pa / material.density_kg_m3)
-        f1 = c_s / (4.0 * depth) if depth > 0.0 else math.inf
-        damped = material.rayleigh_beta_s * math.pi * f1  # zeta = beta omega / 2
-        if not math.isfinite(f1) or damped >= 0.99 * NEAR_LIMIT_DAMPING:  # 0.99: the 3 digits the warning gives
-            continue
-        return [
-            f"bodies.{index} ({body.name!r}) slides on {where} inclined {incline:.3g} degrees against friction "
-            f"{friction:g} degrees, the friction {ratio:.2g} times the net driving force: so close to a high "
-            "friction limit an undamped elastic body flutters on the contact and slides further than a rigid "
-            "block (5 degrees above the limit, blocks 5-20 cells thick: up to +30 % at 40 on 35 degrees); "
-            f"material damping removes it: set materials.{name}.damping_ratio = {NEAR_LIMIT_DAMPING:g} and "
-            f"damping_frequency_hz = {f1:.3g} (the body's first shear mode; the time step shrinks with it; "
-            "docs/validation.md, near-limit slides)"
-        ]
-    return []
+        for stage_index in dynamic:
+            material = solver_material(name, tables[stage_index][name])
+            f1 = _first_shear_mode_hz(material, depth)
+            damped = _damping_at(material, f1)
+            # 0.99: the 3 digits the warning gives
+            if not math.isfinite(f1) or damped >= 0.99 * NEAR_LIMIT_DAMPING:
+                continue
+            path = _damping_path(project, name, stage_index)
+            suggested = dataclasses.replace(material, damping_ratio=NEAR_LIMIT_DAMPING, damping_frequency_hz=f1)
+            shrink = material.critical_time_step_s(dx) / suggested.critical_time_step_s(dx)
+            now = ("an undamped elastic body" if damped <= 0.0 else
+                   f"an elastic body damped {100 * damped:.2g} % of critical at its first mode")
+            stage = project.stages[stage_index]
+            warnings[index] = (
+                f"bodies.{index} ({body.name!r}) slides on {where} inclined {incline:.3g} degrees against friction "
+                f"{friction:g} degrees in stages.{stage_index} ({stage.name!r}), the friction {ratio:.2g} times the "
+                f"net driving force: so close to a high friction limit {now} "
+                "flutters on the contact and slides further than a rigid block (5 degrees above the limit, blocks "
+                "5-20 cells thick, undamped: up to +30 % at 40 on 35 degrees); material damping removes it: set "
+                f"{path}.damping_ratio = {NEAR_LIMIT_DAMPING:g} and damping_frequency_hz = {f1:.3g} (the body's first "
+                f"shear mode; the time step becomes {shrink:.2g} times shorter; docs/validation.md, near-limit slides)"
+            )
+            break
+    return [warnings[k] for k in sorted(warnings)]
+
+
+#: Damping above this fraction of critical at a body's first mode is warned about (overdamped).
+OVERDAMPED_RATIO = 1.0
+
+
+def _overdamped_bodies(project: Project) -> list[str]:
+    """A damped material whose damping overdamps a body's first mode: a frequency given far below
+    the body's (``zeta = damping_ratio * f / damping_frequency_hz`` grows with frequency), which
+    turns the body's vibration into creep and costs steps in proportion."""
+    from projects.build import material_tables, solver_material
+
+    up = _up(project)
+    found = []
+    for stage_index, table in enumerate(material_tables(project)):
+        for index, body in enumerate(project.bodies):
+            material = solver_material(body.material, table[body.material])
+            if material.rayleigh_beta_s <= 0.0:
+                continue
+            height = float(np.ptp(np.asarray(body.polygon_m, dtype=np.float64) @ up))
+            f1 = _first_shear_mode_hz(material, height)
+            damped = _damping_at(material, f1)
+            path = _damping_path(project, body.material, stage_index)
+            if math.isfinite(damped) and damped > OVERDAMPED_RATIO and not any(path in w for w in found):
+                found.append(
+                    f"{path}.damping_frequency_hz = {table[body.material].damping_frequency_hz:g}: the damping is "
+                    f"{damped:.3g} times critical at the first shear mode of bodies.{index} ({body.name!r}, "
+                    f"{f1:.3g} Hz), which then creeps instead of vibrating, and the time step is "
+                    f"{_ratio_text(material, project.domain.cell_size_m)} times shorter; give the frequency of "
+                    f"the motion to damp, usually that first mode (docs/project-format.md, material damping)")
+    return found
+
+
+def _ratio_text(material, dx: float) -> str:
+    undamped = dataclasses.replace(material, damping_ratio=0.0)
+    return f"{undamped.critical_time_step_s(dx) / material.critical_time_step_s(dx):.3g}"
 
 
 def project_warnings(project: Project) -> list[str]:
@@ -530,7 +604,7 @@ def project_warnings(project: Project) -> list[str]:
         return [*_wall_gaps(project), *_structure_gaps(project), *_bodies_in_structures(project),
                 *_k0_on_slope(project),
                 *_thin_structures(project), *_off_node_faces(project), *_stress_free_on_friction(project),
-                *_short_gravity_stage(project), *_near_limit_slides(project)]
+                *_short_gravity_stage(project), *_near_limit_slides(project), *_overdamped_bodies(project)]
 
 
 def recommended_initial_stage(project: Project) -> dict[str, Any]:

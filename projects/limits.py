@@ -91,8 +91,14 @@ def free_disk_bytes(path: str | os.PathLike[str]) -> int | None:
         return None
 
 
+#: A time step this many times shorter for a material's damping is blamed on the damping.
+DAMPING_BLAME_SHRINK = 2.0
+
+
 def _key_value(estimate: Mapping[str, Any], limit: Limit) -> tuple[str, Any]:
     if limit.project_key == "numerics.time_step_s" and estimate.get("time_step_source") == "cfl":
+        if estimate.get("damping_key") and estimate.get("time_step_shrink_by_damping", 1.0) >= DAMPING_BLAME_SHRINK:
+            return estimate["damping_key"], None
         return "numerics.cfl", None
     value = {"domain.cell_size_m": estimate.get("cell_size_m"),
              "numerics.time_step_s": estimate.get("time_step_s"),
@@ -131,6 +137,9 @@ def limit_problems(
             if limit.estimate_key == "steps":
                 extra = (f"; {estimate.get('simulated_time_s', 0):.3g} s simulated with a time step of "
                          f"{estimate.get('time_step_s', 0):.3g} s")
+                if key == estimate.get("damping_key"):
+                    extra += (f", {estimate['time_step_shrink_by_damping']:.3g} times shorter for the material's "
+                              "damping (docs/solver.md, material damping)")
             problems.append(Problem(key, shown, f"the run would take {_about(value)} {limit.what}, more "
                                     f"than the limit of {_fmt(limit.maximum)}{extra}; --force runs it anyway"))
     if memory_bytes is None:

@@ -629,7 +629,10 @@ def _run(
             "wall_time_s": time.perf_counter() - started,
             "particle_steps_per_s": particles * steps / loop_s if loop_s > 0 else 0.0,
         }
-        extra = {"setup_time_s": setup_s, **_equilibrium(sim)}
+        extra = {"setup_time_s": setup_s, **_equilibrium(sim),
+                 # the stability limit at rest (material damping shortens it: docs/solver.md)
+                 "critical_time_step_s": float(sim.critical_time_step()),
+                 "time_step_shrink_by_damping": float(resolved.estimate["time_step_shrink_by_damping"])}
         if sim.first_step_at is not None and process_age_s() is not None:
             # process start to the end of its first step: what a run as a process costs to start
             extra["startup_s"] = process_age_s() - (time.perf_counter() - sim.first_step_at)

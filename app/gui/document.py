@@ -90,7 +90,7 @@ PLASTIC_KEYS: tuple[str, ...] = tuple(k for k in MATERIAL_KEYS if k in FILE_PLAS
 OPTIONAL_MATERIAL_KEYS: dict[str, str] = {
     "tensile_strength_pa": "no cut-off",
     "damping_ratio": "undamped",
-    "damping_frequency_hz": "with a damping ratio",
+    "damping_frequency_hz": "none",
 }
 
 

@@ -157,6 +157,7 @@ class SceneView(QWidget):
         self.mode = "select"
         self.snap = True
         self.show_particles = True
+        self._preview_refused = False  # the status bar says the particle preview was refused
         self.draft: list[list[float]] = []
         #: what a drawn polygon becomes: "bodies" or "structures"
         self.draw_kind = "bodies"
@@ -590,7 +591,11 @@ class SceneView(QWidget):
         resolved = self._resolved(seed=False)
         if resolved is None:
             self.message.emit("particle preview: fix the project's problems first")
+            self._preview_refused = True
             return None, empty
+        if self._preview_refused:
+            self._preview_refused = False
+            self.message.emit("")  # the problems are fixed: the refusal no longer holds
         if resolved.particle_count > MAX_SEEDED_PARTICLES:
             self.message.emit(f"particle preview skipped: about {resolved.particle_count:,} particles")
             return None, empty

@@ -19,6 +19,7 @@ import math
 import re
 import tomllib
 
+import numpy as np
 import pytest
 
 from benchmarks.contact_matrix import project_text, run_case
@@ -280,8 +281,10 @@ def test_a_slide_just_above_a_high_friction_limit_is_a_warning(contact, where, t
     assert len(warnings) == 1
     ratio = math.tan(math.radians(delta)) / (math.tan(math.radians(theta)) - math.tan(math.radians(delta)))
     assert warnings[0].startswith(f"bodies.0 ('block') slides on {where} inclined {theta:.3g} degrees against "
-                                  f"friction {delta:g} degrees, the friction {ratio:.2g} times the net driving force")
-    assert "flutter" in warnings[0]
+                                  f"friction {delta:g} degrees in stages.1 ('run'), the friction {ratio:.2g} times "
+                                  "the net driving force: so close to a high friction limit an undamped elastic body "
+                                  "flutters")
+    assert "set materials.block.damping_ratio = 0.1 and damping_frequency_hz = " in warnings[0]
 
 
 @pytest.mark.parametrize("theta,delta", [(40, 28), (20, 15), (30, 20), (40, 45), (38, 36 - 20)])
@@ -334,6 +337,74 @@ def test_the_damping_the_flutter_warning_gives_makes_the_slide_right(tmp_path, c
     outcome, _ = run_case(damped, tmp_path / "run")
     assert outcome.slides
     _check(outcome)
+
+
+def _near_limit_data(thickness=5, **kw) -> dict:
+    case = project_text("bottom", "apic-affine", "f32", thickness, 1e6, 40, 35, start="gravity", gravity_s=1.0, **kw)
+    return tomllib.loads(case.text)
+
+
+def test_the_flutter_warning_reads_the_damping_in_force_in_the_sliding_stage():
+    # a damped settling stage and an undamped run: warned, and told where to damp (the stage's change)
+    data = _near_limit_data()
+    f1 = math.sqrt(1e6 / 2.6 / 2000.0) / (4 * 5 * 0.05)
+    data["materials"]["block"].update(damping_ratio=0.1, damping_frequency_hz=f1)
+    assert project_warnings(validate_project(data)) == []
+    data["stages"][1]["material_changes"] = {"block": {"damping_ratio": 0.0}}
+    [warning] = project_warnings(validate_project(data))
+    assert "in stages.1 ('run')" in warning
+    assert "set stages.1.material_changes.block.damping_ratio = 0.1 and damping_frequency_hz = 13.9" in warning
+    # an undamped settling stage and a damped run: not warned (the slide is the run's)
+    data = _near_limit_data()
+    data["stages"][1]["material_changes"] = {"block": {"damping_ratio": 0.1, "damping_frequency_hz": f1}}
+    assert project_warnings(validate_project(data)) == []
+
+
+@pytest.mark.parametrize("ratio", [0.02, 0.05, 0.09])
+def test_too_little_damping_is_still_warned_about_with_what_it_is(ratio):
+    data = _near_limit_data()
+    f1 = math.sqrt(1e6 / 2.6 / 2000.0) / (4 * 5 * 0.05)
+    data["materials"]["block"].update(damping_ratio=ratio, damping_frequency_hz=f1)
+    [warning] = project_warnings(validate_project(data))
+    assert f"an elastic body damped {100 * ratio:.2g} % of critical at its first mode flutters" in warning
+    # the step the suggested damping costs, against the one now
+    from projects.build import solver_material
+    from solver.config import Material
+    now = solver_material("block", validate_project(data).materials["block"])
+    suggested = Material("block", "linear-elastic", 2000.0, 1e6, 0.3, damping_ratio=0.1, damping_frequency_hz=f1)
+    shrink = now.critical_time_step_s(0.05) / suggested.critical_time_step_s(0.05)
+    assert f"the time step becomes {shrink:.2g} times shorter" in warning
+
+
+def test_every_body_near_the_limit_is_warned_about_with_its_own_first_mode():
+    data = _near_limit_data()
+    block = data["bodies"][0]["polygon_m"]
+    x1 = max(x for x, _ in block)
+    deep = [[x1 + 0.5, 0.0], [x1 + 1.5, 0.0], [x1 + 1.5, 0.5], [x1 + 0.5, 0.5]]  # 10 cells deep
+    data["domain"]["size_m"][0] += 2.0
+    data["domain"]["size_m"][1] = 0.6
+    data["bodies"].append({"name": "deep", "material": "block", "polygon_m": deep})
+    warnings = project_warnings(validate_project(data))
+    assert [w.split(" (")[0] for w in warnings] == ["bodies.0", "bodies.1"]
+    c_s = math.sqrt(1e6 / 2.6 / 2000.0)
+    assert f"damping_frequency_hz = {c_s / (4 * 0.25):.3g} " in warnings[0]
+    assert f"damping_frequency_hz = {c_s / (4 * 0.5):.3g} " in warnings[1]
+
+
+@pytest.mark.parametrize("ratio,frequency", [(0.5, 1.0), (0.1, 0.3), (0.1, 0.5), (0.1, 13.9), (0.9, 13.9), (0.9, 3.0)])
+def test_damping_that_overdamps_the_body_is_a_warning(ratio, frequency):
+    # zeta at the body's first shear mode c_s / (4 H), H its height along gravity, is ratio * f1 / frequency
+    data = _near_limit_data()
+    data["materials"]["block"].update(damping_ratio=ratio, damping_frequency_hz=frequency)
+    gravity = np.asarray(data["domain"]["gravity_m_s2"])
+    heights = np.asarray(data["bodies"][0]["polygon_m"]) @ (-gravity / np.linalg.norm(gravity))
+    f1 = math.sqrt(1e6 / 2.6 / 2000.0) / (4 * np.ptp(heights))
+    zeta = ratio * f1 / frequency
+    overdamped = [w for w in project_warnings(validate_project(data)) if "times critical" in w]
+    assert bool(overdamped) == (zeta > 1.0)
+    if overdamped:
+        assert overdamped[0].startswith(f"materials.block.damping_frequency_hz = {frequency:g}: the damping is "
+                                        f"{zeta:.3g} times critical at the first shear mode of bodies.0 ('block'")
 
 
 @pytest.mark.parametrize("contact", ["bottom", "ramp"])

@@ -131,3 +131,38 @@ def test_a_denormal_cell_size_past_the_limits_is_still_one_line(tmp_path):
     # "cannot seed the bodies", or "must be > 0" where flush-to-zero is on (see _denormal_flushed)
     assert "domain.cell_size_m = " in result.stderr  # 5e-324, or 0.0 once flushed
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("where", ["materials.sand", "stages.1.material_changes.sand"])
+def test_a_step_count_driven_by_material_damping_blames_the_damping(tiny, where):
+    # 0.99 of critical at 1 mHz damps the grid's modes some 1e5 times critical: the step falls with it
+    project = apply_overrides(tiny, ["numerics.cfl=0.5", f"{where}.damping_ratio=0.99",
+                                     f"{where}.damping_frequency_hz=0.001"])
+    e = estimate(project)
+    assert e["time_step_shrink_by_damping"] > 1e4
+    with pytest.raises(ProjectError) as info:
+        check_limits(e, memory_bytes=PLENTY, disk_bytes=PLENTY)
+    [problem] = [p for p in info.value.problems if "time steps" in p.message]
+    assert problem.path == f"{where}.damping_ratio"
+    assert "times shorter for the material's damping" in problem.message and "\n" not in str(problem)
+    # a little damping that costs less than half the step leaves the blame with cfl
+    light = estimate(apply_overrides(tiny, ["numerics.cfl=0.5", "materials.sand.damping_ratio=0.01",
+                                            "materials.sand.damping_frequency_hz=100",
+                                            "stages.1.duration_s=1e300"]))
+    assert light["time_step_shrink_by_damping"] < 2.0
+    with pytest.raises(ProjectError) as info:
+        check_limits(light, memory_bytes=PLENTY, disk_bytes=PLENTY)
+    assert [p.path for p in info.value.problems if "time steps" in p.message] == ["numerics.cfl"]
+
+
+def test_validate_prints_the_time_step_and_what_damping_costs_of_it():
+    from app.cli import cli
+
+    runner = CliRunner()
+    plain = runner.invoke(cli, ["validate", str(TINY_PROJECT), "--set", "numerics.cfl=0.5"])
+    damped = runner.invoke(cli, ["validate", str(TINY_PROJECT), "--set", "numerics.cfl=0.5",
+                                 "--set", "materials.sand.damping_ratio=0.1",
+                                 "--set", "materials.sand.damping_frequency_hz=5"])
+    assert plain.exit_code == 0 and damped.exit_code == 0, damped.output
+    assert "cfl 0.5 (dt " in plain.stdout and "shorter" not in plain.stdout
+    assert "x shorter for the damping of materials.sand)" in damped.stdout

@@ -117,3 +117,20 @@ def test_a_stage_that_damps_a_material_compiles_the_damping_in():
         frames = list(sim.run())
     assert frames and all(np.isfinite(f.fields["positions"]).all() for f in frames)
     assert critical_time_step(staged) < critical_time_step(config)
+
+
+def test_the_summary_records_the_step_limit_and_what_damping_costs(tmp_path):
+    from projects.build import estimate
+    from projects.document import apply_overrides, load_project
+    from projects.runner import run_project
+    from tests.conftest import TINY_PROJECT
+
+    base = apply_overrides(load_project(TINY_PROJECT), ["numerics.cfl=0.5", "stages.1.duration_s=0.01"])
+    damped = apply_overrides(base, ["materials.sand.damping_ratio=0.05", "materials.sand.damping_frequency_hz=5"])
+    plain = run_project(base, tmp_path / "plain").summary
+    summary = run_project(damped, tmp_path / "damped").summary
+    assert plain["time_step_shrink_by_damping"] == 1.0
+    assert summary["time_step_shrink_by_damping"] == pytest.approx(estimate(damped)["time_step_shrink_by_damping"])
+    assert summary["time_step_shrink_by_damping"] > 1.0
+    assert summary["critical_time_step_s"] == pytest.approx(
+        plain["critical_time_step_s"] / summary["time_step_shrink_by_damping"], rel=1e-9)
