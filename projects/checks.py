@@ -36,7 +36,10 @@ workbench shows them):
   5 and 20 cells thick: up to +30 % at 40 on 35 degrees, up to +9 % at 35 on 30; one-cell sheets
   within 0.3 %; docs/validation.md, near-limit slides), unless its material is damped by at
   least NEAR_LIMIT_DAMPING of critical at the body's first shear mode on the contact, which
-  removes the flutter (docs/solver.md, material damping); the warning gives the keys to set.
+  removes the flutter (docs/solver.md, material damping); the warning gives the keys to set;
+- a material damping that overdamps a body's first shear mode (more than OVERDAMPED_RATIO times
+  critical there: a damping frequency given far below the body's), which turns its vibration into
+  creep and costs time steps in proportion.
 
 :func:`recommended_initial_stage` is the default initial-stress stage for a new project (the
 slope template): gravity loading where the ground slopes, k0 where it is level.
