@@ -13,7 +13,7 @@ validating the whole project) are shown in orange on the editor of the key they 
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from PySide6.QtCore import QEvent, QObject, Qt, Signal
@@ -363,9 +363,12 @@ class TextField(_Bound):
     """A string key (title, body and stage names); empty text removes an optional key."""
 
     def __init__(self, doc: ProjectDocument, path: str | None, label: str, *, optional: bool = False,
-                 parent: QWidget | None = None) -> None:
+                 taken: Callable[[], dict[str, str]] | None = None, parent: QWidget | None = None) -> None:
         super().__init__(doc, path, label, parent)
         self.optional = optional
+        # names that must not be given (name -> what has it): a duplicate is refused where it is
+        # typed, not reported later against the other item that had the name first
+        self.taken = taken
         self.edit = QLineEdit()
         self.edit.setAccessibleName(label)
         layout = QHBoxLayout(self)
@@ -379,6 +382,9 @@ class TextField(_Bound):
     def _check(self, text: str) -> None:
         value: Any = text if text.strip() or not self.optional else None
         self.error = (check_value(self.path, value) or "") if self.path else ""
+        owner = self.taken().get(value) if self.path and not self.error and self.taken and value != self.value() else None
+        if owner:
+            self.error = f"{owner} is already named {value!r}; names must be unique"
         self.edit.setStyleSheet(ERROR_STYLE if self.error else "")
         self.edit.setToolTip(self.error)
         self.message.emit(f"{self.label}: {self.error}" if self.error else "")

@@ -540,7 +540,7 @@ class PolygonPanel(Panel):
         self.layout_.addLayout(buttons)
 
         box, form = _form(f"Selected {self.NOUN}")
-        self.name = TextField(doc, None, f"{self.NOUN.capitalize()} name")
+        self.name = TextField(doc, None, f"{self.NOUN.capitalize()} name", taken=self._names_of_others)
         form.addRow("Name", self.name)
         self._form_rows(form)
         self.layout_.addWidget(box)
@@ -604,6 +604,11 @@ class PolygonPanel(Panel):
     def _items(self) -> list[dict[str, Any]]:
         items = self.doc.get(self.KIND, [])
         return items if isinstance(items, list) else []
+
+    def _names_of_others(self) -> dict[str, str]:
+        """The names the other items have (name -> ``KIND.index``): the selected item may not take one."""
+        return {item.get("name"): f"{self.KIND}.{i}" for i, item in enumerate(self._items())
+                if i != self.selected and isinstance(item, dict) and isinstance(item.get("name"), str)}
 
     def _row_chosen(self, row: int) -> None:
         if not self._filling:

@@ -291,3 +291,31 @@ def test_a_body_a_structure_covers_is_a_problem_and_run_refuses_it(window, tiny_
     panel.update_estimate()
     assert panel.build_error is None and panel.problems_box.title() == "Problems (none)"
     assert panel.runtime.text().startswith("about ")
+
+
+@pytest.mark.parametrize("kind", ["structures", "bodies"])
+def test_a_name_another_item_has_is_refused_where_it_is_typed(window, tiny_file, kind):
+    # the file's rule blames the later of two equal names; typed in the form, the edit itself is
+    # refused, naming the item that has the name
+    assert window.open_project(tiny_file)
+    doc = window.doc
+    if kind == "structures":
+        panel = window.structures_panel
+        panel.add_structure(WALL, name="barrier")
+        panel.add_structure([[0.5, 0.0], [0.54, 0.0], [0.54, 0.1], [0.5, 0.1]], name="dam")
+    else:
+        panel = window.bodies_panel
+        body = doc.get("bodies")[0]
+        doc.edit("add a body", lambda d: d["bodies"].append({**body, "name": "dam"}))
+    first = doc.get(f"{kind}.0.name")
+    doc.selection.select(kind, 1)
+    before = doc.get(kind)
+    panel.name.edit.setText(first)
+    assert not panel.name.commit()
+    assert doc.get(kind) == before
+    assert panel.name.error == f"{kind}.0 is already named {first!r}; names must be unique"
+    # its own name, or a free one, is taken
+    panel.name.edit.setText("dam")
+    assert not panel.name.commit() and panel.name.error == ""
+    panel.name.edit.setText("gate")
+    assert panel.name.commit() and doc.get(f"{kind}.1.name") == "gate"
