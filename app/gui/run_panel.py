@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +42,18 @@ def format_duration(seconds: float) -> str:
     if seconds < 3600:
         return f"{int(seconds // 60)} min {int(seconds % 60):02d} s"
     return f"{int(seconds // 3600)} h {int(seconds % 3600 // 60):02d} min"
+
+
+#: the key a warning asks the engineer to set (the near-limit warning's damping), else its first key
+_SET_KEY = re.compile(r"\bset ((?:materials|stages)\.[\w.-]+?)\.damping_ratio\b")
+_LEADING_KEY = re.compile(r"^((?:runout|domain|materials|bodies|structures|particles|numerics|stages|output|"
+                          r"hazard|targets)(?:\.[\w-]+)*)")
+
+
+def warning_path(text: str) -> str:
+    """The key path a warning leads to in the workbench (``""``: none)."""
+    found = _SET_KEY.search(text) or _LEADING_KEY.match(text)
+    return found.group(1) if found else ""
 
 
 class RunPanel(QWidget):
@@ -201,7 +214,9 @@ class RunPanel(QWidget):
 
         for text in warnings:
             self.problems.addItem(f"warning: {text}")
-            self.problems.item(self.problems.count() - 1).setForeground(QColor("#b06000"))
+            item = self.problems.item(self.problems.count() - 1)
+            item.setForeground(QColor("#b06000"))
+            item.setData(Qt.ItemDataRole.UserRole, warning_path(text))  # a double click goes there
         self.warnings = warnings
         self.build_error = None
         title = f"Problems ({n})" if n else "Problems (none)"

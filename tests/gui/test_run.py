@@ -9,6 +9,7 @@ import signal
 import sys
 
 import pytest
+from PySide6.QtCore import Qt
 
 from projects.results import open_results
 
@@ -326,3 +327,27 @@ def test_the_run_is_told_which_file_it_is_a_copy_of(qtbot, tmp_path):
     assert "--source" not in args and "--unsaved" in args
     for run in (saved, untitled):  # never started: remove their temporary copies here
         shutil.rmtree(run._tmp)
+
+
+def test_a_double_click_on_the_flutter_warning_opens_the_material_to_damp(window, tmp_path):
+    # the near-limit warning names the keys to set: its item leads to that material
+    from benchmarks.contact_matrix import project_text
+
+    path = tmp_path / "block.toml"
+    path.write_text(project_text("bottom", "apic-affine", "f32", 5, 1e6, 40, 35, gravity_s=None).text, encoding="utf-8")
+    assert window.open_project(path)
+    panel = window.run_panel
+    panel.update_estimate()
+    items = [panel.problems.item(i) for i in range(panel.problems.count())]
+    [item] = [i for i in items if "flutters" in i.text()]
+    assert item.data(Qt.ItemDataRole.UserRole) == "materials.block"
+    window.panels.setCurrentWidget(window.domain_panel)
+    panel.problems.itemDoubleClicked.emit(item)
+    assert window.panels.currentWidget() is window.materials_panel
+    assert window.materials_panel.current == "block"
+    # the values it gives, typed in, take the warning away
+    window.materials_panel.fields["damping_ratio"].set_text("0.1")
+    frequency = item.text().split("damping_frequency_hz = ")[1].split(" ")[0]
+    window.materials_panel.fields["damping_frequency_hz"].set_text(frequency)
+    panel.update_estimate()
+    assert not any("flutters" in panel.problems.item(i).text() for i in range(panel.problems.count()))
