@@ -50,6 +50,19 @@ _LEADING_KEY = re.compile(r"^((?:runout|domain|materials|bodies|structures|parti
                           r"hazard|targets)(?:\.[\w-]+)*)")
 
 
+class _Line(QLabel):
+    """A line of the run's progress: shown only while it says something, so that an idle Run box
+    leaves the dock's height to the Problems list."""
+
+    def __init__(self) -> None:
+        super().__init__("")
+        self.setVisible(False)
+
+    def setText(self, text: str) -> None:  # noqa: N802 - Qt's name
+        super().setText(text)
+        self.setVisible(bool(text))
+
+
 def warning_path(text: str) -> str:
     """The key path a warning leads to in the workbench (``""``: none)."""
     found = _SET_KEY.search(text) or _LEADING_KEY.match(text)
@@ -141,13 +154,13 @@ class RunPanel(QWidget):
         self.progress.setFormat("")
         self.progress.setTextVisible(True)
         vbox.addWidget(self.progress)
-        self.stage = QLabel("")
-        self.clock = QLabel("")
-        self.rate = QLabel("")
-        self.eta = QLabel("")
+        self.stage = _Line()
+        self.clock = _Line()
+        self.rate = _Line()
+        self.eta = _Line()
         for w in (self.stage, self.clock, self.rate, self.eta):
             vbox.addWidget(w)
-        self.status = QLabel("")
+        self.status = _Line()
         self.status.setWordWrap(True)
         self.status.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
         vbox.addWidget(self.status)
@@ -182,6 +195,7 @@ class RunPanel(QWidget):
         vbox.addWidget(self.remove_unknown)
         layout.addWidget(self.problems_box)
         layout.addStretch(1)
+        self._layout = layout
         self._t0: tuple[float, float] | None = None
 
     # -- estimate ---------------------------------------------------------------------------------
@@ -222,7 +236,7 @@ class RunPanel(QWidget):
         title = f"Problems ({n})" if n else "Problems (none)"
         self.problems_box.setTitle(title + (f", {len(warnings)} warning(s)" if warnings else ""))
         self.remove_unknown.setVisible(bool(self.doc.unknown_keys()))
-        self.problems.setMaximumHeight(260 if n or warnings else 48)
+        self._fit_problems(bool(n or warnings))
         if project is None:
             for w in (self.particles, self.grid, self.steps, self.cell, self.numerics, self.frames):
                 w.setText("–")
@@ -303,8 +317,15 @@ class RunPanel(QWidget):
         self.build_error = "\n".join(lines)
         n = len(self.doc.problems) + len(lines)
         self.problems_box.setTitle(f"Problems ({n})" + (f", {len(self.warnings)} warning(s)" if self.warnings else ""))
-        self.problems.setMaximumHeight(260)
+        self._fit_problems(True)
         self.runtime.setText("fix the problems below first")
+
+    def _fit_problems(self, listed: bool) -> None:
+        """With something listed the Problems box takes the dock's free height (a long warning, such
+        as the near-limit one whose keys come last, is read whole); empty it stays one line."""
+        self.problems.setMaximumHeight(16777215 if listed else 48)  # QWIDGETSIZE_MAX
+        self._layout.setStretchFactor(self.problems_box, 1 if listed else 0)
+        self._layout.setStretch(self._layout.count() - 1, 0 if listed else 1)
 
     # -- progress ---------------------------------------------------------------------------------
 

@@ -351,3 +351,19 @@ def test_a_double_click_on_the_flutter_warning_opens_the_material_to_damp(window
     window.materials_panel.fields["damping_frequency_hz"].set_text(frequency)
     panel.update_estimate()
     assert not any("flutters" in panel.problems.item(i).text() for i in range(panel.problems.count()))
+
+
+def test_an_idle_run_box_leaves_the_height_to_a_long_warning(window, tmp_path):
+    # the progress lines are hidden while empty and the Problems list takes the dock's free height,
+    # so the near-limit warning is read to its end (the keys to set come last)
+    from benchmarks.contact_matrix import project_text
+
+    path = tmp_path / "block.toml"
+    path.write_text(project_text("bottom", "apic-affine", "f32", 5, 1e6, 40, 35, gravity_s=None).text, encoding="utf-8")
+    assert window.open_project(path)
+    panel = window.run_panel
+    panel.update_estimate()
+    assert not any(w.isVisible() for w in (panel.stage, panel.clock, panel.rate, panel.eta, panel.status))
+    assert panel.problems.maximumHeight() > 1000
+    panel.status.setText("completed: 10 steps")
+    assert panel.status.isVisibleTo(panel)
