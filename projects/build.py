@@ -532,7 +532,7 @@ def estimate(project: Project) -> dict[str, object]:
         "time_step_s": dt,
         "time_step_source": source,
         "time_step_shrink_by_damping": shrink,
-        "damping_key": _damping_key(project, damped.name) if shrink > 1.0 else None,
+        "damping_key": f"{damping_table(project, damped.name)}.damping_ratio" if shrink > 1.0 else None,
         "max_p_wave_speed_m_s": c_p,
         "simulated_time_s": total,
         "steps": steps,
@@ -547,14 +547,16 @@ def estimate(project: Project) -> dict[str, object]:
     }
 
 
-def _damping_key(project: Project, name: str) -> str:
-    """Where material ``name``'s damping ratio is given: the material, or the last stage change of it."""
-    key = f"materials.{name}.damping_ratio"
-    for index, stage in enumerate(project.stages):
+def damping_table(project: Project, name: str, stage_index: int | None = None) -> str:
+    """Where material ``name``'s damping in force in stage ``stage_index`` (default: the last) is
+    set: the last stage change up to it that sets a damping key, else the material itself."""
+    path = f"materials.{name}"
+    last = len(project.stages) if stage_index is None else stage_index + 1
+    for index, stage in enumerate(project.stages[:last]):
         change = stage.material_changes.get(name)
-        if change is not None and change.damping_ratio is not None:
-            key = f"stages.{index}.material_changes.{name}.damping_ratio"
-    return key
+        if change is not None and (change.damping_ratio is not None or change.damping_frequency_hz is not None):
+            path = f"stages.{index}.material_changes.{name}"
+    return path
 
 
 def describe(project: Project) -> str:

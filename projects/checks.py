@@ -479,28 +479,12 @@ def _first_shear_mode_hz(material, depth_m: float) -> float:
     return c_s / (4.0 * depth_m) if depth_m > 0.0 else math.inf
 
 
-def _damping_at(material, frequency_hz: float) -> float:
-    """The fraction of critical damping a solver material gives a mode of ``frequency_hz``."""
-    return material.rayleigh_beta_s * math.pi * frequency_hz  # zeta = beta omega / 2
-
-
-def _damping_path(project: Project, name: str, stage_index: int) -> str:
-    """Where material ``name``'s damping in force in stage ``stage_index`` is set: the last stage
-    change up to it that sets a damping key, else the material itself."""
-    path = f"materials.{name}"
-    for index, stage in enumerate(project.stages[: stage_index + 1]):
-        change = stage.material_changes.get(name)
-        if change is not None and (change.damping_ratio is not None or change.damping_frequency_hz is not None):
-            path = f"stages.{index}.material_changes.{name}"
-    return path
-
-
 def _near_limit_slides(project: Project) -> list[str]:
     """A linear-elastic body sliding on a frictional contact just above a high friction limit (the
     flutter, measured for elastic blocks; a plastic body dissipates and is not warned about), in a
     dynamic stage where its material is damped by less than NEAR_LIMIT_DAMPING at the body's first
     shear mode on the contact. One warning per body, naming the keys that remove it."""
-    from projects.build import material_tables, solver_material
+    from projects.build import damping_table, material_tables, solver_material
 
     if not float(np.linalg.norm(project.domain.gravity_m_s2)) > 0:
         return []
@@ -532,13 +516,13 @@ def _near_limit_slides(project: Project) -> list[str]:
         for stage_index in dynamic:
             material = solver_material(name, tables[stage_index][name])
             f1 = _first_shear_mode_hz(material, depth)
-            damped = _damping_at(material, f1)
+            damped = material.damping_ratio_at(f1)
             # 0.99: the 3 digits the warning gives
             if not math.isfinite(f1) or damped >= 0.99 * NEAR_LIMIT_DAMPING:
                 continue
-            path = _damping_path(project, name, stage_index)
+            path = damping_table(project, name, stage_index)
             suggested = dataclasses.replace(material, damping_ratio=NEAR_LIMIT_DAMPING, damping_frequency_hz=f1)
-            shrink = material.critical_time_step_s(dx) / suggested.critical_time_step_s(dx)
+            shrink = suggested.damping_step_shrink(dx) / material.damping_step_shrink(dx)
             now = ("an undamped elastic body" if damped <= 0.0 else
                    f"an elastic body damped {100 * damped:.2g} % of critical at its first mode")
             stage = project.stages[stage_index]
@@ -563,7 +547,7 @@ def _overdamped_bodies(project: Project) -> list[str]:
     """A damped material whose damping overdamps a body's first mode: a frequency given far below
     the body's (``zeta = damping_ratio * f / damping_frequency_hz`` grows with frequency), which
     turns the body's vibration into creep and costs steps in proportion."""
-    from projects.build import material_tables, solver_material
+    from projects.build import damping_table, material_tables, solver_material
 
     up = _up(project)
     found = []
@@ -574,21 +558,16 @@ def _overdamped_bodies(project: Project) -> list[str]:
                 continue
             height = float(np.ptp(np.asarray(body.polygon_m, dtype=np.float64) @ up))
             f1 = _first_shear_mode_hz(material, height)
-            damped = _damping_at(material, f1)
-            path = _damping_path(project, body.material, stage_index)
+            damped = material.damping_ratio_at(f1)
+            path = damping_table(project, body.material, stage_index)
             if math.isfinite(damped) and damped > OVERDAMPED_RATIO and not any(path in w for w in found):
                 found.append(
                     f"{path}.damping_frequency_hz = {table[body.material].damping_frequency_hz:g}: the damping is "
                     f"{damped:.3g} times critical at the first shear mode of bodies.{index} ({body.name!r}, "
                     f"{f1:.3g} Hz), which then creeps instead of vibrating, and the time step is "
-                    f"{_ratio_text(material, project.domain.cell_size_m)} times shorter; give the frequency of "
+                    f"{material.damping_step_shrink(project.domain.cell_size_m):.3g} times shorter; give the frequency of "
                     f"the motion to damp, usually that first mode (docs/project-format.md, material damping)")
     return found
-
-
-def _ratio_text(material, dx: float) -> str:
-    undamped = dataclasses.replace(material, damping_ratio=0.0)
-    return f"{undamped.critical_time_step_s(dx) / material.critical_time_step_s(dx):.3g}"
 
 
 def project_warnings(project: Project) -> list[str]:

@@ -12,6 +12,7 @@ Conventions
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Literal
@@ -99,6 +100,15 @@ class Material:
         """Speed of the dilatational wave, sqrt((K + 4G/3) / rho)."""
         constrained = self.bulk_modulus_pa + 4.0 * self.shear_modulus_pa / 3.0
         return math.sqrt(constrained / self.density_kg_m3)
+
+    def damping_ratio_at(self, frequency_hz: float) -> float:
+        """The fraction of critical damping a mode of ``frequency_hz`` gets (``beta omega / 2``)."""
+        return self.rayleigh_beta_s * math.pi * frequency_hz
+
+    def damping_step_shrink(self, cell_size_m: float) -> float:
+        """How many times shorter the damping makes this material's stability limit (1: undamped)."""
+        return (dataclasses.replace(self, damping_ratio=0.0).critical_time_step_s(cell_size_m)
+                / self.critical_time_step_s(cell_size_m))
 
     def critical_time_step_s(self, cell_size_m: float, max_speed_m_s: float = 0.0) -> float:
         """The explicit step's stability limit in this material: ``dx / (c_p + v_max)``, with damping

@@ -329,15 +329,21 @@ def test_the_run_is_told_which_file_it_is_a_copy_of(qtbot, tmp_path):
         shutil.rmtree(run._tmp)
 
 
-def test_a_double_click_on_the_flutter_warning_opens_the_material_to_damp(window, tmp_path):
-    # the near-limit warning names the keys to set: its item leads to that material
+def _open_near_limit_block(window, tmp_path):
+    """A soft 5-cell block sliding 5 degrees above a 35-degree friction limit (the near-limit
+    warning), opened in the workbench; its Run panel, estimate up to date."""
     from benchmarks.contact_matrix import project_text
 
     path = tmp_path / "block.toml"
     path.write_text(project_text("bottom", "apic-affine", "f32", 5, 1e6, 40, 35, gravity_s=None).text, encoding="utf-8")
     assert window.open_project(path)
-    panel = window.run_panel
-    panel.update_estimate()
+    window.run_panel.update_estimate()
+    return window.run_panel
+
+
+def test_a_double_click_on_the_flutter_warning_opens_the_material_to_damp(window, tmp_path):
+    # the near-limit warning names the keys to set: its item leads to that material
+    panel = _open_near_limit_block(window, tmp_path)
     items = [panel.problems.item(i) for i in range(panel.problems.count())]
     [item] = [i for i in items if "flutters" in i.text()]
     assert item.data(Qt.ItemDataRole.UserRole) == "materials.block"
@@ -356,13 +362,7 @@ def test_a_double_click_on_the_flutter_warning_opens_the_material_to_damp(window
 def test_an_idle_run_box_leaves_the_height_to_a_long_warning(window, tmp_path):
     # the progress lines are hidden while empty and the Problems list takes the dock's free height,
     # so the near-limit warning is read to its end (the keys to set come last)
-    from benchmarks.contact_matrix import project_text
-
-    path = tmp_path / "block.toml"
-    path.write_text(project_text("bottom", "apic-affine", "f32", 5, 1e6, 40, 35, gravity_s=None).text, encoding="utf-8")
-    assert window.open_project(path)
-    panel = window.run_panel
-    panel.update_estimate()
+    panel = _open_near_limit_block(window, tmp_path)
     assert not any(w.isVisible() for w in (panel.stage, panel.clock, panel.rate, panel.eta, panel.status))
     assert panel.problems.maximumHeight() > 1000
     panel.status.setText("completed: 10 steps")
