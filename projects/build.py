@@ -54,6 +54,7 @@ def solver_material(name: str, material: schema.Material) -> sc.Material:
         else sc.DEFAULT_MOHR_COULOMB_MATCH,
         damping_ratio=material.damping_ratio or 0.0,
         damping_frequency_hz=material.damping_frequency_hz or 0.0,
+        damping_model=material.damping_model or sc.DEFAULT_DAMPING_MODEL,
     )
 
 

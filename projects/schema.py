@@ -55,6 +55,7 @@ SCHEMA_VERSION = 1
 MATERIAL_MODELS = sc.MATERIAL_MODELS
 #: How a Drucker-Prager material's cone is matched to its c, phi and psi (docs/solver.md).
 MOHR_COULOMB_MATCHES = sc.MOHR_COULOMB_MATCHES
+DAMPING_MODELS = sc.DAMPING_MODELS
 DEFAULT_MOHR_COULOMB_MATCH = sc.DEFAULT_MOHR_COULOMB_MATCH
 BOUNDARY_TYPES = sc.BOUNDARY_KINDS
 #: Contact types of a structure (a side's, less "open" and "periodic").
@@ -476,6 +477,7 @@ class Material(_Model):
     mohr_coulomb_match: Annotated[Literal[MOHR_COULOMB_MATCHES], _choice(MOHR_COULOMB_MATCHES)] | None = None
     damping_ratio: OptDampingRatio = None
     damping_frequency_hz: OptPositive = None
+    damping_model: Annotated[Literal[DAMPING_MODELS], _choice(DAMPING_MODELS)] | None = None
 
 
 class MaterialChange(_Model):
@@ -1070,8 +1072,9 @@ def _damping_rule(path: str, values: Mapping[str, Any]) -> list[Problem]:
     if ratio is not None and 0.0 < ratio < 1.0 and "damping_frequency_hz" not in values:
         return [Problem(f"{path}.damping_frequency_hz", None, "required with damping_ratio > 0: the frequency (Hz) at "
                         "which the material is damped by that fraction of critical, e.g. the body's first mode")]
-    if "damping_frequency_hz" in values and "damping_ratio" not in values:
-        return [Problem(f"{path}.damping_frequency_hz", values["damping_frequency_hz"], "only allowed with damping_ratio")]
+    for key in ("damping_frequency_hz", "damping_model"):
+        if key in values and "damping_ratio" not in values:
+            return [Problem(f"{path}.{key}", values[key], "only allowed with damping_ratio")]
     return []
 
 

@@ -26,6 +26,11 @@ MATERIAL_MODELS: tuple[str, ...] = ("linear-elastic", "drucker-prager")
 #: How a Drucker-Prager cone is matched to Mohr-Coulomb's c and phi (solver/materials/drucker_prager.py).
 MOHR_COULOMB_MATCHES: tuple[str, ...] = ("plane-strain-associated", "plane-strain", "simple-shear")
 DEFAULT_MOHR_COULOMB_MATCH = "plane-strain-associated"
+#: Material damping models (docs/solver.md, material damping): ``rayleigh`` a stiffness-proportional
+#: dashpot, damping in proportion to frequency; ``maxwell`` a spring and dashpot in series (a
+#: standard linear solid) whose damping peaks at the given frequency and costs the step little.
+DAMPING_MODELS: tuple[str, ...] = ("rayleigh", "maxwell")
+DEFAULT_DAMPING_MODEL = "rayleigh"
 BoundaryKind = Literal["fixed", "slip", "friction", "open", "periodic"]
 Side = Literal["left", "right", "bottom", "top"]
 SIDES: tuple[str, ...] = ("left", "right", "bottom", "top")
@@ -73,18 +78,46 @@ class Material:
     dilatancy_angle_rad: float = 0.0
     tensile_strength_pa: float | None = None
     mohr_coulomb_match: str = DEFAULT_MOHR_COULOMB_MATCH
-    #: stiffness-proportional (Rayleigh) damping: the critical-damping fraction ``damping_ratio`` at
-    #: ``damping_frequency_hz`` (0: undamped; docs/solver.md, material damping)
+    #: material damping: the critical-damping fraction ``damping_ratio`` at ``damping_frequency_hz``
+    #: (0: undamped), by ``damping_model`` (one of DAMPING_MODELS; docs/solver.md, material damping)
     damping_ratio: float = 0.0
     damping_frequency_hz: float = 0.0
+    damping_model: str = DEFAULT_DAMPING_MODEL
+
+    @property
+    def damped(self) -> bool:
+        return self.damping_ratio > 0.0 and self.damping_frequency_hz > 0.0
+
+    @property
+    def maxwell_stiffening(self) -> float:
+        """The Maxwell arm's spring as a fraction ``a`` of the elastic stiffness (0 for Rayleigh
+        damping): a standard linear solid damps a mode of angular frequency ``omega`` by
+        ``a w t / (2 (1 + (1 + a) (w t)^2))`` of critical, at most ``a / (4 sqrt(1 + a))`` at
+        ``w t = 1 / sqrt(1 + a)``; ``a`` is the one that makes this maximum ``damping_ratio``."""
+        if not self.damped or self.damping_model != "maxwell":
+            return 0.0
+        z = self.damping_ratio
+        return 8.0 * z * z + 4.0 * z * math.sqrt(4.0 * z * z + 1.0)
+
+    @property
+    def damping_relaxation_s(self) -> float:
+        """The Maxwell arm's relaxation time ``t`` (s), which puts its damping peak at
+        ``damping_frequency_hz`` (0 for Rayleigh damping: the dashpot alone)."""
+        a = self.maxwell_stiffening
+        if a <= 0.0:
+            return 0.0
+        return 1.0 / (2.0 * math.pi * self.damping_frequency_hz * math.sqrt(1.0 + a))
 
     @property
     def rayleigh_beta_s(self) -> float:
-        """The stiffness-proportional damping coefficient ``beta = zeta / (pi f)`` (s): the viscous
-        stress is ``beta C : D``, so a mode of angular frequency ``omega`` is damped by the fraction
-        ``beta omega / 2`` of critical, ``zeta`` at ``f``."""
-        if self.damping_ratio <= 0.0 or self.damping_frequency_hz <= 0.0:
+        """The damping's viscosity as a multiple of the elastic stiffness (s): the damping stress
+        is ``beta C : D`` for Rayleigh damping, ``beta = zeta / (pi f)``, which damps a mode of
+        angular frequency ``omega`` by ``beta omega / 2`` of critical, ``zeta`` at ``f``; for the
+        Maxwell arm, ``beta = a t``, its dashpot, which the arm's spring relaxes in ``t``."""
+        if not self.damped:
             return 0.0
+        if self.damping_model == "maxwell":
+            return self.maxwell_stiffening * self.damping_relaxation_s
         return self.damping_ratio / (math.pi * self.damping_frequency_hz)
 
     @property
@@ -102,8 +135,14 @@ class Material:
         return math.sqrt(constrained / self.density_kg_m3)
 
     def damping_ratio_at(self, frequency_hz: float) -> float:
-        """The fraction of critical damping a mode of ``frequency_hz`` gets (``beta omega / 2``)."""
-        return self.rayleigh_beta_s * math.pi * frequency_hz
+        """The fraction of critical damping a mode of ``frequency_hz`` gets: ``beta omega / 2``
+        (Rayleigh), half the loss tangent of the standard linear solid (Maxwell)."""
+        omega = 2.0 * math.pi * frequency_hz
+        a = self.maxwell_stiffening
+        if a > 0.0:
+            wt = omega * self.damping_relaxation_s
+            return a * wt / (2.0 * (1.0 + (1.0 + a) * wt * wt))
+        return 0.5 * self.rayleigh_beta_s * omega
 
     def damping_step_shrink(self, cell_size_m: float) -> float:
         """How many times shorter the damping makes this material's stability limit (1: undamped)."""
@@ -111,15 +150,19 @@ class Material:
                 / self.critical_time_step_s(cell_size_m))
 
     def critical_time_step_s(self, cell_size_m: float, max_speed_m_s: float = 0.0) -> float:
-        """The explicit step's stability limit in this material: ``dx / (c_p + v_max)``, with damping
-        shortened by ``sqrt(1 + xi^2) - xi`` (the central-difference limit under stiffness-proportional
-        damping, ``omega_max dt <= 2 (sqrt(1 + xi^2) - xi)`` with ``xi = beta omega_max / 2`` the
-        damping fraction of the grid's highest mode, ``omega_max = 2 c_p / dx``; Belytschko, Liu and
-        Moran, Nonlinear Finite Elements for Continua and Structures, 2000, sec. 6.3)."""
-        step = cell_size_m / (self.p_wave_speed_m_s + max_speed_m_s)
-        beta = self.rayleigh_beta_s
-        if beta > 0.0:
-            xi = beta * self.p_wave_speed_m_s / cell_size_m
+        """The explicit step's stability limit in this material: ``dx / (c_p + v_max)``; with
+        Rayleigh damping shortened by ``sqrt(1 + xi^2) - xi`` (the central-difference limit under
+        stiffness-proportional damping, ``omega_max dt <= 2 (sqrt(1 + xi^2) - xi)`` with
+        ``xi = beta omega_max / 2`` the damping fraction of the grid's highest mode,
+        ``omega_max = 2 c_p / dx``; Belytschko, Liu and Moran, Nonlinear Finite Elements for
+        Continua and Structures, 2000, sec. 6.3); with the Maxwell arm, whose spring stiffens
+        the material by ``1 + a`` at frequencies above its peak, by ``1 / sqrt(1 + a)`` and by the
+        same factor with ``xi`` the arm's damping of the grid's highest mode (small unless the
+        damping peak is set near that mode)."""
+        c_p = self.p_wave_speed_m_s * math.sqrt(1.0 + self.maxwell_stiffening)
+        step = cell_size_m / (c_p + max_speed_m_s)
+        if self.damped:
+            xi = self.damping_ratio_at(c_p / (math.pi * cell_size_m))  # omega_max = 2 c_p / dx
             step /= math.hypot(1.0, xi) + xi  # times sqrt(1 + xi^2) - xi, without the cancellation
         return step
 

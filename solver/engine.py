@@ -156,7 +156,7 @@ class Engine:
         self.yielded = ti.field(ti.i8, n)
         # the materials' damping stress (docs/solver.md, material damping), only where a material
         # has some (``viscous``: in any stage; by default, in the materials given here). Written by
-        # the constitutive update and read by the force passes of the same step, so never state.
+        # the constitutive update, read by the force passes; state where a Maxwell arm remembers it.
         self.viscous = (any(m.rayleigh_beta_s > 0.0 for m in materials) if viscous is None else bool(viscous))
         self.sv = ti.Vector.field(3, float, n if self.viscous else 1)
 
@@ -259,7 +259,7 @@ class Engine:
     #: Every particle field of the solver state (a checkpoint holds these, the counters and the
     #: scatter strategy's ``STATE``, e.g. the split scatter's plan; the grid is rebuilt from the
     #: particles at every step).
-    PARTICLE_STATE = ("x", "x0", "v", "C", "s", "m", "rho", "eps_p", "mat", "active", "yielded")
+    PARTICLE_STATE = ("x", "x0", "v", "C", "s", "sv", "m", "rho", "eps_p", "mat", "active", "yielded")
     COUNTER_STATE = ("lost", "unstable", "contact_impulse", "contact_moment", "contact_peak", "node_hold",
                      "hold_step")
     #: Every field of the engine the host reads or writes (:meth:`state`, :meth:`load_state` and
@@ -353,7 +353,7 @@ class Engine:
         rho0 = self.materials.host["rho0"][mat] if densities_kg_m3 is None else np.asarray(densities_kg_m3)
         vel = np.zeros_like(pos) if velocities_m_s is None else np.asarray(velocities_m_s, dtype=f)
         self._io.write({
-            "x": pos, "x0": pos, "v": vel, "C": 0.0, "s": 0.0,
+            "x": pos, "x0": pos, "v": vel, "C": 0.0, "s": 0.0, "sv": 0.0,
             "m": (np.asarray(volumes_m2, dtype=np.float64) * rho0).astype(f),
             "rho": rho0.astype(f), "eps_p": 0.0, "mat": mat, "active": 1, "yielded": 0,
             "lost": 0, "unstable": 0, "contact_step": 0.0, "contact_impulse": 0.0, "contact_moment": 0.0,
@@ -394,7 +394,10 @@ class Engine:
             if name not in allowed:
                 raise ValueError(f"unknown state field {name!r}")
             expected = self._io.shapes[name]
-            if tuple(np.shape(value)) != expected:
+            if name == "sv" and tuple(np.shape(value)) != expected and len(np.shape(value)) == 2 \
+                    and 1 in (np.shape(value)[0], expected[0]):
+                value = 0.0  # from a run without damping (or into one): the damping starts from rest
+            elif tuple(np.shape(value)) != expected:
                 raise ValueError(f"state field {name!r} has shape {np.shape(value)}, the engine {expected}")
             kept[name] = value
         self._io.write(kept)
@@ -920,7 +923,7 @@ class Engine:
         s, deq, yielded = self.materials.stress_update(self.mat[p], self.s[p], D, W, dt)
         self.s[p] = s
         if ti.static(self.viscous):
-            self.sv[p] = self.materials.viscous_stress(self.mat[p], D)
+            self.sv[p] = self.materials.viscous_stress(self.mat[p], self.sv[p], D, dt)
         self.eps_p[p] += deq
         self.yielded[p] = ti.cast(yielded, ti.i8)
         rho = self.rho[p] / (1.0 + (D[0, 0] + D[1, 1]) * dt)  # eq 24

@@ -18,7 +18,7 @@ from solver.materials import drucker_prager, linear_elastic
 
 MODEL_CODES = {"linear-elastic": 0, "drucker-prager": 1}
 #: Columns of the per-material table (one Taichi field each).
-MATERIAL_COLUMNS = ("model", "K", "G", "alpha", "kc", "alpha_psi", "t_cut", "rho0", "beta")
+MATERIAL_COLUMNS = ("model", "K", "G", "alpha", "kc", "alpha_psi", "t_cut", "rho0", "beta", "relax")
 
 
 def material_rows(materials: Sequence[Material]) -> dict[str, np.ndarray]:
@@ -42,6 +42,7 @@ def material_rows(materials: Sequence[Material]) -> dict[str, np.ndarray]:
         rows["t_cut"].append(min(t_cut, 1e30))
         rows["rho0"].append(m.density_kg_m3)
         rows["beta"].append(m.rayleigh_beta_s)
+        rows["relax"].append(m.damping_relaxation_s)
     return {k: np.asarray(v, dtype=np.int32 if k == "model" else np.float64) for k, v in rows.items()}
 
 
@@ -66,7 +67,8 @@ class MaterialTable:
         self.alpha_psi = ti.field(float, n)
         self.t_cut = ti.field(float, n)
         self.rho0 = ti.field(float, n)
-        self.beta = ti.field(float, n)  # stiffness-proportional damping coefficient, s
+        self.beta = ti.field(float, n)  # the damping's viscosity per unit stiffness, s
+        self.relax = ti.field(float, n)  # the Maxwell arm's relaxation time, s (0: Rayleigh)
         #: the table's fields by column name
         self.columns = {name: getattr(self, name) for name in MATERIAL_COLUMNS}
         #: the table as loaded, numpy columns in the fields' dtypes
@@ -110,15 +112,23 @@ class MaterialTable:
         return out, deq, yielded
 
     @ti.func
-    def viscous_stress(self, mat, D):
-        """The stiffness-proportional (Rayleigh) damping stress ``beta C^e : D`` in plane (xx, yy,
-        xy; Pa): a Kelvin-Voigt dashpot beside the material's own response, zero for rigid motion."""
+    def viscous_stress(self, mat, sv, D, dt):
+        """The damping stress after a step of ``dt`` at strain rate ``D``, from ``sv`` before it
+        (plane xx, yy, xy; Pa): ``beta C^e : D``, a dashpot beside the material's own response,
+        zero for rigid motion (Rayleigh); the Maxwell arm relaxes towards it in its time ``t``,
+        ``sv e + (1 - e) beta C^e : D`` with ``e = exp(-dt / t)``, exact for a constant rate."""
         K = self.K[mat]
         G = self.G[mat]
         beta = self.beta[mat]
         lam = K - 2.0 * G / 3.0
         tr = D[0, 0] + D[1, 1]
-        return beta * ti.Vector([lam * tr + 2.0 * G * D[0, 0], lam * tr + 2.0 * G * D[1, 1], 2.0 * G * D[0, 1]])
+        target = beta * ti.Vector([lam * tr + 2.0 * G * D[0, 0], lam * tr + 2.0 * G * D[1, 1], 2.0 * G * D[0, 1]])
+        tau = self.relax[mat]
+        out = target
+        if tau > 0.0:
+            e = ti.exp(-dt / tau)
+            out = e * sv + (1.0 - e) * target
+        return out
 
 
 @ti.data_oriented
