@@ -555,7 +555,8 @@ def damping_table(project: Project, name: str, stage_index: int | None = None) -
     last = len(project.stages) if stage_index is None else stage_index + 1
     for index, stage in enumerate(project.stages[:last]):
         change = stage.material_changes.get(name)
-        if change is not None and (change.damping_ratio is not None or change.damping_frequency_hz is not None):
+        if change is not None and any(value is not None for value in (
+                change.damping_ratio, change.damping_frequency_hz, change.damping_model)):
             path = f"stages.{index}.material_changes.{name}"
     return path
 

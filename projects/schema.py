@@ -56,6 +56,7 @@ MATERIAL_MODELS = sc.MATERIAL_MODELS
 #: How a Drucker-Prager material's cone is matched to its c, phi and psi (docs/solver.md).
 MOHR_COULOMB_MATCHES = sc.MOHR_COULOMB_MATCHES
 DAMPING_MODELS = sc.DAMPING_MODELS
+DEFAULT_DAMPING_MODEL = sc.DEFAULT_DAMPING_MODEL
 DEFAULT_MOHR_COULOMB_MATCH = sc.DEFAULT_MOHR_COULOMB_MATCH
 BOUNDARY_TYPES = sc.BOUNDARY_KINDS
 #: Contact types of a structure (a side's, less "open" and "periodic").
@@ -481,7 +482,8 @@ class Material(_Model):
 
 
 class MaterialChange(_Model):
-    """``[stages.material_changes.<name>]``: new values of a material's numeric keys."""
+    """``[stages.material_changes.<name>]``: new values of a material's numeric keys and its
+    damping model."""
 
     density_kg_m3: OptDensity = None
     youngs_modulus_pa: OptPositivePa = None
@@ -492,6 +494,7 @@ class MaterialChange(_Model):
     tensile_strength_pa: OptNonNegativePa = None
     damping_ratio: OptDampingRatio = None
     damping_frequency_hz: OptPositive = None
+    damping_model: Annotated[Literal[DAMPING_MODELS], _choice(DAMPING_MODELS)] | None = None
 
 
 class Body(_Model):

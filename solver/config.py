@@ -91,22 +91,24 @@ class Material:
     @property
     def maxwell_stiffening(self) -> float:
         """The Maxwell arm's spring as a fraction ``a`` of the elastic stiffness (0 for Rayleigh
-        damping): a standard linear solid damps a mode of angular frequency ``omega`` by
-        ``a w t / (2 (1 + (1 + a) (w t)^2))`` of critical, at most ``a / (4 sqrt(1 + a))`` at
-        ``w t = 1 / sqrt(1 + a)``; ``a`` is the one that makes this maximum ``damping_ratio``."""
+        damping). A mode of natural angular frequency ``omega`` (of the elastic stiffness) of a
+        standard linear solid decays at most by ``(sqrt(1 + a) - 1) / 2`` of critical, when the arm
+        relaxes in ``t = (1 + a)^(-3/4) / omega`` (from the roots of
+        ``T s^3 + s^2 + (1 + a) T s + 1``, ``T = omega t``, ``s`` in units of ``omega``); this ``a``,
+        ``4 zeta (1 + zeta)``, makes that maximum ``damping_ratio`` at ``damping_frequency_hz``.
+        The mode then vibrates ``sqrt(1 + 2 zeta)`` times faster (the arm's spring)."""
         if not self.damped or self.damping_model != "maxwell":
             return 0.0
-        z = self.damping_ratio
-        return 8.0 * z * z + 4.0 * z * math.sqrt(4.0 * z * z + 1.0)
+        return 4.0 * self.damping_ratio * (1.0 + self.damping_ratio)
 
     @property
     def damping_relaxation_s(self) -> float:
-        """The Maxwell arm's relaxation time ``t`` (s), which puts its damping peak at
+        """The Maxwell arm's relaxation time ``t`` (s), which makes its damping peak at
         ``damping_frequency_hz`` (0 for Rayleigh damping: the dashpot alone)."""
         a = self.maxwell_stiffening
         if a <= 0.0:
             return 0.0
-        return 1.0 / (2.0 * math.pi * self.damping_frequency_hz * math.sqrt(1.0 + a))
+        return (1.0 + a) ** -0.75 / (2.0 * math.pi * self.damping_frequency_hz)
 
     @property
     def rayleigh_beta_s(self) -> float:
@@ -135,13 +137,18 @@ class Material:
         return math.sqrt(constrained / self.density_kg_m3)
 
     def damping_ratio_at(self, frequency_hz: float) -> float:
-        """The fraction of critical damping a mode of ``frequency_hz`` gets: ``beta omega / 2``
-        (Rayleigh), half the loss tangent of the standard linear solid (Maxwell)."""
+        """The fraction of critical damping of a mode of natural frequency ``frequency_hz`` (of
+        the elastic stiffness): ``beta omega / 2`` (Rayleigh); from the free vibration of the
+        standard linear solid (Maxwell), 1 where it no longer vibrates."""
         omega = 2.0 * math.pi * frequency_hz
         a = self.maxwell_stiffening
         if a > 0.0:
-            wt = omega * self.damping_relaxation_s
-            return a * wt / (2.0 * (1.0 + (1.0 + a) * wt * wt))
+            T = omega * self.damping_relaxation_s
+            roots = np.roots([T, 1.0, (1.0 + a) * T, 1.0])
+            vibrating = roots[np.abs(roots.imag) > 1e-12 * np.abs(roots)]
+            if not len(vibrating):
+                return 1.0
+            return float(-vibrating[0].real / abs(vibrating[0]))
         return 0.5 * self.rayleigh_beta_s * omega
 
     def damping_step_shrink(self, cell_size_m: float) -> float:

@@ -351,10 +351,16 @@ def test_a_double_click_on_the_flutter_warning_opens_the_material_to_damp(window
     panel.problems.itemDoubleClicked.emit(item)
     assert window.panels.currentWidget() is window.materials_panel
     assert window.materials_panel.current == "block"
-    # the values it gives, typed in, take the warning away
-    window.materials_panel.fields["damping_ratio"].set_text("0.1")
+    # the values it gives, typed in, take the warning away; the model is chosen once a ratio is given
+    materials = window.materials_panel
+    assert not materials.damping_model.isEnabled()
+    materials.fields["damping_ratio"].set_text("0.1")
     frequency = item.text().split("damping_frequency_hz = ")[1].split(" ")[0]
-    window.materials_panel.fields["damping_frequency_hz"].set_text(frequency)
+    materials.fields["damping_frequency_hz"].set_text(frequency)
+    assert materials.damping_model.isEnabled() and materials.damping_model.combo.currentText() == "rayleigh"
+    model = item.text().split('damping_model = "')[1].split('"')[0]
+    materials.damping_model.choose(model)
+    assert window.doc.get("materials.block.damping_model") == "maxwell"
     panel.update_estimate()
     assert not any("flutters" in panel.problems.item(i).text() for i in range(panel.problems.count()))
 

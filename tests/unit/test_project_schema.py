@@ -221,7 +221,7 @@ GOLDEN = [
         {"bars": {"friction_angle": 10.0}},
         "stages.1.material_changes.bars.friction_angle: unknown key; allowed: density_kg_m3, "
         "youngs_modulus_pa, poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, "
-        "tensile_strength_pa, damping_ratio, damping_frequency_hz",
+        "tensile_strength_pa, damping_ratio, damping_frequency_hz, damping_model",
     ),
     (
         "stages.1.material_changes",
@@ -238,6 +238,16 @@ GOLDEN = [
         "materials.bars.damping_frequency_hz",
         2.0,
         "materials.bars.damping_frequency_hz = 2.0: only allowed with damping_ratio",
+    ),
+    (
+        "materials.bars.damping_model",
+        "maxwell",
+        'materials.bars.damping_model = "maxwell": only allowed with damping_ratio',
+    ),
+    (
+        "stages.1.material_changes",
+        {"bars": {"damping_ratio": 0.1, "damping_frequency_hz": 1.0, "damping_model": "kelvin"}},
+        'stages.1.material_changes.bars.damping_model = "kelvin": must be one of "rayleigh", "maxwell"',
     ),
     (
         "stages.1.material_changes",
