@@ -68,6 +68,8 @@ def main(argv: list[str] | None = None) -> int:
                          "shear mode on the base (docs/solver.md, material damping; default 0, undamped)")
     ap.add_argument("--damping-model", choices=("rayleigh", "maxwell"), default="rayleigh",
                     help="project path: the damping model of --damping-ratio (docs/solver.md, material damping)")
+    ap.add_argument("--damping-frequency-factor", type=float, default=1.0,
+                    help="project path: the damping's frequency in first shear modes of the block (default 1)")
     ap.add_argument("--work", type=Path, default=None, help="project path: results folder (default: a temporary one)")
     ap.add_argument("--table", nargs="+", type=Path, help="print the summary of saved CSVs and stop")
     args = ap.parse_args(argv)
@@ -153,7 +155,8 @@ def _project_matrix(args, angles) -> int:
                 gravity_s = None if args.gravity_s == "recommended" else float(args.gravity_s)
                 case = project_text(contact, scheme, precision, thickness, youngs, theta, delta, cell_m=args.cell,
                                     start=start, aspect=args.aspect, gravity_s=gravity_s,
-                                    damping_ratio=args.damping_ratio, damping_model=args.damping_model)
+                                    damping_ratio=args.damping_ratio, damping_model=args.damping_model,
+                                    damping_frequency_factor=args.damping_frequency_factor)
                 try:
                     o, _ = run_case(case, work / "run")
                 except RuntimeError as err:  # a failed run (e.g. the stability guard) is a row, not the end
@@ -258,7 +261,7 @@ def project_text(contact: str, scheme: str, precision: str, thickness_cells: int
                  theta_deg: float, delta_deg: float, *, cell_m: float = PROJECT_CELL_M, start: str = "gravity",
                  aspect: float = 4.0, duration_s: float | None = None, gravity_s: float | None = GRAVITY_STAGE_S,
                  per_cell: int = 2, start_cells: float = 1.0, damping_ratio: float = 0.0,
-                 damping_model: str = "rayleigh") -> ProjectCase:
+                 damping_model: str = "rayleigh", damping_frequency_factor: float = 1.0) -> ProjectCase:
     """A block at rest on a frictional contact as a project file.
 
     ``contact``: ``"bottom"``, ``"left"`` or ``"right"`` (a friction side, the incline made by
@@ -270,7 +273,7 @@ def project_text(contact: str, scheme: str, precision: str, thickness_cells: int
     its end. ``start_cells``: on the ramp, how far down the face from the ramp's convex top vertex
     the block's upslope end starts (cells). ``damping_ratio``: the block's material damping
     (docs/solver.md), that fraction of critical at the block's first shear mode on its base,
-    ``c_s / (4 H)``, by ``damping_model``.
+    ``c_s / (4 H)`` (times ``damping_frequency_factor``), by ``damping_model``.
     """
     import numpy as np
 
@@ -285,7 +288,7 @@ def project_text(contact: str, scheme: str, precision: str, thickness_cells: int
         probe = project_text(contact, scheme, precision, thickness_cells, youngs_pa, theta_deg, delta_deg,
                              cell_m=cell_m, start=start, aspect=aspect, duration_s=duration_s, gravity_s=1.0,
                              per_cell=per_cell, start_cells=start_cells, damping_ratio=damping_ratio,
-                             damping_model=damping_model)
+                             damping_model=damping_model, damping_frequency_factor=damping_frequency_factor)
         import tomllib
 
         from projects.checks import recommended_initial_stage
@@ -353,7 +356,7 @@ def project_text(contact: str, scheme: str, precision: str, thickness_cells: int
     damping = ""
     if damping_ratio > 0.0:
         c_s = math.sqrt(youngs_pa / (2.0 * (1.0 + POISSON)) / DENSITY)
-        damping = f"damping_ratio = {_f(damping_ratio)}\ndamping_frequency_hz = {_f(c_s / (4.0 * n * dx))}\n"
+        damping = f"damping_ratio = {_f(damping_ratio)}\ndamping_frequency_hz = {_f(damping_frequency_factor * c_s / (4.0 * n * dx))}\n"
         if damping_model != "rayleigh":
             damping += f'damping_model = "{damping_model}"\n'
     stages = ""

@@ -502,7 +502,7 @@ def estimate(project: Project) -> dict[str, object]:
     # how many times shorter material damping makes the stability limit, and whose damping
     undamped_limit = min(_ratio(dx, m.p_wave_speed_m_s) for m in materials)
     damped_limit, damped = min(((m.critical_time_step_s(dx), m) for m in materials), key=lambda x: x[0])
-    shrink = _ratio(undamped_limit, damped_limit) if damped.rayleigh_beta_s > 0.0 else 1.0
+    shrink = _ratio(undamped_limit, damped_limit) if damped.damping_beta_s > 0.0 else 1.0
     durations = [stage.duration_s or 0.0 for stage in project.stages]
     steps = _count(sum(_ratio(d, dt) for d in durations if d > 0.0))
     total = float(sum(durations))
@@ -511,7 +511,7 @@ def estimate(project: Project) -> dict[str, object]:
 
     float_bytes = 8 if numerics.precision == "f64" else 4
     per_particle = (
-        (ENGINE_FLOATS_PER_PARTICLE + (VISCOUS_FLOATS_PER_PARTICLE if any(m.rayleigh_beta_s > 0.0 for m in materials)
+        (ENGINE_FLOATS_PER_PARTICLE + (VISCOUS_FLOATS_PER_PARTICLE if any(m.damping_beta_s > 0.0 for m in materials)
                                        else 0)) * float_bytes
         + ENGINE_BYTES_PER_PARTICLE + HOST_BYTES_PER_PARTICLE
         + FRAMES_IN_MEMORY * (FRAME_FLOATS_PER_PARTICLE * float_bytes + FRAME_BYTES_PER_PARTICLE)

@@ -35,8 +35,9 @@ workbench shows them):
   Coulomb friction and slides further than a rigid block would (5 degrees above the limit, blocks
   5 and 20 cells thick: up to +30 % at 40 on 35 degrees, up to +9 % at 35 on 30; one-cell sheets
   within 0.3 %; docs/validation.md, near-limit slides), unless its material is damped by at
-  least NEAR_LIMIT_DAMPING of critical at the body's first shear mode on the contact, which
-  removes the flutter (docs/solver.md, material damping); the warning gives the keys to set;
+  least NEAR_LIMIT_DAMPING of critical at the body's first shear mode on the contact and at twice
+  its frequency (NEAR_LIMIT_BAND), which removes the flutter (docs/solver.md, material damping);
+  the warning gives the keys to set (a Maxwell arm of NEAR_LIMIT_SUGGESTED at the first mode);
 - a material damping that overdamps a body's first shear mode (more than OVERDAMPED_RATIO times
   critical there: a damping frequency given far below the body's), which turns its vibration into
   creep and costs time steps in proportion.
@@ -82,13 +83,18 @@ FACE_OFFSET_BAND = (0.55, 0.85)
 NEAR_LIMIT_FRICTION_DEG = 20.0
 NEAR_LIMIT_RATIO = 2.0
 NEAR_LIMIT_MIN_CELLS = 1.5
-#: Damping (fraction of critical at the body's first shear mode on the contact, ``c_s / (4 H)``)
-#: that takes the flutter away in every scheme (measured 5 degrees above the limit, blocks 5 and 20
-#: cells thick, docs/validation.md, near-limit slides with material damping: 0.05 leaves classic
-#: mpm's 20-cell block at 40/35 +5.5 %, 0.1 brings every case within 0.11 % on the bottom wall and 2.5 % on a ramp).
+#: Damping (fraction of critical) at the body's first shear mode on the contact, ``c_s / (4 H)``, and
+#: at NEAR_LIMIT_BAND[1] times it that takes the flutter away in every scheme (measured 5 degrees
+#: above the limit, blocks 5 and 20 cells thick, docs/validation.md, near-limit slides with material
+#: damping): Rayleigh damping of 0.1 at the first mode (0.2 at twice it) brings every case within
+#: 0.11 % on the walls and 2.5 % on a ramp, 0.05 leaves classic mpm's 20-cell block at 40/35
+#: +5.5 %; a Maxwell arm of 0.1 at the first mode (0.074 at twice it) is within 0.84 % on the walls
+#: but +13 % on a ramp, one of 0.15 (0.107 at twice it) +0.97 %, one of 0.2 (0.137) within 0.17 %.
 NEAR_LIMIT_DAMPING = 0.1
-#: ... by this model: the Maxwell arm takes the flutter as the Rayleigh dashpot does (0.79 % against
-#: 0.11 % at most, 5 degrees above the limit) at 1.2 times the undamped steps instead of up to 10.
+NEAR_LIMIT_BAND = (1.0, 2.0)
+#: ... and the damping the warning gives, at the first mode, by this model: the Maxwell arm of 0.2
+#: costs 1.4 times the undamped steps (Rayleigh damping of 0.1 up to 10 times for 20-cell blocks).
+NEAR_LIMIT_SUGGESTED = 0.2
 NEAR_LIMIT_DAMPING_MODEL = "maxwell"
 
 _CLOSED = ("fixed", "slip", "friction")
@@ -486,7 +492,8 @@ def _near_limit_slides(project: Project) -> list[str]:
     """A linear-elastic body sliding on a frictional contact just above a high friction limit (the
     flutter, measured for elastic blocks; a plastic body dissipates and is not warned about), in a
     dynamic stage where its material is damped by less than NEAR_LIMIT_DAMPING at the body's first
-    shear mode on the contact. One warning per body, naming the keys that remove it."""
+    shear mode on the contact or at twice it (NEAR_LIMIT_BAND). One warning per body, naming the
+    keys that remove it."""
     from projects.build import damping_table, material_tables, solver_material
 
     if not float(np.linalg.norm(project.domain.gravity_m_s2)) > 0:
@@ -519,16 +526,19 @@ def _near_limit_slides(project: Project) -> list[str]:
         for stage_index in dynamic:
             material = solver_material(name, tables[stage_index][name])
             f1 = _first_shear_mode_hz(material, depth)
-            damped = material.damping_ratio_at(f1)
+            if not math.isfinite(f1):
+                continue
+            damped = [material.damping_ratio_at(k * f1) for k in NEAR_LIMIT_BAND]
             # 0.99: the 3 digits the warning gives
-            if not math.isfinite(f1) or damped >= 0.99 * NEAR_LIMIT_DAMPING:
+            if min(damped) >= 0.99 * NEAR_LIMIT_DAMPING:
                 continue
             path = damping_table(project, name, stage_index)
-            suggested = dataclasses.replace(material, damping_ratio=NEAR_LIMIT_DAMPING, damping_frequency_hz=f1,
+            suggested = dataclasses.replace(material, damping_ratio=NEAR_LIMIT_SUGGESTED, damping_frequency_hz=f1,
                                             damping_model=NEAR_LIMIT_DAMPING_MODEL)
             shrink = suggested.damping_step_shrink(dx) / material.damping_step_shrink(dx)
-            now = ("an undamped elastic body" if damped <= 0.0 else
-                   f"an elastic body damped {100 * damped:.2g} % of critical at its first mode")
+            now = ("an undamped elastic body" if max(damped) <= 0.0 else
+                   f"an elastic body damped {100 * damped[0]:.2g} % of critical at its first mode and "
+                   f"{100 * damped[1]:.2g} % at {NEAR_LIMIT_BAND[1]:g} times its frequency")
             stage = project.stages[stage_index]
             warnings[index] = (
                 f"bodies.{index} ({body.name!r}) slides on {where} inclined {incline:.3g} degrees against friction "
@@ -536,7 +546,7 @@ def _near_limit_slides(project: Project) -> list[str]:
                 f"net driving force: so close to a high friction limit {now} "
                 "flutters on the contact and slides further than a rigid block (5 degrees above the limit, blocks "
                 "5-20 cells thick, undamped: up to +30 % at 40 on 35 degrees); material damping removes it: set "
-                f"{path}.damping_ratio = {NEAR_LIMIT_DAMPING:g}, damping_frequency_hz = {f1:.3g} (the body's first "
+                f"{path}.damping_ratio = {NEAR_LIMIT_SUGGESTED:g}, damping_frequency_hz = {f1:.3g} (the body's first "
                 f"shear mode) and damping_model = \"{NEAR_LIMIT_DAMPING_MODEL}\" (the time step becomes {shrink:.2g} "
                 "times shorter; docs/validation.md, near-limit slides)"
             )
@@ -559,7 +569,7 @@ def _overdamped_bodies(project: Project) -> list[str]:
     for stage_index, table in enumerate(material_tables(project)):
         for index, body in enumerate(project.bodies):
             material = solver_material(body.material, table[body.material])
-            if material.rayleigh_beta_s <= 0.0:
+            if material.damping_beta_s <= 0.0:
                 continue
             height = float(np.ptp(np.asarray(body.polygon_m, dtype=np.float64) @ up))
             f1 = _first_shear_mode_hz(material, height)

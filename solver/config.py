@@ -111,7 +111,7 @@ class Material:
         return (1.0 + a) ** -0.75 / (2.0 * math.pi * self.damping_frequency_hz)
 
     @property
-    def rayleigh_beta_s(self) -> float:
+    def damping_beta_s(self) -> float:
         """The damping's viscosity as a multiple of the elastic stiffness (s): the damping stress
         is ``beta C : D`` for Rayleigh damping, ``beta = zeta / (pi f)``, which damps a mode of
         angular frequency ``omega`` by ``beta omega / 2`` of critical, ``zeta`` at ``f``; for the
@@ -149,7 +149,7 @@ class Material:
             if not len(vibrating):
                 return 1.0
             return float(-vibrating[0].real / abs(vibrating[0]))
-        return 0.5 * self.rayleigh_beta_s * omega
+        return 0.5 * self.damping_beta_s * omega
 
     def damping_step_shrink(self, cell_size_m: float) -> float:
         """How many times shorter the damping makes this material's stability limit (1: undamped)."""

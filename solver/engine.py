@@ -157,7 +157,7 @@ class Engine:
         # the materials' damping stress (docs/solver.md, material damping), only where a material
         # has some (``viscous``: in any stage; by default, in the materials given here). Written by
         # the constitutive update, read by the force passes; state where a Maxwell arm remembers it.
-        self.viscous = (any(m.rayleigh_beta_s > 0.0 for m in materials) if viscous is None else bool(viscous))
+        self.viscous = (any(m.damping_beta_s > 0.0 for m in materials) if viscous is None else bool(viscous))
         self.sv = ti.Vector.field(3, float, n if self.viscous else 1)
 
         # Grid: what every scheme needs, plus the force and old-velocity fields only where used.

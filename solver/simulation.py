@@ -220,7 +220,7 @@ class Simulation:
             local_grid, config.materials, len(particles), config.numerics.scheme, np_float,
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
             damping=damping_support or any(st.damping > 0 for st in config.stages), scatter=config.numerics.scatter,
-            viscous=any(m.rayleigh_beta_s > 0.0 for m in all_materials(config)),
+            viscous=any(m.damping_beta_s > 0.0 for m in all_materials(config)),
             # the structures in the engine's coordinates too (relative to the grid origin)
             structures=tuple(dataclasses.replace(st, polygon_m=tuple(
                 (float(x - self.origin_m[0]), float(y - self.origin_m[1])) for x, y in st.polygon_m))

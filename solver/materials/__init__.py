@@ -41,7 +41,7 @@ def material_rows(materials: Sequence[Material]) -> dict[str, np.ndarray]:
         rows["alpha_psi"].append(alpha_psi)
         rows["t_cut"].append(min(t_cut, 1e30))
         rows["rho0"].append(m.density_kg_m3)
-        rows["beta"].append(m.rayleigh_beta_s)
+        rows["beta"].append(m.damping_beta_s)
         rows["relax"].append(m.damping_relaxation_s)
     return {k: np.asarray(v, dtype=np.int32 if k == "model" else np.float64) for k, v in rows.items()}
 

@@ -354,7 +354,8 @@ def test_a_double_click_on_the_flutter_warning_opens_the_material_to_damp(window
     # the values it gives, typed in, take the warning away; the model is chosen once a ratio is given
     materials = window.materials_panel
     assert not materials.damping_model.isEnabled()
-    materials.fields["damping_ratio"].set_text("0.1")
+    ratio = item.text().split(".damping_ratio = ")[1].split(",")[0]
+    materials.fields["damping_ratio"].set_text(ratio)
     frequency = item.text().split("damping_frequency_hz = ")[1].split(" ")[0]
     materials.fields["damping_frequency_hz"].set_text(frequency)
     assert materials.damping_model.isEnabled() and materials.damping_model.combo.currentText() == "rayleigh"

@@ -186,3 +186,27 @@ def test_a_maxwell_arm_shortens_the_critical_step_by_its_stiffening(scheme):
     assert all(np.isfinite(u).all() and np.abs(u).max() < 1e-4 for u in frames)  # amplitude 7e-5 m
     with pytest.raises(InstabilityError):
         run(undamped)
+
+
+def test_a_damping_state_crosses_between_damped_and_undamped_runs():
+    # starting a damped run from an undamped run's state (runout run --start-from) or the other
+    # way: the arm's stress is a one-row placeholder where nothing is damped; it starts from zero
+    plain_config, particles, _, _ = bar_config("apic-affine", "f32", 0.0, periods=0.3)
+    damped_config, _, _, _ = bar_config("apic-affine", "f32", 0.1, periods=0.3, model="maxwell")
+    with Simulation(damped_config, particles) as damped:  # one simulation at a time (one Taichi runtime)
+        list(damped.run())
+        damped_state = damped.engine.state()
+    assert damped_state["sv"].shape == (len(particles.positions_m), 3) and np.abs(damped_state["sv"]).max() > 0
+    with Simulation(plain_config, particles) as plain:
+        list(plain.run())
+        plain_state = plain.engine.state()
+        plain.engine.load_state(damped_state)
+        assert plain.engine.state(("sv",))["sv"].shape == (1, 3)
+    assert plain_state["sv"].shape == (1, 3)
+    with Simulation(damped_config, particles) as damped:
+        list(damped.run())
+        damped.engine.load_state(plain_state)
+        assert not damped.engine.state(("sv",))["sv"].any()
+        np.testing.assert_array_equal(damped.engine.state(("x",))["x"], plain_state["x"])
+        with pytest.raises(ValueError, match="state field 'sv' has shape"):
+            damped.engine.load_state({"sv": np.zeros((7, 3))})
