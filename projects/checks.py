@@ -38,9 +38,9 @@ workbench shows them):
   least NEAR_LIMIT_DAMPING of critical at the body's first shear mode on the contact and at twice
   its frequency (NEAR_LIMIT_BAND), which removes the flutter (docs/solver.md, material damping);
   the warning gives the keys to set (a Maxwell arm of NEAR_LIMIT_SUGGESTED at the first mode);
-- a material damping that overdamps a body's first shear mode (more than OVERDAMPED_RATIO times
+- a Rayleigh damping that overdamps a body's first shear mode (more than OVERDAMPED_RATIO times
   critical there: a damping frequency given far below the body's), which turns its vibration into
-  creep and costs time steps in proportion.
+  creep and costs time steps in proportion (a Maxwell arm damps no mode by more than its ratio).
 
 :func:`recommended_initial_stage` is the default initial-stress stage for a new project (the
 slope template): gravity loading where the ground slopes, k0 where it is level.
@@ -535,7 +535,7 @@ def _near_limit_slides(project: Project) -> list[str]:
             path = damping_table(project, name, stage_index)
             suggested = dataclasses.replace(material, damping_ratio=NEAR_LIMIT_SUGGESTED, damping_frequency_hz=f1,
                                             damping_model=NEAR_LIMIT_DAMPING_MODEL)
-            shrink = suggested.damping_step_shrink(dx) / material.damping_step_shrink(dx)
+            shrink = suggested.damping_step_shrink(dx)  # against the undamped step
             now = ("an undamped elastic body" if max(damped) <= 0.0 else
                    f"an elastic body damped {100 * damped[0]:.2g} % of critical at its first mode and "
                    f"{100 * damped[1]:.2g} % at {NEAR_LIMIT_BAND[1]:g} times its frequency")
@@ -547,8 +547,8 @@ def _near_limit_slides(project: Project) -> list[str]:
                 "flutters on the contact and slides further than a rigid block (5 degrees above the limit, blocks "
                 "5-20 cells thick, undamped: up to +30 % at 40 on 35 degrees); material damping removes it: set "
                 f"{path}.damping_ratio = {NEAR_LIMIT_SUGGESTED:g}, damping_frequency_hz = {f1:.3g} (the body's first "
-                f"shear mode) and damping_model = \"{NEAR_LIMIT_DAMPING_MODEL}\" (the time step becomes {shrink:.2g} "
-                "times shorter; docs/validation.md, near-limit slides)"
+                f"shear mode) and damping_model = \"{NEAR_LIMIT_DAMPING_MODEL}\" (the time step {shrink:.2g} "
+                "times shorter than undamped; docs/validation.md, near-limit slides)"
             )
             break
     return [warnings[k] for k in sorted(warnings)]
@@ -559,8 +559,8 @@ OVERDAMPED_RATIO = 1.0
 
 
 def _overdamped_bodies(project: Project) -> list[str]:
-    """A damped material whose damping overdamps a body's first mode: a frequency given far below
-    the body's (``zeta = damping_ratio * f / damping_frequency_hz`` grows with frequency), which
+    """A Rayleigh-damped material whose damping overdamps a body's first mode: a frequency given far
+    below the body's (``zeta = damping_ratio * f / damping_frequency_hz`` grows with frequency), which
     turns the body's vibration into creep and costs steps in proportion."""
     from projects.build import damping_table, material_tables, solver_material
 
@@ -569,8 +569,8 @@ def _overdamped_bodies(project: Project) -> list[str]:
     for stage_index, table in enumerate(material_tables(project)):
         for index, body in enumerate(project.bodies):
             material = solver_material(body.material, table[body.material])
-            if material.damping_beta_s <= 0.0:
-                continue
+            if material.damping_beta_s <= 0.0 or material.maxwell_stiffening > 0.0:
+                continue  # undamped, or a Maxwell arm: it damps no mode by more than its ratio (< 1)
             height = float(np.ptp(np.asarray(body.polygon_m, dtype=np.float64) @ up))
             f1 = _first_shear_mode_hz(material, height)
             damped = material.damping_ratio_at(f1)

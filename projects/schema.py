@@ -1075,9 +1075,10 @@ def _damping_rule(path: str, values: Mapping[str, Any]) -> list[Problem]:
     if ratio is not None and 0.0 < ratio < 1.0 and "damping_frequency_hz" not in values:
         return [Problem(f"{path}.damping_frequency_hz", None, "required with damping_ratio > 0: the frequency (Hz) at "
                         "which the material is damped by that fraction of critical, e.g. the body's first mode")]
-    for key in ("damping_frequency_hz", "damping_model"):
-        if key in values and "damping_ratio" not in values:
-            return [Problem(f"{path}.{key}", values[key], "only allowed with damping_ratio")]
+    # (a damping_model alone is allowed: it says how the material is damped once a ratio is given,
+    # and the workbench keeps it while the ratio is cleared and typed again)
+    if "damping_frequency_hz" in values and "damping_ratio" not in values:
+        return [Problem(f"{path}.damping_frequency_hz", values["damping_frequency_hz"], "only allowed with damping_ratio")]
     return []
 
 

@@ -86,6 +86,7 @@ class Material:
 
     @property
     def damped(self) -> bool:
+        """Whether the material has a damping (a ratio above zero at a frequency)."""
         return self.damping_ratio > 0.0 and self.damping_frequency_hz > 0.0
 
     @property
@@ -162,14 +163,17 @@ class Material:
         stiffness-proportional damping, ``omega_max dt <= 2 (sqrt(1 + xi^2) - xi)`` with
         ``xi = beta omega_max / 2`` the damping fraction of the grid's highest mode,
         ``omega_max = 2 c_p / dx``; Belytschko, Liu and Moran, Nonlinear Finite Elements for
-        Continua and Structures, 2000, sec. 6.3); with the Maxwell arm, whose spring stiffens
-        the material by ``1 + a`` at frequencies above its peak, by ``1 / sqrt(1 + a)`` and by the
-        same factor with ``xi`` the arm's damping of the grid's highest mode (small unless the
-        damping peak is set near that mode)."""
-        c_p = self.p_wave_speed_m_s * math.sqrt(1.0 + self.maxwell_stiffening)
-        step = cell_size_m / (c_p + max_speed_m_s)
-        if self.damped:
-            xi = self.damping_ratio_at(c_p / (math.pi * cell_size_m))  # omega_max = 2 c_p / dx
+        Continua and Structures, 2000, sec. 6.3); with the Maxwell arm, by ``1 / sqrt(1 + a)``:
+        at the grid's highest frequencies the arm is its spring alone, which stiffens the material
+        by ``1 + a``, and a one-degree-of-freedom model of the update (force from the stresses,
+        then both stresses from the new velocity, the arm's exactly) is stable up to
+        ``omega sqrt(1 + a) dt = 2`` and beyond where the damping peak nears the grid's frequency
+        (measured: a bar damped 0.9 is stable to 1.1 times this step, unstable from 1.5 times)."""
+        a = self.maxwell_stiffening
+        step = cell_size_m / (self.p_wave_speed_m_s * math.sqrt(1.0 + a) + max_speed_m_s)
+        beta = self.damping_beta_s
+        if beta > 0.0 and a == 0.0:
+            xi = beta * self.p_wave_speed_m_s / cell_size_m
             step /= math.hypot(1.0, xi) + xi  # times sqrt(1 + xi^2) - xi, without the cancellation
         return step
 

@@ -920,10 +920,11 @@ class Engine:
         Lt = transpose(L)
         D = 0.5 * (L + Lt)
         W = 0.5 * (L - Lt)
-        s, deq, yielded = self.materials.stress_update(self.mat[p], self.s[p], D, W, dt)
+        before = self.s[p]
+        s, deq, yielded = self.materials.stress_update(self.mat[p], before, D, W, dt)
         self.s[p] = s
         if ti.static(self.viscous):
-            self.sv[p] = self.materials.viscous_stress(self.mat[p], self.sv[p], D, dt)
+            self.sv[p] = self.materials.viscous_stress(self.mat[p], self.sv[p], D, W, dt, before, s, yielded)
         self.eps_p[p] += deq
         self.yielded[p] = ti.cast(yielded, ti.i8)
         rho = self.rho[p] / (1.0 + (D[0, 0] + D[1, 1]) * dt)  # eq 24

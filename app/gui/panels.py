@@ -292,7 +292,7 @@ class MaterialsPanel(Panel):
             "rayleigh: stiffness-proportional, the damping grows with frequency and the time step shrinks "
             "with it (many times for thick bodies); maxwell: a spring and dashpot in series, the damping "
             "peaks at the damping frequency and the step is about 1.2 times shorter at 10 %, the material a "
-            "little stiffer above that frequency. Set a damping ratio first")
+            "little stiffer above that frequency. It acts once a damping ratio is given")
         form.addRow("Damping model", self.damping_model)
         # which Drucker-Prager cone stands for the Mohr-Coulomb c and phi (docs/solver.md)
         self.match = ChoiceField(doc, None, "Mohr-Coulomb match", MOHR_COULOMB_MATCHES,
@@ -340,8 +340,7 @@ class MaterialsPanel(Panel):
                 field.edit.setText("")
                 field.edit.setPlaceholderText("—" if base else "")
         self.match.set_path(f"{base}.mohr_coulomb_match" if plastic else None)
-        damped = base is not None and self.doc.get(f"{base}.damping_ratio") is not None
-        self.damping_model.set_path(f"{base}.damping_model" if damped else None)
+        self.damping_model.set_path(f"{base}.damping_model" if base else None)
         if name is not None:
             users = [b.get("name", "?") for b in self.doc.get("bodies", []) if b.get("material") == name]
             self.used_by.setText("Used by: " + (", ".join(users) if users else "no body"))

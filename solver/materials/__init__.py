@@ -10,7 +10,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from solver.runtime import ti, transpose
+from solver.runtime import mat_mat, ti, transpose
 
 from solver.config import Material
 from solver.fieldio import FieldIO
@@ -112,22 +112,33 @@ class MaterialTable:
         return out, deq, yielded
 
     @ti.func
-    def viscous_stress(self, mat, sv, D, dt):
-        """The damping stress after a step of ``dt`` at strain rate ``D``, from ``sv`` before it
-        (plane xx, yy, xy; Pa): ``beta C^e : D``, a dashpot beside the material's own response,
-        zero for rigid motion (Rayleigh); the Maxwell arm relaxes towards it in its time ``t``,
-        ``sv e + (1 - e) beta C^e : D`` with ``e = exp(-dt / t)``, exact for a constant rate."""
+    def viscous_stress(self, mat, sv, D, W, dt, before, after, yielded):
+        """The damping stress after a step of ``dt`` at strain rate ``D`` and spin ``W``, from
+        ``sv`` before it (plane xx, yy, xy; Pa): ``beta C^e : D_e``, a dashpot beside the
+        material's own response on the elastic part of the rate of deformation (``C^e : D_e`` is
+        ``C^e : D`` less the step's plastic correction, from the stress ``before`` and ``after``
+        the update where it ``yielded``), zero for rigid motion and for steady plastic flow
+        (Rayleigh); the Maxwell arm's stress, turned with the material (Jaumann, as the
+        material's own), relaxes towards it in its time ``t``: ``sv e + (1 - e) beta C^e : D_e``
+        with ``e = exp(-dt / t)``, exact for a constant rate."""
         K = self.K[mat]
         G = self.G[mat]
         beta = self.beta[mat]
         lam = K - 2.0 * G / 3.0
         tr = D[0, 0] + D[1, 1]
-        target = beta * ti.Vector([lam * tr + 2.0 * G * D[0, 0], lam * tr + 2.0 * G * D[1, 1], 2.0 * G * D[0, 1]])
+        rate = ti.Vector([lam * tr + 2.0 * G * D[0, 0], lam * tr + 2.0 * G * D[1, 1], 2.0 * G * D[0, 1]])
+        if yielded:
+            correction = linear_elastic.trial_stress(before, D, W, dt, K, G) - after
+            rate -= ti.Vector([correction[0], correction[1], correction[2]]) / dt
+        target = beta * rate
         tau = self.relax[mat]
         out = target
         if tau > 0.0:
+            S = ti.Matrix([[sv[0], sv[2]], [sv[2], sv[1]]])
+            rot = mat_mat(W, S) - mat_mat(S, W)
+            turned = sv + dt * ti.Vector([rot[0, 0], rot[1, 1], rot[0, 1]])
             e = ti.exp(-dt / tau)
-            out = e * sv + (1.0 - e) * target
+            out = e * turned + (1.0 - e) * target
         return out
 
 

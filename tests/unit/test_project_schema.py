@@ -240,11 +240,6 @@ GOLDEN = [
         "materials.bars.damping_frequency_hz = 2.0: only allowed with damping_ratio",
     ),
     (
-        "materials.bars.damping_model",
-        "maxwell",
-        'materials.bars.damping_model = "maxwell": only allowed with damping_ratio',
-    ),
-    (
         "stages.1.material_changes",
         {"bars": {"damping_ratio": 0.1, "damping_frequency_hz": 1.0, "damping_model": "kelvin"}},
         'stages.1.material_changes.bars.damping_model = "kelvin": must be one of "rayleigh", "maxwell"',
@@ -338,6 +333,15 @@ GOLDEN = [
         "bodies.0.initial_velocity_m_s = [1, 2, 3]: must be a pair of numbers [x, y]",
     ),
 ]
+
+
+def test_a_damping_model_without_a_ratio_is_allowed_and_undamped():
+    # the workbench keeps the model while the ratio is cleared and typed again
+    from projects.build import solver_material
+
+    data = changed("materials.bars.damping_model", "maxwell")
+    material = validate_project(data).materials["bars"]  # no problem raised
+    assert material.damping_model == "maxwell" and not solver_material("bars", material).damped
 
 
 @pytest.mark.parametrize(("path", "value", "expected"), GOLDEN, ids=[f"{i:02d}-{c[0]}" for i, c in enumerate(GOLDEN)])
