@@ -233,15 +233,24 @@ def parse_number(text: str) -> float | None:
 
 
 def format_number(value: Any) -> str:
-    """A number for a text field: short but exact enough to round-trip what was typed."""
+    """A number for a text field: short, exact for what was typed (10 significant digits); a value
+    written with more by a script (2.9000000000000004) shows rounded, and the fields keep it
+    unless its text is edited (:func:`typed_or_kept`)."""
     if isinstance(value, bool) or value is None:
         return "" if value is None else str(value)
     if isinstance(value, int):
         return str(value)
     if isinstance(value, float):
-        text = f"{value:.10g}"
-        return text if float(text) == value else repr(value)
+        return f"{value:.10g}"
     return str(value)
+
+
+def typed_or_kept(text: str, typed: Any, current: Any) -> Any:
+    """What a field's ``text`` stands for: ``current`` while the text is still the one shown for it
+    (a rounded long decimal is not rewritten by a focus change), else the ``typed`` value."""
+    if current is not None and not isinstance(current, bool) and text.strip() == format_number(current):
+        return current
+    return typed
 
 
 def editable_data(data: Any) -> dict[str, Any] | None:

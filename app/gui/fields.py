@@ -29,7 +29,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.document import ProjectDocument, check_value, format_number, parse_number
+from app.gui.document import ProjectDocument, check_value, format_number, parse_number, typed_or_kept
 from app.gui.units import parse_quantity
 
 logger = logging.getLogger(__name__)
@@ -183,6 +183,7 @@ class NumberField(_Bound):
             self.message.emit(f"{self.label}: {self.error}")
             return False
         current = self.value()
+        value = typed_or_kept(self.edit.text(), value, current)
         changed = not (value == current and (value is None) == (current is None))
         done = changed and self.doc.set_value(self.path, value, f"change {self.label.lower()}")
         forget_typing(self.edit)
@@ -255,7 +256,10 @@ class PairField(_Bound):
         self._style()
         if self.error or value is None:
             return False
-        done = value != self.value() and self.doc.set_value(self.path, value, f"change {self.label.lower()}")
+        current = self.value()
+        if isinstance(current, (list, tuple)) and len(current) == 2:
+            value = [typed_or_kept(edit.text(), v, c) for edit, v, c in zip(self.edits, value, current, strict=True)]
+        done = value != current and self.doc.set_value(self.path, value, f"change {self.label.lower()}")
         for edit in self.edits:
             forget_typing(edit)
         return done

@@ -474,3 +474,25 @@ def test_choosing_a_preset_drops_the_fixed_step_and_undo_restores_it(window, tin
     doc.undo_stack.undo()
     assert doc.get("numerics.preset") is None and doc.get("numerics.time_step_s") == dt
     assert panel.preset.currentIndex() == 0
+
+
+def test_a_long_decimal_shows_short_and_is_kept_until_edited(window, tiny_file, tmp_path):
+    # a script wrote 29.000000000000004 (0.1 + ...): the field shows 29, a focus change does not
+    # rewrite the value, and typing changes it; a pair keeps its untouched component
+    text = tiny_file.read_text(encoding="utf-8").replace("friction_angle_deg = 30.0", "friction_angle_deg = 29.000000000000004")
+    assert "29.000000000000004" in text
+    path = tmp_path / "long.toml"
+    path.write_text(text, encoding="utf-8")
+    window.open_project(path)
+    field = window.materials_panel.fields["friction_angle_deg"]
+    assert field.edit.text() == "29"
+    assert not field.commit()  # what leaving the field does
+    assert window.doc.get("materials.sand.friction_angle_deg") == 29.000000000000004 and not window.doc.is_dirty
+    field.set_text("29.5")
+    assert window.doc.get("materials.sand.friction_angle_deg") == 29.5
+    window.doc.set_value("domain.gravity_m_s2", [0.30000000000000004, -9.81], "gravity")
+    gravity = window.domain_panel.gravity
+    assert [e.text() for e in gravity.edits] == ["0.3", "-9.81"]
+    gravity.edits[1].setText("-9.8")
+    gravity.commit()
+    assert window.doc.get("domain.gravity_m_s2") == [0.30000000000000004, -9.8]
