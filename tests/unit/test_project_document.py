@@ -346,11 +346,11 @@ def test_overrides_on_raw_data_do_not_modify_it():
             "materials.sand.colour=red",
             "materials.sand.colour: unknown key; allowed: model, density_kg_m3, youngs_modulus_pa, "
             "poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, tensile_strength_pa, "
-            "mohr_coulomb_match, damping_ratio, damping_frequency_hz",
+            "mohr_coulomb_match, damping_ratio, damping_frequency_hz, damping_model",
         ),
         ("stages.1.material_changes.sand.model=x", "stages.1.material_changes.sand.model: unknown key; allowed: "
          "density_kg_m3, youngs_modulus_pa, poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, "
-         "tensile_strength_pa, damping_ratio, damping_frequency_hz"),
+         "tensile_strength_pa, damping_ratio, damping_frequency_hz, damping_model"),
         ("materials.sand.poisson_ratio=0.6", "materials.sand.poisson_ratio = 0.6: must be >= 0 and < 0.5"),
         ("numerics.scheme=flip", 'numerics.scheme = "flip": must be one of "mpm", "apic", "apic-affine"'),
         ("runout.title=1", "runout.title = 1: must be a string"),
