@@ -374,6 +374,9 @@ PoissonRatio = _number_type(ge=0.0, lt=0.5)
 OptAngleDeg = _number_type(ge=0.0, lt=90.0, optional=True)
 #: a material's damping, the fraction of critical at its frequency (docs/solver.md, material damping)
 OptDampingRatio = _number_type(ge=0.0, lt=1.0, optional=True)
+#: a body's mode: periods from 1 us to 1000 s (a first shear mode c_s / 4H outside it is no soil
+#: body; without bounds a frequency of 1e-320 Hz overflows the damping's time constants)
+OptDampingFrequency = _number_type(ge=1e-3, le=1e6, optional=True)
 OptCfl = _number_type(gt=0.0, le=1.0, optional=True)
 OptFraction = _number_type(gt=0.0, lt=1.0, optional=True)
 OptRampFraction = _number_type(gt=0.0, le=1.0, optional=True)
@@ -477,7 +480,7 @@ class Material(_Model):
     tensile_strength_pa: OptNonNegativePa = None
     mohr_coulomb_match: Annotated[Literal[MOHR_COULOMB_MATCHES], _choice(MOHR_COULOMB_MATCHES)] | None = None
     damping_ratio: OptDampingRatio = None
-    damping_frequency_hz: OptPositive = None
+    damping_frequency_hz: OptDampingFrequency = None
     damping_model: Annotated[Literal[DAMPING_MODELS], _choice(DAMPING_MODELS)] | None = None
 
 
@@ -493,7 +496,7 @@ class MaterialChange(_Model):
     dilatancy_angle_deg: OptAngleDeg = None
     tensile_strength_pa: OptNonNegativePa = None
     damping_ratio: OptDampingRatio = None
-    damping_frequency_hz: OptPositive = None
+    damping_frequency_hz: OptDampingFrequency = None
     damping_model: Annotated[Literal[DAMPING_MODELS], _choice(DAMPING_MODELS)] | None = None
 
 

@@ -404,8 +404,7 @@ class StrengthReduction:
             sim.status = "stopped"
             self.message = "cancelled while settling the initial stress"
             return
-        sim.engine.set_velocity(np.zeros((sim.engine.n, 2)))
-        sim.engine.reset_reference()
+        sim.engine.bring_to_rest()
         self.equilibrium_wall_time_s = time.perf_counter() - wall
         self.equilibrium_steps = sim.steps - steps0
         checkpoint = sim.engine.state()

@@ -363,8 +363,9 @@ class Engine:
         })
 
     def set_stress(self, stress: np.ndarray) -> None:
-        """Overwrite the particle stresses, (N, 4) Pa."""
-        self._io.write({"s": np.asarray(stress, dtype=self.np_float)})
+        """Overwrite the particle stresses, (N, 4) Pa; a new stress state, so the damping's memory
+        of past deformation rates (the Maxwell arm's stress) starts from zero with it."""
+        self._io.write({"s": np.asarray(stress, dtype=self.np_float), "sv": 0.0})
 
     def set_velocity(self, velocity: np.ndarray, affine: np.ndarray | None = None) -> None:
         self._io.write({"v": np.asarray(velocity, dtype=self.np_float),
@@ -373,6 +374,12 @@ class Engine:
     def reset_reference(self) -> None:
         """Measure displacements from the current positions from now on."""
         self._io.write({"x0": self._io.read(("x",))["x"]})
+
+    def bring_to_rest(self) -> None:
+        """The quasi-static state an initial-stress stage ends in: velocities, affine matrices and
+        the damping's memory of past rates (the Maxwell arm's stress, which would otherwise push
+        on a body whose velocities were dropped) set to zero, displacements measured from here."""
+        self._io.write({"v": 0.0, "C": 0.0, "sv": 0.0, "x0": self._io.read(("x",))["x"]})
 
     def state(self, names: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
         """Copies of the named state fields (default: everything a checkpoint needs), as

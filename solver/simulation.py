@@ -599,8 +599,7 @@ class Simulation:
                 if stage.kind == "gravity":
                     # quasi-static initial state: drop the velocities, measure displacement from here
                     end_speed = float(e.diagnostics()["max_speed"])
-                    e.set_velocity(np.zeros((n, 2)))
-                    e.reset_reference()
+                    e.bring_to_rest()
                     self.equilibrium = self.equilibrium_check(stage, c.dt_s, end_speed)
                 c.phase = "end"
                 if c.last_output_step != self.steps:

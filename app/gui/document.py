@@ -62,6 +62,7 @@ FIELD_INFO: dict[str, tuple[str, str]] = {
     "tensile_strength_pa": ("Tensile strength", "Pa"),
     "damping_ratio": ("Damping ratio", "–"),
     "damping_frequency_hz": ("Damping frequency", "Hz"),
+    "damping_model": ("Damping model", ""),
     "cell_size_m": ("Cell size", "m"),
     "duration_s": ("Duration", "s"),
     "k0": ("K0 (empty: 1 − sin φ)", "–"),

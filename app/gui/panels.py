@@ -1042,8 +1042,12 @@ class StagesPanel(Panel):
         self.change_key.setAccessibleName("Changed property")
         for key in MATERIAL_KEYS:
             self.change_key.addItem(f"{FIELD_INFO[key][0]} ({FIELD_INFO[key][1]})", key)
+        # the one change that is a word, not a number (the warning on near-limit slides asks for it)
+        self.change_key.addItem(f"{FIELD_INFO['damping_model'][0]} ({' | '.join(DAMPING_MODELS)})", "damping_model")
         self.change_value = QLineEdit()
         self.change_value.setPlaceholderText("value")
+        self.change_key.currentIndexChanged.connect(lambda _i: self.change_value.setPlaceholderText(
+            " or ".join(DAMPING_MODELS) if self.change_key.currentData() == "damping_model" else "value"))
         self.change_value.setAccessibleName("New value")
         self.change_set = QPushButton("Set")
         self.change_set.clicked.connect(self._set_change)
@@ -1182,7 +1186,7 @@ class StagesPanel(Panel):
         self._current = i + step
         self._on_changed(frozenset({"stages"}))
 
-    def set_change(self, material: str, key: str, value: float) -> bool:
+    def set_change(self, material: str, key: str, value: float | str) -> bool:
         """Set ``key`` of ``material`` from the selected stage on."""
         i = self._current
         if i is None:
@@ -1195,11 +1199,13 @@ class StagesPanel(Panel):
         return self.doc.set_value(path, value, f"change {material} {key} in stage {i + 1}")
 
     def _set_change(self) -> None:
-        value = parse_number(self.change_value.text())
+        key = self.change_key.currentData()
+        text = self.change_value.text().strip()
+        value = text if key == "damping_model" else parse_number(text)  # the schema checks the word
         if value is None:
             self.show_message("New value: must be a number")
             return
-        self.set_change(self.change_material.currentText(), self.change_key.currentData(), value)
+        self.set_change(self.change_material.currentText(), key, value)
 
     def _remove_change(self) -> None:
         i = self._current

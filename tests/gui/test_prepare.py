@@ -289,6 +289,26 @@ def test_invalid_shapes_are_flagged_where_they_are(window, tiny_file):
     assert panel.table.item(2, 0).background().color().name() == "#fde2e1"
 
 
+def test_a_stage_can_change_the_damping_model(window, tiny_file, qtbot):
+    # the near-limit warning may ask for damping_model = "maxwell" in a stage's material changes
+    window.open_project(tiny_file)
+    panel = window.stages_panel
+    panel.select(1)
+    panel.change_material.setCurrentText("sand")
+    panel.change_key.setCurrentIndex(panel.change_key.findData("damping_model"))
+    assert panel.change_value.placeholderText() == "rayleigh or maxwell"
+    panel.change_value.setText("kelvin")
+    qtbot.mouseClick(panel.change_set, Qt.MouseButton.LeftButton)
+    assert window.doc.get("stages.1.material_changes") is None
+    assert "Damping model" in panel.message.text() and "maxwell" in panel.message.text()
+    panel.change_value.setText(" maxwell ")
+    qtbot.mouseClick(panel.change_set, Qt.MouseButton.LeftButton)
+    assert window.doc.get("stages.1.material_changes.sand.damping_model") == "maxwell"
+    labels = [panel.changes.item(r, 1).text() for r in range(panel.changes.rowCount())]
+    assert labels == ["Damping model"]
+    assert panel.changes.item(0, 2).text().strip() == "maxwell"
+
+
 def test_save_and_reopen_is_a_round_trip(window, tiny_file, tmp_path):
     window.open_project(tiny_file)
     window.materials_panel.fields["cohesion_pa"].set_text("1500")

@@ -362,7 +362,7 @@ def test_linear_elastic_rejects_every_plastic_key():
 
 
 @pytest.mark.parametrize("model", ["linear-elastic", "drucker-prager"])
-def test_material_damping_takes_a_ratio_below_one_and_a_positive_frequency(model):
+def test_material_damping_takes_a_ratio_below_one_and_a_frequency_of_a_body(model):
     data = copy.deepcopy(BASE)
     data["materials"]["bars"]["damping_ratio"] = 0.05
     data["materials"]["bars"]["damping_frequency_hz"] = 0.0
@@ -370,7 +370,9 @@ def test_material_damping_takes_a_ratio_below_one_and_a_positive_frequency(model
         data["materials"]["bars"] = {k: v for k, v in data["materials"]["bars"].items()
                                      if k not in ("cohesion_pa", "friction_angle_deg", "dilatancy_angle_deg")}
         data["materials"]["bars"]["model"] = model
-    assert problems_of(data) == ["materials.bars.damping_frequency_hz = 0.0: must be > 0"]
+    assert problems_of(data) == ["materials.bars.damping_frequency_hz = 0.0: must be >= 0.001 and <= 1e+06"]
+    data["materials"]["bars"]["damping_frequency_hz"] = 1e-320
+    assert problems_of(data) == ["materials.bars.damping_frequency_hz = 1e-320: must be >= 0.001 and <= 1e+06"]
     data["materials"]["bars"]["damping_frequency_hz"] = 3.5
     material = validate_project(data).materials["bars"]
     assert (material.damping_ratio, material.damping_frequency_hz) == (0.05, 3.5)

@@ -212,6 +212,28 @@ def test_a_damping_state_crosses_between_damped_and_undamped_runs():
             damped.engine.load_state({"sv": np.zeros((7, 3))})
 
 
+def test_coming_to_rest_and_a_new_stress_state_clear_the_arm_memory():
+    # the end of a gravity stage drops the velocities (Engine.bring_to_rest) and a k0 stage sets a
+    # new stress (Engine.set_stress): the arm's stress, a memory of the rates before, must go
+    # with them, or it pushes on a body at rest (and enters the equilibrium check's probe step)
+    config, particles, _, _ = bar_config("apic-affine", "f32", 0.1, periods=0.3, model="maxwell")
+    with Simulation(config, particles) as sim:
+        list(sim.run())
+        e = sim.engine
+        before = e.state(("sv", "s", "x"))
+        assert np.abs(before["sv"]).max() > 0 and np.abs(before["s"]).max() > 0
+        e.bring_to_rest()
+        after = e.state(("sv", "v", "C", "x", "x0", "s"))
+        assert not after["sv"].any() and not after["v"].any() and not after["C"].any()
+        np.testing.assert_array_equal(after["x0"], before["x"])
+        np.testing.assert_array_equal(after["s"], before["s"])  # the material's own stress stays
+        for _ in range(2):  # the first step's stress update still sees the dropped velocities
+            e.step(1e-5, (0.0, 0.0), 0.0)
+        assert np.abs(e.state(("sv",))["sv"]).max() > 0  # the stress drives motion, the arm wakes
+        e.set_stress(np.zeros((e.n, 4)))
+        assert not e.state(("sv",))["sv"].any()
+
+
 def _column_toe_m(extra: list[str]) -> float:
     """The toe of the tiny sand column (Drucker-Prager) after 0.3 s of collapse, apic-affine."""
     from projects.build import resolve
