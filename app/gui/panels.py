@@ -1043,7 +1043,7 @@ class StagesPanel(Panel):
         for key in MATERIAL_KEYS:
             self.change_key.addItem(f"{FIELD_INFO[key][0]} ({FIELD_INFO[key][1]})", key)
         # the one change that is a word, not a number (the warning on near-limit slides asks for it)
-        self.change_key.addItem(f"{FIELD_INFO['damping_model'][0]} ({' | '.join(DAMPING_MODELS)})", "damping_model")
+        self.change_key.addItem(FIELD_INFO["damping_model"][0], "damping_model")  # the placeholder names the words
         self.change_value = QLineEdit()
         self.change_value.setPlaceholderText("value")
         self.change_key.currentIndexChanged.connect(lambda _i: self.change_value.setPlaceholderText(
