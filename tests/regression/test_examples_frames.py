@@ -1,4 +1,4 @@
-"""Every shipped example gives the frames it gave before (digests of every frame array).
+"""Every shipped example gives the frames it gave before (a fingerprint of every frame array).
 
 The digests in ``tests/data/example_frames.json`` were first written at 2c3ebaa, before the
 one-run-path refactoring (runs as processes, checkpoints, ``resolve``), and every example gave the
@@ -40,12 +40,13 @@ magnitude. Measured on the examples (session 22): summing in another order (the 
 the split scatter, the kind of difference another CPU's code makes) moves the sums by at most
 5e-7 of the magnitude (stresses of the tiny column; 2e-8 to 1e-7 for the other arrays), a
 friction angle 0.01 degrees higher by 1e-4 (stresses 6e-4): the tolerance lies between. That a
-run repeats bit for bit on one machine is tested below on series.csv.
+run repeats bit for bit on one machine is tested below on series.csv. To check that a refactoring keeps the
+frames bit for bit, ``write`` the fingerprints before and after it on one machine and compare the
+files: a float64 sum sees a change in the last bit of any float32 value but the tiniest.
 
 Write them: ``python tests/regression/test_examples_frames.py write [COMMIT]``.
 """
 
-import hashlib
 import json
 import sys
 from pathlib import Path
