@@ -35,6 +35,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from solver.config import DAMPING_MODELS, DEFAULT_DAMPING_MODEL
+
 ANGLES = "10:0,10:20,20:10,20:30,30:20,30:45,40:30,40:45"
 SLIDE_TOLERANCE = 0.03  # the issue's: |slip / analytic - 1|
 STICK_TOLERANCE = 0.001  # slip / frictionless distance
@@ -66,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--damping-ratio", type=float, default=0.0,
                     help="project path: the block's material damping, this fraction of critical at its first "
                          "shear mode on the base (docs/solver.md, material damping; default 0, undamped)")
-    ap.add_argument("--damping-model", choices=("rayleigh", "maxwell"), default="rayleigh",
+    ap.add_argument("--damping-model", choices=DAMPING_MODELS, default=DEFAULT_DAMPING_MODEL,
                     help="project path: the damping model of --damping-ratio (docs/solver.md, material damping)")
     ap.add_argument("--damping-frequency-factor", type=float, default=1.0,
                     help="project path: the damping's frequency in first shear modes of the block (default 1)")
@@ -261,7 +263,7 @@ def project_text(contact: str, scheme: str, precision: str, thickness_cells: int
                  theta_deg: float, delta_deg: float, *, cell_m: float = PROJECT_CELL_M, start: str = "gravity",
                  aspect: float = 4.0, duration_s: float | None = None, gravity_s: float | None = GRAVITY_STAGE_S,
                  per_cell: int = 2, start_cells: float = 1.0, damping_ratio: float = 0.0,
-                 damping_model: str = "rayleigh", damping_frequency_factor: float = 1.0) -> ProjectCase:
+                 damping_model: str = DEFAULT_DAMPING_MODEL, damping_frequency_factor: float = 1.0) -> ProjectCase:
     """A block at rest on a frictional contact as a project file.
 
     ``contact``: ``"bottom"``, ``"left"`` or ``"right"`` (a friction side, the incline made by
@@ -357,7 +359,7 @@ def project_text(contact: str, scheme: str, precision: str, thickness_cells: int
     if damping_ratio > 0.0:
         c_s = math.sqrt(youngs_pa / (2.0 * (1.0 + POISSON)) / DENSITY)
         damping = f"damping_ratio = {_f(damping_ratio)}\ndamping_frequency_hz = {_f(damping_frequency_factor * c_s / (4.0 * n * dx))}\n"
-        if damping_model != "rayleigh":
+        if damping_model != DEFAULT_DAMPING_MODEL:
             damping += f'damping_model = "{damping_model}"\n'
     stages = ""
     if start == "gravity":

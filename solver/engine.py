@@ -371,10 +371,6 @@ class Engine:
         self._io.write({"v": np.asarray(velocity, dtype=self.np_float),
                         "C": 0.0 if affine is None else np.asarray(affine, dtype=self.np_float)})
 
-    def reset_reference(self) -> None:
-        """Measure displacements from the current positions from now on."""
-        self._io.write({"x0": self._io.read(("x",))["x"]})
-
     def bring_to_rest(self) -> None:
         """The quasi-static state an initial-stress stage ends in: velocities, affine matrices and
         the damping's memory of past rates (the Maxwell arm's stress, which would otherwise push

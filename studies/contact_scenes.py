@@ -347,7 +347,7 @@ def settle_and_release(e, material: Material, dx: float, gravity, stress, contac
         contact(True)
         for _ in range(int(math.ceil(SETTLE_TRANSITS * length_m / material.p_wave_speed_m_s / dt))):
             e.step(dt, gravity, SETTLE_DAMPING)
-        e.set_velocity(np.zeros((e.n, 2)))
+        e.bring_to_rest()  # velocities and the damping's memory (a Maxwell arm) dropped
     contact(False)
     return dt
 
