@@ -162,7 +162,7 @@ LIMITS = [
     pytest.param("bottom", "apic-affine", "f32", 5, 1e6, 40, 35, "recommended", marks=_limit(
         reason="sliding 5 deg above the friction limit at high friction (mu = 0.70), the default scheme: "
                "+13.8 %; 13 of 36 blocks 5 and 20 cells thick at 40/35 and 35/30 are outside, up to +30 % "
-               "(docs/validation/contact/project-near-limit-5deg-s19.csv); one-cell sheets within 0.3 %. "
+               "(docs/validation.md, contact); one-cell sheets within 0.3 %. "
                "The project warns (projects.checks, near-limit slides) and gives the material damping that "
                "removes it (test_the_damping_the_flutter_warning_gives_makes_the_slide_right)")),
     pytest.param("ramp", "apic-affine", "f32", 20, 1e6, 40, 30, "recommended", marks=_limit(
@@ -307,7 +307,7 @@ def test_no_flutter_warning_for_a_one_cell_sheet(contact):
 # Near-limit slides with the material damping the warning gives (a Maxwell arm, damping_ratio 0.2
 # at the body's first shear mode on the contact; docs/solver.md, material damping), and with a
 # Rayleigh damping of 0.1 there: undamped these slid +13.8 %, +10.2 %, +7.9 %, +23.9 % (LIMITS
-# above; docs/validation/contact/project-near-limit-5deg-s19.csv). Either damping leaves rigid
+# above; docs/validation.md, contact). Either damping leaves rigid
 # motion alone, so the rigid block's distance is the answer again, within the 3 %.
 DAMPED_NEAR_LIMIT = [
     ("bottom", "apic-affine", "f32", 5, 1e6, 40, 35),
