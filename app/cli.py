@@ -13,8 +13,9 @@ terminal closed).
 User text (names of stages, bodies, files) never goes through rich markup: every message is
 printed with ``markup=False`` and progress descriptions are escaped.
 
-Other commands (``bench``, ``study``) register themselves on :data:`cli` with
-``@cli.command()`` and reuse :func:`fail`, :func:`load_or_exit` and :func:`stop_on_signals`.
+``sweep`` and ``calibrate`` are registered on :data:`cli` by :mod:`app.sweep_commands`; the exit
+codes, consoles, :func:`~app.console.fail` and :func:`~app.console.stop_on_signals` that all
+commands share live in :mod:`app.console`.
 """
 
 from __future__ import annotations
@@ -25,27 +26,27 @@ import logging
 import os
 import signal
 import sys
-from collections.abc import Iterator
 from enum import Enum
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, NoReturn
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
+
+from app.console import (
+    EXIT_FAILED,
+    EXIT_SIGHUP,
+    EXIT_SIGINT,
+    EXIT_SIGTERM,
+    err,
+    fail,
+    in_main_thread,
+    out,
+    stop_on_signals,
+)
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from projects.runner import RunResult, StopRequest
     from projects.schema import Project
-
-EXIT_OK = 0
-EXIT_INVALID = 1
-EXIT_FAILED = 3
-EXIT_SIGINT = 128 + signal.SIGINT
-EXIT_SIGTERM = 128 + signal.SIGTERM
-EXIT_SIGHUP = 128 + getattr(signal, "SIGHUP", 1)
-#: Signals that stop a run cleanly (the terminal closing sends SIGHUP).
-STOP_SIGNALS = tuple(
-    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
-)
 
 cli = typer.Typer(
     name="runout",
@@ -56,33 +57,8 @@ cli = typer.Typer(
 )
 
 
-
-class _LazyConsole:
-    """A rich ``Console`` made at its first use: importing rich costs about 20 ms, which every
-    ``runout run`` would pay before its first step (docs/performance.md, start-up)."""
-
-    def __init__(self, **options: Any):
-        self._options = options
-        self._console: Any = None
-
-    def get(self) -> Any:
-        """The console itself (for rich objects that take one)."""
-        if self._console is None:
-            from rich.console import Console
-
-            self._console = Console(**self._options)
-        return self._console
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self.get(), name)
-
-
-out = _LazyConsole(soft_wrap=True, highlight=False)
-err = _LazyConsole(stderr=True, soft_wrap=True, highlight=False)
-
-
 class _RichLogHandler(logging.Handler):
-    """Log records through rich's handler on ``err``, made at the first record (see _LazyConsole)."""
+    """Log records through rich's handler on ``err``, made at the first record (see LazyConsole)."""
 
     def __init__(self) -> None:
         super().__init__()
@@ -110,12 +86,6 @@ class ProgressMode(str, Enum):
 # shared helpers (also for commands defined in other modules)
 
 
-def fail(message: str, code: int = EXIT_INVALID) -> NoReturn:
-    """Print ``error: message`` on standard error and exit with ``code``."""
-    err.print(f"error: {message}", markup=False)
-    raise typer.Exit(code)
-
-
 def load_or_exit(path: Path, overrides: list[str] | None = None) -> Project:
     """Load and validate a project with ``--set`` overrides; every problem printed on failure."""
     from projects.document import load_project
@@ -125,36 +95,6 @@ def load_or_exit(path: Path, overrides: list[str] | None = None) -> Project:
         return load_project(path, overrides or ())
     except ProjectError as exc:
         fail(str(exc))
-
-
-@contextlib.contextmanager
-def stop_on_signals(stop: StopRequest) -> Iterator[StopRequest]:
-    """Turn SIGINT, SIGTERM and SIGHUP into a stop request while the block runs.
-
-    A second Ctrl-C raises KeyboardInterrupt, for a solver that does not reach its next check.
-    Outside the main thread (signals cannot be caught there) the block runs unchanged.
-    """
-
-    def handler(signum: int, _frame: object) -> None:
-        if stop.requested and signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        stop.request(signal.Signals(signum).name)
-
-    if sys.platform == "win32" or not _in_main_thread():
-        yield stop
-        return
-    previous = {sig: signal.signal(sig, handler) for sig in STOP_SIGNALS}
-    try:
-        yield stop
-    finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
-
-
-def _in_main_thread() -> bool:
-    import threading
-
-    return threading.current_thread() is threading.main_thread()
 
 
 def _setup_logging(verbose: bool, quiet: bool = False) -> None:
@@ -818,7 +758,7 @@ _register_sweep_commands(cli)
 
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point (``runout``)."""
-    if _in_main_thread():
+    if in_main_thread():
         # `run` turns Ctrl-C into a clean stop while it runs (stop_on_signals) and comes back
         # to this handler afterwards
         signal.signal(signal.SIGINT, _interrupt)

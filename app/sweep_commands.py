@@ -1,4 +1,4 @@
-"""``runout sweep`` and ``runout calibrate`` (registered on :data:`app.cli.cli`), and the sweep report.
+"""``runout sweep`` and ``runout calibrate`` (registered on the command line by :func:`register`), and the sweep report.
 
 The work is done by :mod:`sweeps`; this module parses options, shows a progress bar with ETA on
 standard error and prints the result folder on standard output. Ctrl-C (or SIGTERM) stops
@@ -14,11 +14,7 @@ from typing import Annotated
 
 import typer
 
-
-def _cli():  # noqa: ANN202 - app.cli, imported when a command runs (app.cli imports this module)
-    import app.cli
-
-    return app.cli
+from app import console
 
 _ADDRESS = typer.Option("--address", help="Ray cluster address (e.g. ray://HEAD:10001 or auto); default: "
                         "a local Ray on this machine.")
@@ -35,7 +31,7 @@ class _Bar:
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
         self.bar = Progress(TextColumn(what), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[info]}"),
-                            TimeElapsedColumn(), TextColumn("ETA {task.fields[eta]}"), console=_cli().err.get())
+                            TimeElapsedColumn(), TextColumn("ETA {task.fields[eta]}"), console=console.err.get())
         self.task = self.bar.add_task(what, total=None, info="", eta="-")
 
     def __enter__(self) -> _Bar:
@@ -57,28 +53,28 @@ def _load_spec(path: Path, kind: str):  # noqa: ANN202 - SweepSpec | Calibration
     try:
         spec = load_spec(path)
     except ProjectError as exc:
-        _cli().fail(str(exc))
+        console.fail(str(exc))
     if kind == "sweep" and not hasattr(spec, "sweep"):
-        _cli().fail(f"{path}: this is a calibration file; run it with `runout calibrate`")
+        console.fail(f"{path}: this is a calibration file; run it with `runout calibrate`")
     if kind == "calibration" and not hasattr(spec, "calibration"):
-        _cli().fail(f"{path}: this is a sweep file; run it with `runout sweep`")
+        console.fail(f"{path}: this is a sweep file; run it with `runout sweep`")
     return spec
 
 
 def _check_engine(workers: int | None, threads: int | None, gpus: float | None, address: str | None = None) -> None:
     if workers is not None and workers < 1:
-        _cli().fail(f"--workers must be >= 1, not {workers}")
+        console.fail(f"--workers must be >= 1, not {workers}")
     if threads is not None and threads < 1:
-        _cli().fail(f"--threads must be >= 1, not {threads}")
+        console.fail(f"--threads must be >= 1, not {threads}")
     if gpus is not None and not gpus >= 0:
-        _cli().fail(f"--gpus-per-run must be >= 0, not {gpus:g}")
+        console.fail(f"--gpus-per-run must be >= 0, not {gpus:g}")
     if address is not None:
         from sweeps.engine import check_address
 
         try:
             check_address(address)
         except ConnectionError as exc:
-            _cli().fail(f"cannot reach the Ray cluster at {address}: {exc}")
+            console.fail(f"cannot reach the Ray cluster at {address}: {exc}")
 
 
 def _run_on_ray(spec_path: Path, kind: str, out_dir: Path | None, what: str, check, run,  # noqa: ANN001
@@ -95,23 +91,23 @@ def _run_on_ray(spec_path: Path, kind: str, out_dir: Path | None, what: str, che
     try:
         check(spec)
     except ProjectError as exc:
-        _cli().fail(f"{spec_path}: {exc}")
+        console.fail(f"{spec_path}: {exc}")
     folder = out_dir or spec_path.with_name(f"{spec_path.stem}.{kind}")
     stop = StopRequest()
-    with _cli().stop_on_signals(stop), _Bar(what) as bar:
+    with console.stop_on_signals(stop), _Bar(what) as bar:
         try:
             result = run(spec, folder, workers=workers, address=address, threads_per_run=threads, gpus_per_run=gpus,
                          cancel=stop, on_progress=lambda p: bar.update(p.done, p.total, p.failed, p.eta_s))
         except ProjectError as exc:
-            _cli().fail(f"{spec_path}: {exc}")
+            console.fail(f"{spec_path}: {exc}")
         except ConnectionError as exc:
-            _cli().fail(f"cannot reach the Ray cluster at {address}: {exc}")
+            console.fail(f"cannot reach the Ray cluster at {address}: {exc}")
     return result, stop
 
 
 def _stopped_exit(stop) -> typer.Exit:  # noqa: ANN001
     """The exit of a stopped sweep or calibration (the signal's code)."""
-    return typer.Exit(_cli().EXIT_SIGTERM if stop.reason == "SIGTERM" else _cli().EXIT_SIGINT)
+    return typer.Exit(console.EXIT_SIGTERM if stop.reason == "SIGTERM" else console.EXIT_SIGINT)
 
 
 def register(cli: typer.Typer) -> None:
@@ -134,11 +130,11 @@ def register(cli: typer.Typer) -> None:
         result, stop = _run_on_ray(spec_path, "sweep", out_dir, "runs", plan_sweep, run_sweep,
                                    address, workers, threads, gpus)
         if result.stopped:
-            _cli().err.print(f"stopped: {sum(r.status != 'pending' for r in result.records)} of {len(result.records)} "
+            console.err.print(f"stopped: {sum(r.status != 'pending' for r in result.records)} of {len(result.records)} "
                              f"runs done (run the same command again to go on) -> {result.out_dir}", markup=False)
             raise _stopped_exit(stop)
         n = len(result.records)
-        _cli().out.print(f"{result.count('completed')} of {n} runs completed, {n - result.count('completed')} not "
+        console.out.print(f"{result.count('completed')} of {n} runs completed, {n - result.count('completed')} not "
                          f"({sum(r.reused for r in result.records)} reused) in {result.wall_time_s:.1f} s "
                          f"-> {result.out_dir}/sweep.csv, report.html", markup=False)
 
@@ -158,8 +154,8 @@ def register(cli: typer.Typer) -> None:
         result, stop = _run_on_ray(spec_path, "calibration", out_dir, "trials", check_calibration, run_calibration,
                                    address, workers, threads, gpus)
         for line in result.summary_lines():
-            _cli().out.print(line, markup=False)
-        _cli().out.print(f"-> {result.out_dir}/calibration.csv, report.html", markup=False)
+            console.out.print(line, markup=False)
+        console.out.print(f"-> {result.out_dir}/calibration.csv, report.html", markup=False)
         if result.stopped:
             raise _stopped_exit(stop)
 
@@ -172,5 +168,5 @@ def sweep_report(folder: Path, output: Path | None = None) -> None:
     try:
         path = write_report(folder, output)
     except (SweepFolderError, OSError) as exc:
-        _cli().fail(str(exc))
-    _cli().out.print(str(path), markup=False)
+        console.fail(str(exc))
+    console.out.print(str(path), markup=False)
