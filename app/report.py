@@ -674,8 +674,8 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
                      f"{html.escape(res.project_text)}</pre></details>")
     parts.append("</body></html>")
     path = out / REPORT_HTML
-    from projects.results import _atomic_write_text
+    from projects.atomic import write_atomic
 
-    _atomic_write_text(path, "\n".join(parts))
+    write_atomic(path, "\n".join(parts))
     logger.info("wrote %s", path)
     return path

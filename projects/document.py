@@ -4,7 +4,7 @@
   TOML syntax errors with line and column).
 - :func:`save_project` / :func:`dumps_project` write a project back. Saving is atomic (a
   temporary file in the same folder, flushed and synced, then renamed over the target; a
-  symbolic link is followed and the file's mode kept: :func:`write_text_atomic`), and
+  symbolic link is followed and the file's mode kept: :func:`projects.atomic.write_atomic`), and
   ``load(save(p)) == p`` exactly: floats are written with ``repr``, which round-trips.
   Comments of the original file are not kept.
 - :func:`apply_overrides` applies ``KEY=VALUE`` overrides (the command line's ``--set``):
@@ -14,13 +14,10 @@
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import logging
 import os
 import re
-import stat
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -34,6 +31,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10: tomlkit reads too
     tomllib = None  # type: ignore[assignment]
 
+from projects.atomic import write_atomic
 from projects.schema import (
     Boundary,
     Contact,
@@ -304,7 +302,7 @@ def _points(points: list[list[float]]) -> tomlkit.items.Array:
 
 
 def save_project(project: Project, path: str | os.PathLike[str]) -> None:
-    """Write a project file atomically (see :func:`write_text_atomic`).
+    """Write a project file atomically and durably (:func:`projects.atomic.write_atomic`).
 
     Parameters
     ----------
@@ -318,73 +316,8 @@ def save_project(project: Project, path: str | os.PathLike[str]) -> None:
     OSError
         When the folder is not writable or the disk is full (the target is unchanged).
     """
-    write_text_atomic(path, dumps_project(project))
+    write_atomic(path, dumps_project(project), durable=True, follow_links=True)
     logger.debug("saved project %s", path)
-
-
-def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
-    """Replace a text file atomically, durably, keeping its permissions and its links.
-
-    The text goes to a uniquely named temporary file in the target's folder, is flushed and
-    synced to disk, gets the existing file's permission bits (new files: 0644) and is renamed
-    over the target (``os.replace``), so a reader sees the old file or the new one, never a
-    partial one; a failure removes the temporary file and leaves the old file untouched. A
-    symbolic link (also a chain of them) is followed: the file it points to is written, the
-    link stays a link. Used for project files, also for the workbench's saves of projects
-    that do not validate.
-
-    Parameters
-    ----------
-    path : path-like
-    text : str
-        Written as UTF-8 with ``\\n`` line ends.
-
-    Returns
-    -------
-    Path
-        The file written (the link's target for a link).
-
-    Raises
-    ------
-    OSError
-        When the folder is not writable or the disk is full (the target is unchanged).
-    """
-    path = Path(os.path.realpath(Path(path).expanduser()))
-    try:
-        mode = stat.S_IMODE(os.stat(path).st_mode)
-    except FileNotFoundError:
-        mode = 0o644
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
-            _write(handle, text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.chmod(tmp_name, mode)
-        os.replace(tmp_name, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp_name)
-        raise
-    _sync_folder(path.parent)
-    return path
-
-
-def _write(handle: Any, text: str) -> None:
-    handle.write(text)
-
-
-def _sync_folder(folder: Path) -> None:
-    """Make the rename durable where the platform allows syncing a directory."""
-    flags = getattr(os, "O_DIRECTORY", None)
-    if flags is None:
-        return
-    with contextlib.suppress(OSError):
-        fd = os.open(folder, os.O_RDONLY | flags)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
 
 
 # --------------------------------------------------------------------------------------------

@@ -50,7 +50,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from projects.results import _atomic_write_bytes, _atomic_write_text, _encode_array, runout_version
+from projects.atomic import write_atomic
+from projects.results import _encode_array, runout_version
 from solver import config as sc
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -467,12 +468,12 @@ def write_files(out_dir: Path, snap: Mapping[str, Any], hs: HazardSettings, grav
                 targets: tuple[sc.Target, ...], status: str) -> None:
     """Write the four hazard files into ``out_dir``, each atomically (hazard.json last)."""
     out_dir = Path(out_dir)
-    _atomic_write_bytes(out_dir / HAZARD_VTI, vti_bytes(snap))
-    _atomic_write_text(out_dir / PROFILE_CSV, profile_csv(snap))
-    _atomic_write_text(out_dir / TARGETS_CSV, targets_csv(snap))
+    write_atomic(out_dir / HAZARD_VTI, vti_bytes(snap))
+    write_atomic(out_dir / PROFILE_CSV, profile_csv(snap))
+    write_atomic(out_dir / TARGETS_CSV, targets_csv(snap))
     doc = hazard_document(snap, hs, gravity_m_s2, targets, status)
     doc["structures"] = structure_forces(out_dir)
-    _atomic_write_text(out_dir / HAZARD_JSON, json.dumps(doc, indent=2) + "\n")
+    write_atomic(out_dir / HAZARD_JSON, json.dumps(doc, indent=2) + "\n")
 
 
 def structure_forces(out_dir: Path) -> dict[str, dict[str, Any]]:

@@ -46,11 +46,12 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 from xml.etree import ElementTree
 
 import numpy as np
 
+from projects.atomic import write_atomic
 from projects.results_folder import (
     BASE_PATTERNS,
     MARKER_NAME,
@@ -67,9 +68,6 @@ from projects.results_folder import (
     write_marker,
 )
 from solver.config import ContactForce, Diagnostics, Frame
-
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    import pyvista
 
 logger = logging.getLogger(__name__)
 
@@ -164,26 +162,6 @@ def runout_version() -> str:
 # small file helpers
 
 
-def _atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to a temporary sibling, then move it over ``path`` (atomic on POSIX).
-
-    A failed write (full disk, ...) removes the temporary file before the error goes on.
-    """
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-
-
-def _atomic_write_text(path: Path, text: str) -> None:
-    _atomic_write_bytes(path, text.encode("utf-8"))
-
-
 def _csv_text(rows: list[list[Any]]) -> str:
     buffer = io.StringIO()
     csv.writer(buffer).writerows(rows)
@@ -202,7 +180,7 @@ def write_checkpoint(out_dir: str | os.PathLike[str], checkpoint: Any) -> Path:
     arrays["fingerprint"] = np.frombuffer(checkpoint.fingerprint.encode(), dtype=np.uint8)
     buffer = io.BytesIO()
     np.savez(buffer, **arrays)
-    _atomic_write_bytes(path, buffer.getvalue())
+    write_atomic(path, buffer.getvalue())
     return path
 
 
@@ -692,9 +670,9 @@ class ResultsWriter:
         try:
             self._frames_dir.mkdir(exist_ok=True)
             _write_reserve(self.out_dir / RESERVE_NAME)
-            _atomic_write_text(self.out_dir / PROJECT_NAME, project_text)
+            write_atomic(self.out_dir / PROJECT_NAME, project_text)
             if keep_frames is not None:  # the kept rows, written whole before the file is replaced
-                _atomic_write_text(self.out_dir / SERIES_NAME, _csv_text([list(SERIES_COLUMNS), *series_rows]))
+                write_atomic(self.out_dir / SERIES_NAME, _csv_text([list(SERIES_COLUMNS), *series_rows]))
                 self._series = open(self.out_dir / SERIES_NAME, "a", newline="", encoding="utf-8")
                 self._csv = csv.writer(self._series)
             else:
@@ -703,9 +681,9 @@ class ResultsWriter:
                 self._csv.writerow(SERIES_COLUMNS)
             self._series.flush()
             if keep_frames is not None:
-                _atomic_write_text(self.out_dir / CONTACTS_NAME,
-                                   _csv_text([list(CONTACT_COLUMNS), *(row + [""] * (len(CONTACT_COLUMNS) - len(row))
-                                                                       for row in self._kept_contact_rows)]))
+                write_atomic(self.out_dir / CONTACTS_NAME,
+                             _csv_text([list(CONTACT_COLUMNS), *(row + [""] * (len(CONTACT_COLUMNS) - len(row))
+                                                                 for row in self._kept_contact_rows)]))
                 self._contacts = open(self.out_dir / CONTACTS_NAME, "a", newline="", encoding="utf-8")
                 self._contacts_csv = csv.writer(self._contacts)
             else:
@@ -959,7 +937,7 @@ class ResultsWriter:
                    contacts: tuple[ContactForce, ...] = ()) -> None:
         name = f"frame_{index:05d}.vtp"
         data = encode_vtp(fields, diag.time_s, self._level, points_dtype=self._points_dtype)
-        _atomic_write_bytes(self._frames_dir / name, data)
+        write_atomic(self._frames_dir / name, data)
         self._csv.writerow(
             [
                 index,
@@ -1060,13 +1038,13 @@ class ResultsWriter:
         return None if point is None else [float(point[0] + x0), float(point[1] + y0)]
 
     def _write_pvd(self) -> None:
-        _atomic_write_text(self.out_dir / PVD_NAME, _pvd_text(self._pvd_entries))
+        write_atomic(self.out_dir / PVD_NAME, _pvd_text(self._pvd_entries))
 
     def _summary_bytes(self) -> bytes:
         return (json.dumps(self.summary, indent=2, default=_json_default) + "\n").encode("utf-8")
 
     def _write_summary(self) -> None:
-        _atomic_write_bytes(self.out_dir / SUMMARY_NAME, self._summary_bytes())
+        write_atomic(self.out_dir / SUMMARY_NAME, self._summary_bytes())
 
 
 # --------------------------------------------------------------------------------------------
@@ -1365,23 +1343,6 @@ class Results:
             arr.flags.writeable = False
             out[name] = arr
         return out
-
-    def mesh(self, i: int = -1) -> pyvista.PolyData:
-        """Frame ``i`` as a :class:`pyvista.PolyData`: every particle a point (z = 0), vertex
-        cells for active particles, the point arrays as stored (vectors with 3 components)."""
-        import pyvista as pv
-
-        j = self._index(i)
-        raw = read_vtp(self._files[j])
-        points = np.array(raw.pop("Points"))  # float32, or float64 for real-world coordinates
-        connectivity = raw.pop("connectivity")
-        raw.pop("offsets", None)
-        verts = np.column_stack([np.ones(len(connectivity), np.int64), connectivity]).ravel()
-        mesh = pv.PolyData(points, verts=verts)
-        for name, arr in raw.items():
-            mesh.point_data[name] = np.array(arr)
-        mesh.field_data["TimeValue"] = np.array([self.times[j]])
-        return mesh
 
     def particle_history(self, particle_id: int, field: str) -> tuple[np.ndarray, np.ndarray]:
         """One particle's value of ``field`` in every frame.

@@ -27,6 +27,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
+from projects.atomic import write_atomic
+
 try:
     import fcntl
 except ImportError:  # pragma: no cover - Windows
@@ -98,14 +100,7 @@ def write_marker(folder: str | os.PathLike[str], patterns: Iterable[str]) -> Non
         _check_pattern(pattern)
     folder = Path(folder)
     text = json.dumps({"format": MARKER_FORMAT, "version": MARKER_VERSION, "files": patterns}, indent=1)
-    tmp = folder / f".{MARKER_NAME}.{os.getpid()}.tmp"
-    try:
-        tmp.write_text(text + "\n", encoding="utf-8")
-        os.replace(tmp, folder / MARKER_NAME)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
+    write_atomic(folder / MARKER_NAME, text + "\n")
 
 
 def _check_pattern(pattern: str) -> PurePosixPath:
@@ -182,10 +177,12 @@ def remove_temp_files(folder: str | os.PathLike[str], patterns: Iterable[str], p
         if not parent.is_dir():
             continue
         middle = "*" if pid is None else str(pid)
-        for path in parent.glob(f".{pure.name}.{middle}.tmp"):
-            with contextlib.suppress(OSError):
-                path.unlink()
-                removed += 1
+        # .NAME.PID.TOKEN.tmp (projects.atomic.write_atomic); .NAME.PID.tmp of older versions
+        for glob in (f".{pure.name}.{middle}.*.tmp", f".{pure.name}.{middle}.tmp"):
+            for path in parent.glob(glob):
+                with contextlib.suppress(OSError):
+                    path.unlink()
+                    removed += 1
     return removed
 
 

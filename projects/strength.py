@@ -638,10 +638,9 @@ class StrengthReduction:
 
     def write_files(self, out_dir: str | os.PathLike[str]) -> None:
         """Write ``fos_trials.csv`` into the results folder (atomically)."""
-        path = Path(out_dir) / TRIALS_NAME
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(self.trials_csv(), encoding="utf-8")
-        os.replace(tmp, path)
+        from projects.atomic import write_atomic
+
+        write_atomic(Path(out_dir) / TRIALS_NAME, self.trials_csv())
 
 
 class _Cancelled(Exception):

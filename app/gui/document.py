@@ -543,10 +543,9 @@ class ProjectDocument(QObject):
         elif force:
             import tomlkit
 
-            text = tomlkit.dumps(self._data)
-            tmp = target.with_name(f".{target.name}.tmp")
-            tmp.write_text(text, encoding="utf-8")
-            os.replace(tmp, target)
+            from projects.atomic import write_atomic
+
+            write_atomic(target, tomlkit.dumps(self._data), durable=True, follow_links=True)
         else:
             raise ProjectError(self.problems, str(target))
         if target != self.path:

@@ -14,6 +14,8 @@ import os
 from pathlib import Path
 from typing import Any
 
+from projects.atomic import write_atomic
+
 logger = logging.getLogger(__name__)
 
 SETTINGS_NAME = "workbench.json"
@@ -49,9 +51,7 @@ def _read_json(path: Path) -> dict[str, Any]:
 
 def _write_json(path: Path, data: dict[str, Any]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
+    write_atomic(path, json.dumps(data, indent=2, sort_keys=True) + "\n")
 
 
 class Settings:

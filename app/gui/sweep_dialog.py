@@ -444,9 +444,9 @@ class SweepDialog(QDialog):
         spec = self.validate()
         out = Path(self.out.text()).expanduser().absolute()
         out.mkdir(parents=True, exist_ok=True)
-        from sweeps.sweep import atomic_write
+        from projects.atomic import write_atomic
 
-        atomic_write(out / BASE_PROJECT, self.doc.text())
+        write_atomic(out / BASE_PROJECT, self.doc.text())
         self.spec_path = save_spec(spec, out / SPEC_FILE)
         self.out_dir = out
         return self.spec_path

@@ -9,6 +9,7 @@ import struct
 
 import pytest
 
+import projects.atomic as atomic
 import projects.document as document
 from projects.document import (
     apply_overrides,
@@ -190,11 +191,21 @@ def test_failure_while_writing_leaves_the_old_file(project, tmp_path, monkeypatc
     path = tmp_path / "p.toml"
     path.write_text("old contents\n", encoding="utf-8")
 
-    def broken_write(handle, text):
-        handle.write(text[: len(text) // 2])
-        raise OSError(28, "No space left on device")
+    class HalfWritten:  # the disk fills half way through the temporary file
+        def __init__(self, handle):
+            self.handle = handle
 
-    monkeypatch.setattr(document, "_write", broken_write)
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.handle.close()
+
+        def write(self, data):
+            self.handle.write(data[: len(data) // 2])
+            raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(atomic, "open", lambda *a, **k: HalfWritten(open(*a, **k)), raising=False)
     with pytest.raises(OSError, match="No space left"):
         save_project(project, path)
     assert path.read_text(encoding="utf-8") == "old contents\n"
@@ -208,7 +219,7 @@ def test_failure_at_rename_leaves_the_old_file(project, tmp_path, monkeypatch):
     def broken_replace(src, dst):
         raise PermissionError(13, "Permission denied")
 
-    monkeypatch.setattr(document.os, "replace", broken_replace)
+    monkeypatch.setattr(atomic.os, "replace", broken_replace)
     with pytest.raises(PermissionError):
         save_project(project, path)
     assert path.read_text(encoding="utf-8") == "old contents\n"
@@ -218,8 +229,8 @@ def test_failure_at_rename_leaves_the_old_file(project, tmp_path, monkeypatch):
 def test_save_syncs_before_renaming(project, tmp_path, monkeypatch):
     calls = []
     real_fsync, real_replace = os.fsync, os.replace
-    monkeypatch.setattr(document.os, "fsync", lambda fd: (calls.append("fsync"), real_fsync(fd))[1])
-    monkeypatch.setattr(document.os, "replace", lambda a, b: (calls.append("replace"), real_replace(a, b))[1])
+    monkeypatch.setattr(atomic.os, "fsync", lambda fd: (calls.append("fsync"), real_fsync(fd))[1])
+    monkeypatch.setattr(atomic.os, "replace", lambda a, b: (calls.append("replace"), real_replace(a, b))[1])
     save_project(project, tmp_path / "p.toml")
     assert calls.index("fsync") < calls.index("replace")
     assert load_project(tmp_path / "p.toml") == project

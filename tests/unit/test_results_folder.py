@@ -12,6 +12,7 @@ import threading
 import numpy as np
 import pytest
 
+import projects.atomic as atomic
 import projects.results as results_module
 from projects.results import Results, ResultsWriter, encode_vtp, read_vtp
 from projects.results_folder import (
@@ -171,13 +172,13 @@ def _fail_after(monkeypatch, calls: int, err: int = errno.ENOSPC) -> None:
 
     def fake_open(path, mode="r", *args, **kwargs):
         handle = real_open(path, mode, *args, **kwargs)
-        if "w" in mode and str(path).endswith(".tmp"):
+        if ("w" in mode or "x" in mode) and str(path).endswith(".tmp"):
             count["n"] += 1
             if count["n"] > calls:
                 return Full(handle)
         return handle
 
-    monkeypatch.setattr(results_module, "open", fake_open, raising=False)
+    monkeypatch.setattr(atomic, "open", fake_open, raising=False)
 
 
 def test_disk_full_while_writing_frames_ends_failed_without_temp_files(tmp_path, monkeypatch):
@@ -231,7 +232,7 @@ def test_the_real_atomic_write_removes_its_temp_file_on_failure(tmp_path, monkey
 
     _fail_after(monkeypatch, calls=0)
     with pytest.raises(OSError):
-        results_module._atomic_write_bytes(target, b"{}")
+        atomic.write_atomic(target, b"{}")
     monkeypatch.undo()
     assert list(tmp_path.iterdir()) == []
 
