@@ -612,7 +612,7 @@ def report(
     calibration folder (exceedance, probability profile, sensitivity; misfit landscape)."""
     from app.report import write_report
     from projects.results import ResultsError
-    from sweeps.sweep import is_sweep_dir
+    from sweeps.folder import is_sweep_dir
 
     if is_sweep_dir(results):  # sweep.csv or calibration.csv: app/sweep_commands.py
         from app.sweep_commands import sweep_report

@@ -163,7 +163,7 @@ def register(cli: typer.Typer) -> None:
 def sweep_report(folder: Path, output: Path | None = None) -> None:
     """``runout report SWEEP_DIR``: report.html of a sweep or calibration folder (in ``output`` if given)."""
     from sweeps.report import write_report
-    from sweeps.sweep import SweepFolderError
+    from sweeps.folder import SweepFolderError
 
     try:
         path = write_report(folder, output)

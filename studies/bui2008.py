@@ -20,14 +20,13 @@ from typing import Any
 
 import numpy as np
 
+from projects.measures import REACH_THICKNESS_M
 from studies.common import (
-    REACH_THICKNESS_M,
     Deposit,
     Note,
     Report,
     RunRecord,
     StudyResult,
-    quiet,
     bui_experiment,
     experiment_toe,
     fmt,
@@ -36,6 +35,7 @@ from studies.common import (
     measure_deposit,
     new_figure,
     peak,
+    quiet,
     run_project_measured,
     series_finite,
     settle_time,

@@ -32,19 +32,19 @@ from typing import Any
 
 import numpy as np
 
+from projects.measures import surface_heights
 from studies.common import (
     Note,
     Report,
     StudyResult,
-    quiet,
     fmt,
     load_scene,
     machine_line,
     new_figure,
     peak,
+    quiet,
     run_project_measured,
     series_finite,
-    surface_heights,
     write_csv,
     write_json,
     write_series,

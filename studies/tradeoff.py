@@ -36,19 +36,19 @@ from typing import Any
 
 import numpy as np
 
+from projects.measures import REACH_THICKNESS_M
 from studies.bui2008 import BLOCK_HEIGHT_M, run_bui
 from studies.common import (
     Deposit,
     Note,
     Report,
     StudyResult,
-    quiet,
-    REACH_THICKNESS_M,
     bui_experiment,
     experiment_toe,
     fmt,
     machine_line,
     new_figure,
+    quiet,
     surface_difference,
     write_csv,
     write_json,

@@ -9,7 +9,7 @@ misfit; a run that fails is told as failed and the search goes on.
 Misfits (``observation.type``):
 
 - ``deposit-profile``: ``RMS = sqrt(mean_k (h(x_k) - y_k)^2)`` (m) between the final free surface
-  ``h`` of the run (:func:`studies.common.surface_heights`) and the observed points ``(x_k, y_k)``
+  ``h`` of the run (:func:`projects.measures.surface_heights`) and the observed points ``(x_k, y_k)``
   (inside ``x_range_m`` where given).
 - ``measures``: ``RMS = sqrt(mean_j ((m_j - o_j) / s_j)^2)`` over the observed measures ``o_j``
   (run-out distance, arrival times...; ``s_j`` from ``scales``, else 1: then in the measures' unit).
@@ -37,9 +37,11 @@ from typing import Any
 
 import numpy as np
 
+from projects.atomic import write_atomic
+from sweeps import pages
 from sweeps.engine import FINAL_STATUSES, RUNS_DIR, RayEngine, RunRecord, resolve_runs
+from sweeps.folder import PROGRESS_NAME, REPORT_NAME, SweepProgress, read_table_and_json
 from sweeps.spec import CalibrationSpec, Parameter
-from sweeps.sweep import PROGRESS_NAME, SweepFolderError, SweepProgress, atomic_write
 
 CSV_NAME = "calibration.csv"
 JSON_NAME = "calibration.json"
@@ -53,14 +55,14 @@ def read_observation(spec: CalibrationSpec) -> np.ndarray:
     ProjectError
         The file is missing, unreadable or holds no points in the range.
     """
+    from projects.measures import read_xy_csv
     from projects.schema import Problem, ProjectError
-    from studies.common import StudyError, read_xy_csv
 
     path = spec.observation_path
     assert path is not None
     try:
         pts = read_xy_csv(path)
-    except (OSError, StudyError) as exc:
+    except (OSError, ValueError) as exc:
         raise ProjectError([Problem("observation.file", spec.observation.file, f"cannot read it: {exc}")]) from None
     if spec.observation.x_range_m is not None:
         lo, hi = spec.observation.x_range_m
@@ -274,11 +276,11 @@ def run_calibration(
         ran = sum(not t.record.reused for t in trials)
         eta = elapsed / ran * (table.trials - done) if ran else math.nan
         prog = SweepProgress(done, table.trials, failed, done - ran, elapsed, eta, last)
-        atomic_write(out / PROGRESS_NAME, json.dumps(prog.to_json()))
+        write_atomic(out / PROGRESS_NAME, json.dumps(prog.to_json()))
         best = min((t for t in trials if math.isfinite(t.misfit)), key=lambda t: t.misfit, default=None)
         threshold = confidence_threshold(best.misfit if best else math.nan, n_obs, len(keys))
-        atomic_write(out / CSV_NAME, _csv_text(trials, keys))
-        atomic_write(out / JSON_NAME, json.dumps({
+        write_atomic(out / CSV_NAME, _csv_text(trials, keys))
+        write_atomic(out / JSON_NAME, json.dumps({
             "kind": "calibration", "spec": json.loads(spec.model_dump_json()), "project": str(spec.project_path),
             "settings": settings, "unit": unit, "n_observed": n_obs,
             "observed": None if observed is None else observed.tolist(),
@@ -319,7 +321,7 @@ def run_calibration(
                 task_of.append(j)
             for i, data in engine.map(tasks, cancel):
                 rec = RunRecord.from_json(data)
-                atomic_write(runs_dir / f"{rec.run_id}.json", json.dumps(rec.to_json()))
+                write_atomic(runs_dir / f"{rec.run_id}.json", json.dumps(rec.to_json()))
                 records[task_of[i]] = rec
             if len(records) < len(plans):  # cancelled: the unfinished trials are dropped
                 stopped = True
@@ -422,10 +424,8 @@ def read_calibration(path: str | os.PathLike[str]) -> CalibrationData:
 
     Raises
     ------
-    SweepFolderError
+    sweeps.folder.SweepFolderError
     """
-    from sweeps.sweep import read_table_and_json
-
     out = Path(path)
     header, rows, info = read_table_and_json(out, CSV_NAME, JSON_NAME, "calibration")
     params = header[2:header.index("misfit")] if "misfit" in header else []
@@ -435,10 +435,6 @@ def read_calibration(path: str | os.PathLike[str]) -> CalibrationData:
 def write_calibration_report(data: CalibrationData, output: Path | None = None) -> Path:
     """Write ``report.html``: best fit, misfit landscape, optimisation history, confidence region,
     and the best run's final surface against the observed profile."""
-    import html
-
-    from sweeps.report import REPORT_NAME, _figure, _page, _png, _subplots, _table
-
     info = data.info
     unit = info.get("unit", "")
     best = info.get("best")
@@ -467,9 +463,9 @@ def write_calibration_report(data: CalibrationData, output: Path | None = None) 
                      "(RMS^2 of the 5 best trials fitted by a parabola)"])
     if thr is None:
         rows.append(["95% region", "not determined (needs more observed values than parameters, and a best fit)"])
-    parts = ["<h2>Calibration</h2>", _table(["key", "value"], rows)]
+    parts = ["<h2>Calibration</h2>", pages.table(["key", "value"], rows)]
     if np.isfinite(misfits).any():
-        fig, axes = _subplots(len(data.parameters))
+        fig, axes = pages.subplots(len(data.parameters))
         for ax, k in zip(axes, data.parameters):
             ax.plot(data.column(k), misfits, "o", ms=4)
             if thr is not None:
@@ -477,8 +473,8 @@ def write_calibration_report(data: CalibrationData, output: Path | None = None) 
                 ax.legend(fontsize=7)
             ax.set_xlabel(k, fontsize=8)
             ax.set_ylabel(f"misfit ({unit})" if unit else "misfit", fontsize=8)
-        parts += ["<h2>Misfit landscape</h2>", _png(fig)]
-        fig, ax = _figure(6.4, 3.0)
+        parts += ["<h2>Misfit landscape</h2>", pages.png(fig)]
+        fig, ax = pages.figure(6.4, 3.0)
         ok = np.isfinite(misfits)
         trial = np.arange(len(misfits))
         ax.plot(trial[ok], misfits[ok], "o", ms=4, label="trial")
@@ -486,7 +482,7 @@ def write_calibration_report(data: CalibrationData, output: Path | None = None) 
         ax.set_xlabel("trial")
         ax.set_ylabel("misfit")
         ax.legend(fontsize=8)
-        parts += ["<h2>Optimisation history</h2>", _png(fig)]
+        parts += ["<h2>Optimisation history</h2>", pages.png(fig)]
     observed = info.get("observed")
     if best and observed:
         results = data.out_dir / RUNS_DIR / best["run_id"]
@@ -496,19 +492,20 @@ def write_calibration_report(data: CalibrationData, output: Path | None = None) 
             pts = np.asarray(observed, dtype=float)
             x = np.linspace(0.0, float(pts[:, 0].max()) * 1.3, 300)
             h = surface_at(results, x)
-            fig, ax = _figure(7.5, 3.0)
+            fig, ax = pages.figure(7.5, 3.0)
             ax.plot(pts[:, 0], pts[:, 1], "k.", ms=4, label="observed")
             ax.plot(x, h, "C0-", label=f"best fit (trial {best['trial']})")
             ax.set_xlabel("x (m)")
             ax.set_ylabel("surface height (m)")
             ax.set_aspect("equal", adjustable="datalim")
             ax.legend(fontsize=8)
-            parts += ["<h2>Best fit against the observation</h2>", _png(fig)]
+            parts += ["<h2>Best fit against the observation</h2>", pages.png(fig)]
         except (OSError, ValueError, KeyError, IndexError):
             parts.append("<p>The best run's results folder is not readable here.</p>")
     table_rows = [[r["trial"], *(r[k] for k in data.parameters), r["misfit"], r["status"], r["message"]]
                   for r in data.rows]
-    parts += ["<h2>Trials</h2>", _table(["trial", *data.parameters, "misfit", "status", "message"], table_rows)]
+    parts += ["<h2>Trials</h2>", pages.table(["trial", *data.parameters, "misfit", "status", "message"], table_rows)]
     path = (output or data.out_dir) / REPORT_NAME
-    atomic_write(path, _page(f"Calibration report: {data.out_dir.name}", parts))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, pages.page(f"Calibration report: {data.out_dir.name}", parts))
     return path

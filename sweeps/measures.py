@@ -5,8 +5,8 @@ Measure keys are dotted paths (list items by index):
 - ``summary.KEY``: a key of ``summary.json`` (``summary.wall_time_s``, ``summary.steps``, ...).
 - ``hazard.KEY``: a key of ``hazard.json`` (``hazard.runout_distance_m``, ``hazard.travel_angle_deg``,
   ``hazard.targets.NAME.arrival_time_s``...), where the run wrote one.
-- ``deposit.KEY``: measured here on the last frame's active particles with the deposit measures of
-  :mod:`studies.common` (lengths in m, heights above y = 0): ``front_m`` (furthest particle edge),
+- ``deposit.KEY``: measured on the last frame's active particles with the deposit measures of
+  :mod:`projects.measures` (lengths in m, heights above y = 0): ``front_m`` (furthest particle edge),
   ``toe_m`` (furthest edge where the deposit is at least 2 mm thick), ``reach_m`` (the same at
   5 mm), ``crest_m`` (highest particle top within 10 mm of x = 0), ``height_m`` (highest particle
   top anywhere), ``max_displacement_m`` (largest particle displacement).
@@ -14,7 +14,7 @@ Measure keys are dotted paths (list items by index):
 A key that the run did not produce reads as NaN.
 
 Profiles along the section: ``deposit_height_m`` (the final free surface ``h(x)`` of
-:func:`studies.common.surface_heights`, on a grid of one particle spacing over the domain) or any
+:func:`projects.measures.surface_heights`, on a grid of one particle spacing over the domain) or any
 column of the run's ``hazard_profile.csv`` (the envelopes; the station column is ``x_m``, else the
 first column).
 """
@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from projects import measures
 from sweeps.spec import DEPOSIT_PROFILE_FIELD
 
 DEPOSIT_KEYS = ("front_m", "toe_m", "reach_m", "crest_m", "height_m", "max_displacement_m")
@@ -83,35 +84,25 @@ class _LastFrame:
         return self._arrays
 
     def deposit(self, key: str) -> float:
-        from studies import common
-
         a = self.arrays()
         pos, active, s = a["positions"], a.get("active"), self.spacing_m
         if key == "front_m":
-            return common.front_position(pos, active, s)
+            return measures.front_position(pos, active, s)
         if key == "toe_m":
-            return common.toe_position(pos, active, s)
+            return measures.toe_position(pos, active, s)
         if key == "reach_m":
-            return common.toe_position(pos, active, s, common.REACH_THICKNESS_M)
+            return measures.toe_position(pos, active, s, measures.REACH_THICKNESS_M)
         if key == "crest_m":
-            return common.crest_height(pos, active, s)
+            return measures.crest_height(pos, active, s)
         if key == "height_m":
-            y = pos[:, 1] if active is None else pos[np.asarray(active, bool), 1]
-            return float(np.max(y) + 0.5 * s) if y.size else math.nan
+            return measures.top_height(pos, active, s)
         if key == "max_displacement_m":
-            d = a.get("displacement")
-            if d is None or not len(d):
-                return math.nan
-            if active is not None:
-                d = d[np.asarray(active, bool)]
-            return float(np.max(np.linalg.norm(d[:, :2], axis=1))) if len(d) else math.nan
+            return measures.max_displacement(a.get("displacement"), active)
         return math.nan
 
     def surface(self, x_m: np.ndarray) -> np.ndarray:
-        from studies import common
-
         a = self.arrays()
-        return common.surface_heights(a["positions"], a.get("active"), self.spacing_m, x_m)
+        return measures.surface_heights(a["positions"], a.get("active"), self.spacing_m, x_m)
 
 
 def read_measures(results_dir: str | Path, keys: Iterable[str]) -> dict[str, float]:
@@ -151,7 +142,7 @@ def read_measures(results_dir: str | Path, keys: Iterable[str]) -> dict[str, flo
 
 
 def surface_at(results_dir: str | Path, x_m: Sequence[float]) -> list[float]:
-    """The final free-surface height at ``x_m`` (m; :func:`studies.common.surface_heights`)."""
+    """The final free-surface height at ``x_m`` (m; :func:`projects.measures.surface_heights`)."""
     d = Path(results_dir)
     frame = _LastFrame(d, _read_json(d / "summary.json") or {})
     return [float(v) for v in frame.surface(np.asarray(x_m, dtype=float))]

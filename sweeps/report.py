@@ -8,7 +8,6 @@ sweep or calibration report from what the folder holds.
 
 from __future__ import annotations
 
-import base64
 import csv
 import html
 import io
@@ -19,11 +18,10 @@ from typing import Any
 
 import numpy as np
 
+from projects.atomic import write_atomic
+from sweeps import pages
 from sweeps.analysis import exceedance, probability_profile, sensitivity
-from sweeps.sweep import SweepData, atomic_write, read_sweep
-
-REPORT_NAME = "report.html"
-
+from sweeps.folder import REPORT_NAME, SweepData, read_sweep
 
 def _csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> Path:
     buf = io.StringIO()
@@ -32,7 +30,7 @@ def _csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> Pa
     for row in rows:
         w.writerow(["" if isinstance(v, float) and not math.isfinite(v) else (repr(v) if isinstance(v, float) else v)
                     for v in row])
-    atomic_write(path, buf.getvalue())
+    write_atomic(path, buf.getvalue())
     return path
 
 
@@ -77,51 +75,6 @@ def write_statistics(data: SweepData, alpha: float = 0.05) -> list[Path]:
     return written
 
 
-# --------------------------------------------------------------------------------------------
-# HTML
-
-
-def _figure(width: float = 6.4, height: float = 3.6) -> tuple[Any, Any]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(width, height), dpi=110)
-    return fig, ax
-
-
-def _png(fig: Any) -> str:
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.tight_layout()
-    fig.savefig(buf, format="png")
-    plt.close(fig)
-    return f'<img alt="plot" src="data:image/png;base64,{base64.b64encode(buf.getvalue()).decode()}">'
-
-
-def _table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
-    def cell(v: Any) -> str:
-        if isinstance(v, float):
-            return "" if not math.isfinite(v) else f"{v:.4g}"
-        return html.escape(str(v))
-
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
-    body = "".join("<tr>" + "".join(f"<td>{cell(v)}</td>" for v in row) + "</tr>" for row in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
-
-
-_STYLE = """<style>body{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}
-table{border-collapse:collapse;margin:1em 0;font-size:90%}td,th{border:1px solid #ccc;padding:2px 6px}
-th{background:#eee}img{max-width:100%}h2{border-bottom:1px solid #ccc}</style>"""
-
-
-def _page(title: str, parts: Sequence[str]) -> str:
-    return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>{_STYLE}"
-            f"</head><body><h1>{html.escape(title)}</h1>{''.join(parts)}</body></html>")
-
-
 def write_sweep_report(data: SweepData, alpha: float = 0.05, output: Path | None = None) -> Path:
     """Write ``report.html`` of a sweep folder: runs, measures against parameters, exceedance
     curves with DKW bands, the probability profile, the sensitivity ranking, failed runs."""
@@ -135,7 +88,7 @@ def write_sweep_report(data: SweepData, alpha: float = 0.05, output: Path | None
     walls = np.array([float(r["wall_time_s"]) for r in rows if r["wall_time_s"]], dtype=float)
     parts = [
         "<h2>Sweep</h2>",
-        _table(["key", "value"], [
+        pages.table(["key", "value"], [
             ["base project", data.spec.get("project", "")],
             ["fixed --set", ", ".join(sw.get("set") or []) or "none"],
             ["sampling", f"{sw.get('sampling')} (seed {sw.get('seed')})"],
@@ -147,7 +100,7 @@ def write_sweep_report(data: SweepData, alpha: float = 0.05, output: Path | None
             ["run wall time", f"mean {walls.mean():.3g} s, total {walls.sum():.4g} s" if walls.size else "-"],
         ]),
         "<h2>Parameters</h2>",
-        _table(["key", "distribution"], [[k, _describe(v)] for k, v in (spec.get("parameters") or {}).items()]),
+        pages.table(["key", "distribution"], [[k, _describe(v)] for k, v in (spec.get("parameters") or {}).items()]),
     ]
     numeric = [k for k in data.parameters if np.isfinite(data.column(k, completed_only=False)).any()]
     for m in data.measures:
@@ -157,7 +110,7 @@ def write_sweep_report(data: SweepData, alpha: float = 0.05, output: Path | None
             parts.append("<p>No completed run has this measure.</p>")
             continue
         ex = exceedance(y, alpha)
-        fig, ax = _figure()
+        fig, ax = pages.figure()
         # P(X > x) = 1 left of the smallest value: start the curve there
         pad = 0.05 * (float(ex.x[-1] - ex.x[0]) or abs(float(ex.x[0])) or 1.0)
         xs = np.concatenate([[ex.x[0] - pad], ex.x, [ex.x[-1] + pad]])
@@ -172,24 +125,24 @@ def write_sweep_report(data: SweepData, alpha: float = 0.05, output: Path | None
         ax.set_ylim(-0.02, 1.02)
         ax.legend(fontsize=8)
         ax.set_title(f"exceedance of {m} ({ex.n} runs)")
-        parts.append(_png(fig))
+        parts.append(pages.png(fig))
         q = np.nanpercentile(y, [5, 50, 95])
         parts.append(f"<p>mean {np.nanmean(y):.4g}, 5% {q[0]:.4g}, median {q[1]:.4g}, 95% {q[2]:.4g} "
                      f"(n = {ex.n}).</p>")
         if numeric:
-            fig, axes = _subplots(len(numeric))
+            fig, axes = pages.subplots(len(numeric))
             for ax, k in zip(axes, numeric):
                 ax.plot(data.column(k), y, "o", ms=4)
                 ax.set_xlabel(k, fontsize=8)
                 ax.set_ylabel(m, fontsize=8)
-            parts.append(_png(fig))
+            parts.append(pages.png(fig))
     thresholds = data.thresholds()
     profiles = data.profiles()
     if thresholds:
         parts.append(f"<h2>Probability profile: {html.escape(str(data.profile_field()))}</h2>")
         if profiles:
             pp = probability_profile(profiles, thresholds, alpha)
-            fig, ax = _figure(7.5, 3.6)
+            fig, ax = pages.figure(7.5, 3.6)
             for i, t in enumerate(pp.thresholds):
                 ax.plot(pp.x_m, pp.p[i], color=f"C{i}", label=f"P({data.profile_field()} > {t:g})")
                 ax.fill_between(pp.x_m, pp.lower[i], pp.upper[i], color=f"C{i}", alpha=0.15)
@@ -198,38 +151,24 @@ def write_sweep_report(data: SweepData, alpha: float = 0.05, output: Path | None
             ax.set_ylim(-0.02, 1.02)
             ax.legend(fontsize=8)
             ax.set_title(f"{pp.n} runs; bands: {100 * (1 - alpha):g}% Wilson, pointwise")
-            parts.append(_png(fig))
+            parts.append(pages.png(fig))
         else:
             parts.append("<p>No completed run has this profile.</p>")
     sens = sensitivity({k: data.values(k) for k in data.parameters}, {m: data.column(m) for m in data.measures})
     if sens:
         parts.append("<h2>Sensitivity (Spearman rank correlation)</h2>")
-        parts.append(_table(["measure", "parameter", "rho", "p-value", "n"],
+        parts.append(pages.table(["measure", "parameter", "rho", "p-value", "n"],
                             [[s.measure, s.parameter, s.rho, s.p_value, s.n] for s in sens]))
     bad = [r for r in rows if r["status"] != "completed"]
     if bad:
         parts.append("<h2>Runs that did not complete</h2>")
-        parts.append(_table(["run", *data.parameters, "status", "message"],
+        parts.append(pages.table(["run", *data.parameters, "status", "message"],
                             [[r["run"], *(r[k] for k in data.parameters), r["status"], r["message"]] for r in bad]))
     parts.append("<p>Files: sweep.csv, exceedance.csv, profile.csv, sensitivity.csv, runs/.</p>")
     path = (output or data.out_dir) / REPORT_NAME
-    atomic_write(path, _page(f"Sweep report: {data.out_dir.name}", parts))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, pages.page(f"Sweep report: {data.out_dir.name}", parts))
     return path
-
-
-def _subplots(n: int) -> tuple[Any, list[Any]]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    cols = min(n, 3)
-    rows = int(math.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), dpi=110, squeeze=False)
-    flat = list(axes.ravel())
-    for ax in flat[n:]:
-        ax.set_visible(False)
-    return fig, flat[:n]
 
 
 def _describe(p: dict[str, Any]) -> str:
@@ -245,7 +184,7 @@ def write_report(path: str | Path, output: str | Path | None = None) -> Path:
 
     Raises
     ------
-    sweeps.sweep.SweepFolderError
+    sweeps.folder.SweepFolderError
     """
     p = Path(path)
     if (p / "calibration.csv").is_file():

@@ -458,10 +458,10 @@ def dumps_spec(spec: SweepSpec | CalibrationSpec) -> str:
 
 def save_spec(spec: SweepSpec | CalibrationSpec, path: str | os.PathLike[str]) -> Path:
     """Write a spec as a TOML file (atomically), e.g. from the workbench's sweep dialog."""
-    from sweeps.sweep import atomic_write
+    from projects.atomic import write_atomic
 
     p = Path(path)
-    atomic_write(p, dumps_spec(spec))
+    write_atomic(p, dumps_spec(spec))
     return p
 
 
@@ -470,7 +470,7 @@ def command_line(spec_path: str | os.PathLike[str], out_dir: str | os.PathLike[s
     """The process to start for a sweep or calibration file (``runout sweep``/``calibrate``).
 
     The workbench starts this as a process of its own (it never imports Ray or Taichi) and follows
-    ``progress.json`` and ``sweep.csv`` (:func:`sweeps.sweep.read_sweep`) in ``out_dir``.
+    ``progress.json`` and ``sweep.csv`` (:func:`sweeps.folder.read_sweep`) in ``out_dir``.
     """
     kind = "calibrate" if "calibration" in load_spec(spec_path).model_fields_set else "sweep"
     from projects.runner import runout_command

@@ -1,21 +1,11 @@
-"""A sweep: plan the runs, run them on Ray, write the sweep folder, read it back.
-
-The sweep folder (the one interface to a sweep, live or finished)::
-
-    sweep.json       the spec, the engine settings and the run plan
-    progress.json    done / total / failed / elapsed_s / eta_s, rewritten after every run
-    sweep.csv        one row per run (rewritten after every run; pending runs included)
-    exceedance.csv   P(measure > x) with the DKW band, per measure
-    profile.csv      P(profile field > threshold) along the section, with Wilson bands
-    sensitivity.csv  Spearman rank correlation of each parameter with each measure
-    report.html      plots and tables (``runout report SWEEP_DIR`` writes it again)
-    runs/ID.toml     the resolved project of each run, runs/ID/ its results, runs/ID.json its record
+"""A sweep: plan the runs, run them on Ray, write the sweep folder (:mod:`sweeps.folder` has its
+files and reads it back).
 
 Python API (for the command line and the workbench)::
 
     spec = load_spec("sweep.toml")                      # validated; ProjectError on bad input
     result = run_sweep(spec, "out", workers=2, on_progress=print, cancel=stop_flag)
-    data = read_sweep("out")                            # rows, measures, statistics
+    data = sweeps.folder.read_sweep("out")              # rows, measures, statistics
 """
 
 from __future__ import annotations
@@ -25,50 +15,17 @@ import io
 import json
 import math
 import os
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
+from projects.atomic import write_atomic
 from sweeps.engine import FINAL_STATUSES, RUNS_DIR, RayEngine, RunPlan, RunRecord, resolve_runs
+from sweeps.folder import CSV_NAME, FIXED_COLUMNS, PROGRESS_NAME, SPEC_NAME, SweepProgress, read_sweep
 from sweeps.sampling import sample
 from sweeps.spec import SweepSpec
-
-CSV_NAME = "sweep.csv"
-SPEC_NAME = "sweep.json"
-PROGRESS_NAME = "progress.json"
-FIXED_COLUMNS = ("status", "message", "wall_time_s", "results_dir")
-
-
-@dataclass(frozen=True)
-class SweepProgress:
-    """Where a sweep stands (also written to ``progress.json``).
-
-    Attributes
-    ----------
-    done, total, failed, reused : int
-        Runs finished (any status), in the sweep, not completed, taken from an earlier sweep.
-    elapsed_s, eta_s : float
-        Wall time so far and estimated remaining, s (NaN before the first run ends).
-    last : RunRecord or None
-        The run that just ended.
-    """
-
-    done: int
-    total: int
-    failed: int
-    reused: int
-    elapsed_s: float
-    eta_s: float
-    last: RunRecord | None = None
-
-    def to_json(self) -> dict[str, Any]:
-        return {"done": self.done, "total": self.total, "failed": self.failed, "reused": self.reused,
-                "elapsed_s": self.elapsed_s, "eta_s": None if not math.isfinite(self.eta_s) else self.eta_s}
 
 
 @dataclass
@@ -93,20 +50,6 @@ class SweepResult:
 def plan_sweep(spec: SweepSpec) -> list[RunPlan]:
     """Sample the parameters and resolve every run (see :func:`sweeps.engine.resolve_runs`)."""
     return resolve_runs(spec.project_path, spec.sweep.set, sample(spec), spec.linked)
-
-
-def atomic_write(path: Path, text: str) -> None:
-    """Write a text file atomically (temporary file in the same folder, then rename)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        os.chmod(tmp, 0o644)  # mkstemp makes it private; these are ordinary result files
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def _cell(value: Any) -> Any:
@@ -149,7 +92,7 @@ def _load_record(runs_dir: Path, plan: RunPlan, measures: Sequence[str], profile
         rec.measures.update(read_measures(results, missing))
         if profile_field and rec.profile is None:
             rec.profile = read_profile(results, profile_field)
-        atomic_write(path, json.dumps(rec.to_json()))
+        write_atomic(path, json.dumps(rec.to_json()))
     rec.reused = True
     return rec
 
@@ -226,8 +169,8 @@ def run_sweep(
         left = len(plans) - done
         eta = elapsed / ran * left if ran > 0 else (0.0 if left == 0 else math.nan)
         p = SweepProgress(done, len(plans), failed, reused, elapsed, eta, last)
-        atomic_write(out / PROGRESS_NAME, json.dumps(p.to_json()))
-        atomic_write(out / CSV_NAME, csv_text(plans, records, measures))
+        write_atomic(out / PROGRESS_NAME, json.dumps(p.to_json()))
+        write_atomic(out / CSV_NAME, csv_text(plans, records, measures))
         if on_progress is not None:
             on_progress(p)
 
@@ -245,7 +188,7 @@ def run_sweep(
                   "sample_x": None} for p in todo]
         for i, data in engine.map(tasks, cancel):
             rec = RunRecord.from_json(data)
-            atomic_write(runs_dir / f"{rec.run_id}.json", json.dumps(rec.to_json()))
+            write_atomic(runs_dir / f"{rec.run_id}.json", json.dumps(rec.to_json()))
             for j in by_id[todo[i].run_id]:
                 records[j] = rec
             progress(rec)
@@ -270,128 +213,4 @@ def _write_spec(out: Path, spec: SweepSpec, plans: Sequence[RunPlan], settings: 
         "runs": [{"run": p.index, "run_id": p.run_id, "values": p.values, "overrides": list(p.overrides)}
                  for p in plans],
     }
-    atomic_write(out / SPEC_NAME, json.dumps(data, indent=1))
-
-
-# --------------------------------------------------------------------------------------------
-# reading a sweep folder
-
-
-@dataclass
-class SweepData:
-    """A sweep folder read back (finished or still running).
-
-    Attributes
-    ----------
-    out_dir : Path
-    parameters : list of str
-        Parameter key paths (column order of sweep.csv).
-    measures : list of str
-    rows : list of dict
-        sweep.csv rows (strings as written).
-    spec : dict
-        sweep.json ("spec", "settings", "runs").
-    progress : dict
-    """
-
-    out_dir: Path
-    parameters: list[str]
-    measures: list[str]
-    rows: list[dict[str, str]]
-    spec: dict[str, Any]
-    progress: dict[str, Any]
-
-    def completed(self) -> list[dict[str, str]]:
-        return [r for r in self.rows if r["status"] == "completed"]
-
-    def column(self, key: str, completed_only: bool = True) -> np.ndarray:
-        """A numeric column (NaN for empty or text cells)."""
-        rows = self.completed() if completed_only else self.rows
-        return np.array([_float(r.get(key, "")) for r in rows], dtype=float)
-
-    def values(self, key: str, completed_only: bool = True) -> list[Any]:
-        """A parameter column as numbers where they are numbers, else the text."""
-        rows = self.completed() if completed_only else self.rows
-        out = []
-        for r in rows:
-            v = _float(r.get(key, ""))
-            out.append(v if math.isfinite(v) else r.get(key, ""))
-        return out
-
-    def profile_field(self) -> str | None:
-        prof = (self.spec.get("spec") or {}).get("profile")
-        return prof.get("field") if prof else None
-
-    def thresholds(self) -> list[float]:
-        prof = (self.spec.get("spec") or {}).get("profile")
-        return list(prof.get("thresholds") or []) if prof else []
-
-    def profiles(self) -> list[tuple[list[float], list[float]]]:
-        """The profile of each completed run (in row order; runs without one left out)."""
-        out = []
-        for r in self.completed():
-            rec = _read_record(self.out_dir / RUNS_DIR / f"{r['run_id']}.json")
-            if rec is not None and rec.profile is not None:
-                out.append(rec.profile)
-        return out
-
-
-def _float(text: str) -> float:
-    try:
-        return float(text)
-    except (TypeError, ValueError):
-        return math.nan
-
-
-def _read_record(path: Path) -> RunRecord | None:
-    try:
-        return RunRecord.from_json(json.loads(path.read_text(encoding="utf-8")))
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
-
-
-class SweepFolderError(Exception):
-    """A folder is not a readable sweep folder."""
-
-
-def is_sweep_dir(path: str | os.PathLike[str]) -> bool:
-    """Whether a folder holds a sweep (``sweep.csv``) or a calibration (``calibration.csv``)."""
-    p = Path(path)
-    return p.is_dir() and ((p / CSV_NAME).is_file() or (p / "calibration.csv").is_file())
-
-
-def read_table_and_json(out: Path, csv_name: str, json_name: str, kind: str) -> tuple[list[str], list[dict], Any]:
-    """The header and rows of a folder's CSV table and its JSON file (sweep and calibration folders).
-
-    Raises
-    ------
-    SweepFolderError
-        One line naming the folder and what could not be read.
-    """
-    try:
-        with open(out / csv_name, encoding="utf-8", newline="") as fh:
-            reader = csv.DictReader(fh)
-            rows = list(reader)
-            header = list(reader.fieldnames or [])
-        info = json.loads((out / json_name).read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise SweepFolderError(f"{out} is not a readable {kind} folder: {exc}") from None
-    return header, rows, info
-
-
-def read_sweep(path: str | os.PathLike[str]) -> SweepData:
-    """Read a sweep folder (sweep.csv, sweep.json, progress.json).
-
-    Raises
-    ------
-    SweepFolderError
-    """
-    out = Path(path)
-    header, rows, spec = read_table_and_json(out, CSV_NAME, SPEC_NAME, "sweep")
-    try:
-        progress = json.loads((out / PROGRESS_NAME).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        progress = {}
-    measures = list((spec.get("spec") or {}).get("sweep", {}).get("measures") or [])
-    params = [h for h in header[2:] if h not in measures and h not in FIXED_COLUMNS]
-    return SweepData(out, params, measures, rows, spec, progress)
+    write_atomic(out / SPEC_NAME, json.dumps(data, indent=1))

@@ -1161,7 +1161,7 @@ class MainWindow(QMainWindow):
 
     def open_sweep(self, path: str | os.PathLike[str]) -> bool:
         """Show a sweep or calibration folder."""
-        from sweeps.sweep import SweepFolderError
+        from sweeps.folder import SweepFolderError
 
         try:
             self._sweep_view().open_folder(Path(path))

@@ -3,7 +3,7 @@
 
 Neither Ray nor Taichi enters the workbench: the child schedules the runs; the workbench rereads
 ``progress.json`` and ``sweep.csv`` (or ``calibration.csv``) every second
-(:func:`sweeps.sweep.read_sweep`, :func:`sweeps.calibrate.read_calibration`) and draws, from the
+(:func:`sweeps.folder.read_sweep`, :func:`sweeps.calibrate.read_calibration`) and draws, from the
 runs completed so far, the exceedance curve of a measure (with its DKW band) and the probability
 profile along the section (with Wilson bands), with :mod:`sweeps.analysis` (numpy and scipy). A
 calibration shows its trials with their misfit and the misfit against each parameter.
@@ -252,9 +252,9 @@ class SweepView(QWidget):
 
         Raises
         ------
-        sweeps.sweep.SweepFolderError
+        sweeps.folder.SweepFolderError
         """
-        from sweeps.sweep import SweepFolderError
+        from sweeps.folder import SweepFolderError
 
         kind = folder_kind(Path(path))
         if kind is None:
@@ -285,7 +285,7 @@ class SweepView(QWidget):
         if not force and stamp == self._stamp:
             return False
         self._stamp = stamp
-        from sweeps.sweep import SweepFolderError
+        from sweeps.folder import SweepFolderError
 
         try:
             if self.kind == "calibration":
@@ -293,7 +293,7 @@ class SweepView(QWidget):
 
                 data = read_calibration(self.path)
             else:
-                from sweeps.sweep import read_sweep
+                from sweeps.folder import read_sweep
 
                 data = read_sweep(self.path)
         except SweepFolderError:

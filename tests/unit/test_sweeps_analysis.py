@@ -10,13 +10,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sweeps.analysis import dkw_epsilon, exceedance, probability_profile, sensitivity, wilson_interval
+from projects.atomic import write_atomic
+from sweeps.analysis import (
+    dkw_epsilon,
+    exceedance,
+    probability_profile,
+    sensitivity,
+    wilson_interval,
+)
 from sweeps.calibrate import confidence_threshold, misfit
 from sweeps.engine import RunPlan, RunRecord
+from sweeps.folder import SPEC_NAME, is_sweep_dir, read_sweep
 from sweeps.measures import read_measures, read_profile
 from sweeps.report import write_report, write_statistics
 from sweeps.spec import parse_spec
-from sweeps.sweep import SPEC_NAME, atomic_write, csv_text, is_sweep_dir, read_sweep
+from sweeps.sweep import csv_text
 
 
 def test_exceedance_of_a_small_sample_by_hand():
@@ -108,6 +116,7 @@ def test_measures_from_summary_and_hazard_json(tmp_path):
 def fake_sweep(tmp_path: Path, n: int = 8) -> Path:
     """A sweep folder written by hand: runout = 100 - 2 phi, a profile per run, one failed run."""
     out = tmp_path / "sweep"
+    (out / "runs").mkdir(parents=True)
     spec = parse_spec({"sweep": {"project": "p.toml", "runs": n, "measures": ["hazard.runout_distance_m"]},
                        "parameters": {"materials.soil.friction_angle_deg": {"distribution": "uniform", "low": 20,
                                                                              "high": 40}},
@@ -121,9 +130,9 @@ def fake_sweep(tmp_path: Path, n: int = 8) -> Path:
                         {"hazard.runout_distance_m": 100.0 - 2.0 * phi},
                         ([0.0, 1.0, 2.0], [1.0, 0.6 if i < 3 else 0.4, 0.0]))
         records.append(rec)
-        atomic_write(out / "runs" / f"id{i}.json", json.dumps(rec.to_json()))
-    atomic_write(out / "sweep.csv", csv_text(plans, records, ["hazard.runout_distance_m"]))
-    atomic_write(out / SPEC_NAME, json.dumps({"spec": json.loads(spec.model_dump_json()), "settings": {}}))
+        write_atomic(out / "runs" / f"id{i}.json", json.dumps(rec.to_json()))
+    write_atomic(out / "sweep.csv", csv_text(plans, records, ["hazard.runout_distance_m"]))
+    write_atomic(out / SPEC_NAME, json.dumps({"spec": json.loads(spec.model_dump_json()), "settings": {}}))
     return out
 
 
@@ -207,16 +216,16 @@ def test_resume_reads_measures_asked_for_later_from_the_kept_results(tmp_path):
     runs = tmp_path / "runs"
     write_results(runs / "abc", {"status": "completed", "wall_time_s": 2.0, "steps": 7})
     rec = RunRecord("abc", "completed", "ok", 3.0, str(runs / "abc"), {"summary.steps": 7.0})
-    atomic_write(runs / "abc.json", json.dumps(rec.to_json()))
+    write_atomic(runs / "abc.json", json.dumps(rec.to_json()))
     plan = RunPlan(0, {}, (), "abc", "text")
     again = _load_record(runs, plan, ["summary.steps", "summary.wall_time_s"], None)
     assert again is not None and again.reused
     assert again.measures == {"summary.steps": 7.0, "summary.wall_time_s": 2.0}
     assert json.loads((runs / "abc.json").read_text())["measures"]["summary.wall_time_s"] == 2.0
     # an interrupted ("error") run is not reused; nor is one whose folder is gone when a measure is missing
-    atomic_write(runs / "abc.json", json.dumps(RunRecord("abc", "error", "killed").to_json()))
+    write_atomic(runs / "abc.json", json.dumps(RunRecord("abc", "error", "killed").to_json()))
     assert _load_record(runs, plan, ["summary.steps"], None) is None
-    atomic_write(runs / "abc.json", json.dumps(rec.to_json()))
+    write_atomic(runs / "abc.json", json.dumps(rec.to_json()))
     import shutil
 
     shutil.rmtree(runs / "abc")
