@@ -79,7 +79,10 @@ FIELDS: dict[str, FieldInfo] = {
         FieldInfo("stress_yy", "Stress yy", "kPa", "stress", cmap="turbo"),
         FieldInfo("stress_xy", "Shear stress xy", "kPa", "stress", cmap="coolwarm"),
         FieldInfo("stress_zz", "Stress zz", "kPa", "stress", cmap="turbo"),
-        FieldInfo("mean_stress", "Mean stress", "kPa", "stress", cmap="turbo"),
+        FieldInfo("mean_stress", "Mean effective stress", "kPa", "stress", cmap="turbo"),
+        FieldInfo("pore_pressure", "Pore pressure", "kPa", "pore_pressure", cmap="Blues"),
+        FieldInfo("total_stress_yy", "Total stress yy", "kPa", "stress", cmap="turbo"),
+        FieldInfo("mean_total_stress", "Mean total stress", "kPa", "stress", cmap="turbo"),
         FieldInfo("plastic_strain", "Plastic strain", "-", "plastic_strain", cmap="magma_r"),
         FieldInfo("material", "Material", "", "material_id", categorical=True, cmap="tab10"),
     )
@@ -129,6 +132,15 @@ def field_values(arrays: Mapping[str, np.ndarray], field: str) -> np.ndarray:
     if field == "mean_stress":
         s = data.astype(np.float64)
         return (s[:, 0] + s[:, 1] + s[:, 3]) / 3.0 * _KPA
+    if field in ("total_stress_yy", "mean_total_stress"):
+        # the stress frames carry is the effective stress; total = effective - u I (dry: u = 0)
+        s = data.astype(np.float64)
+        u = np.asarray(arrays.get("pore_pressure", np.zeros(len(s))), dtype=np.float64)
+        if field == "total_stress_yy":
+            return (s[:, 1] - u) * _KPA
+        return ((s[:, 0] + s[:, 1] + s[:, 3]) / 3.0 - u) * _KPA
+    if field == "pore_pressure":
+        return data.astype(np.float64) * _KPA
     if field == "material":
         return data.astype(np.int64)
     return data.astype(np.float64)

@@ -55,7 +55,50 @@ def solver_material(name: str, material: schema.Material) -> sc.Material:
         damping_ratio=material.damping_ratio or 0.0,
         damping_frequency_hz=material.damping_frequency_hz or 0.0,
         damping_model=material.damping_model or sc.DEFAULT_DAMPING_MODEL,
+        saturated_density_kg_m3=material.saturated_density_kg_m3,
+        ru=material.ru or 0.0,
     )
+
+
+def has_water(project: Project) -> bool:
+    """Whether the project has ground water (a [water] table or a material with an r_u)."""
+    return project.water is not None or any((m.ru or 0.0) > 0.0 for m in project.materials.values()) or any(
+        (c.ru or 0.0) > 0.0 for st in project.stages for c in st.material_changes.values())
+
+
+def solver_water(project: Project) -> list[sc.Water | None]:
+    """The ground water at the start (first entry) and at the end of each stage (one entry per
+    stage after it): a stage's ``water`` moves the lines it names, the others stay.
+
+    Parameters
+    ----------
+    project : Project
+
+    Returns
+    -------
+    list of solver.config.Water or None
+        ``len(project.stages) + 1`` entries; None throughout for a project without [water].
+    """
+    water = project.water
+    if water is None:
+        return [None] * (len(project.stages) + 1)
+    current = sc.Water(
+        phreatic_line_m=tuple(tuple(p) for p in water.phreatic_line_m),
+        free_water_line_m=None if water.free_water_line_m is None else tuple(tuple(p) for p in water.free_water_line_m),
+        unit_weight_n_m3=water.unit_weight_n_m3,
+        inclined_correction=water.inclined_line_correction,
+    )
+    out = [current]
+    for stage in project.stages:
+        move = stage.water
+        if move is not None:
+            free = current.free_water if move.free_water_line_m is None else tuple(tuple(p) for p in move.free_water_line_m)
+            line = current.phreatic_line_m if move.phreatic_line_m is None else tuple(tuple(p) for p in move.phreatic_line_m)
+            # a free-water line equal to the phreatic line is left implicit (None: it follows it)
+            current = dataclasses.replace(current, phreatic_line_m=line,
+                                          free_water_line_m=None if free == line else free)
+        out.append(current)
+    return out
 
 
 def solver_boundary(boundary: schema.Boundary) -> sc.Boundary:
@@ -124,7 +167,8 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
 
     stages = []
     reduced = False  # after a strength-reduction stage projects.strength sets the material table
-    for stage, table in zip(project.stages, material_tables(project)):
+    water = solver_water(project)
+    for stage, table, stage_water in zip(project.stages, material_tables(project), water[1:]):
         if stage.type == "strength-reduction":
             reduced = True
             continue  # driven by projects.strength between the solver's stages
@@ -146,6 +190,7 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
                 materials=stage_materials,
                 stop_when_kinetic_energy_below=stage.stop_when_kinetic_energy_below,
                 min_duration_s=stage.min_duration_s or 0.0,
+                water=stage_water if stage.water is not None else None,
             )
         )
 
@@ -176,6 +221,7 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
         output=output,
         envelopes=envelope_config(project),
         structures=tuple(solver_structure(st) for st in project.structures),
+        water=water[0],
     )
 
 
@@ -420,7 +466,8 @@ FLOATS_PER_NODE = 7
 GRID_PAD = 2
 #: Bytes per particle of a frame file, uncompressed, for each output field, and what every
 #: frame holds (points 12 - 24 far from the origin -, active 1, particle id 4, vertex cell 16).
-FILE_BYTES_PER_FIELD = {"displacement": 12, "velocity": 12, "stress": 16, "plastic_strain": 4, "material": 4}
+FILE_BYTES_PER_FIELD = {"displacement": 12, "velocity": 12, "stress": 16, "plastic_strain": 4, "material": 4,
+                        "pore_pressure": 4}
 FILE_BYTES_ALWAYS = 12 + 1 + 4 + 16
 #: Bytes of one row of series.csv and of the fixed files (pvd entry per frame, summary, project).
 SERIES_BYTES_PER_FRAME = 400
@@ -521,6 +568,7 @@ def estimate(project: Project) -> dict[str, object]:
                     + min(float(candidates) * 48.0, SEEDING_BLOCK_BYTES))
     file_per_particle = FILE_BYTES_ALWAYS + sum(
         FILE_BYTES_PER_FIELD.get(name, 0) for name in project.output.fields
+        if name not in sc.WATER_FIELDS or has_water(project)
     )
     frame_bytes = _count(float(particles) * file_per_particle + 2048.0)
     disk = _count(float(frames) * (frame_bytes + SERIES_BYTES_PER_FRAME) + FIXED_FILE_BYTES)

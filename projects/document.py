@@ -1,4 +1,4 @@
-"""Reading, writing and overriding project files (TOML, schema version 1).
+"""Reading, writing and overriding project files (TOML, schema version 2).
 
 - :func:`load_project` / :func:`loads_project` parse and validate (every problem at once,
   TOML syntax errors with line and column).
@@ -46,7 +46,7 @@ logger = logging.getLogger(__name__)
 
 # Polygons with more points than this are written one point per line.
 _INLINE_POINTS = 8
-_HEADER = "Runout project file, schema version 1: SI units, angles in degrees (docs/project-format.md)."
+_HEADER = "Runout project file, schema version 2: SI units, angles in degrees (docs/project-format.md)."
 _TOMLKIT_AT = re.compile(r"\s+at line \d+ col \d+\s*$")
 _TOMLLIB_AT = re.compile(r"\s*\(at line (\d+), column (\d+)\)")
 
@@ -237,6 +237,9 @@ def dumps_project(project: Project) -> str:
             structures.append(table)
         doc["structures"] = structures
 
+    if data.get("water"):
+        doc["water"] = _water_table(data["water"])
+
     doc["particles"] = _table(data["particles"])
     numerics = _table({k: v for k, v in data["numerics"].items() if k != "advanced"})
     if "advanced" in data["numerics"]:
@@ -254,6 +257,8 @@ def dumps_project(project: Project) -> str:
                 for name, change in value.items():
                     changes[name] = _table(change)
                 table[key] = changes
+            elif key == "water":
+                table[key] = _water_table(value)
             else:
                 table[key] = _value(value)
         stages.append(table)
@@ -268,6 +273,13 @@ def dumps_project(project: Project) -> str:
             targets.append(_table(target))
         doc["targets"] = targets
     return tomlkit.dumps(doc)
+
+
+def _water_table(values: Mapping[str, Any]) -> tomlkit.items.Table:
+    table = tomlkit.table()
+    for key, value in values.items():
+        table[key] = _points(value) if key.endswith("_line_m") else _value(value)
+    return table
 
 
 def _value(value: Any) -> Any:

@@ -1,4 +1,4 @@
-"""The project document, schema version 1: typed models and validation with readable errors.
+"""The project document, schema version 2: typed models and validation with readable errors.
 
 A project file (TOML, SI units, angles in degrees) is validated into a :class:`Project`. Every
 problem found is reported at once as a :class:`Problem` naming the key path (dotted, list
@@ -48,8 +48,10 @@ from solver import config as sc
 
 logger = logging.getLogger(__name__)
 
-#: The schema version this module reads and writes.
-SCHEMA_VERSION = 1
+#: The schema version this module writes.
+SCHEMA_VERSION = 2
+#: The versions it reads: a version 1 file (no [water], no saturated densities) reads unchanged.
+READABLE_SCHEMA_VERSIONS: tuple[int, ...] = (1, 2)
 
 # The solver's vocabularies are the file's: written once, in solver/config.py.
 MATERIAL_MODELS = sc.MATERIAL_MODELS
@@ -90,7 +92,7 @@ DEFAULT_GRAVITY_DAMPING = 0.7
 #: the part of a gravity stage that ramps gravity up when ``ramp_fraction`` is not given (the solver's)
 DEFAULT_GRAVITY_RAMP_FRACTION = sc.GRAVITY_RAMP_FRACTION
 
-_SECTION_ORDER = ("runout", "domain", "materials", "bodies", "structures", "particles", "numerics", "stages", "output",
+_SECTION_ORDER = ("runout", "domain", "materials", "bodies", "structures", "water", "particles", "numerics", "stages", "output",
                   "hazard", "targets")
 _BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
 _VALUE_WIDTH = 60
@@ -344,6 +346,18 @@ def _simple_polygon(points: tuple[tuple[float, float], ...]) -> tuple[tuple[floa
     return points
 
 
+def _water_line(points: tuple[tuple[float, float], ...]) -> tuple[tuple[float, float], ...]:
+    """A water line: at least two points, x strictly increasing (a level cannot fold back)."""
+    if len(points) < 2:
+        raise _fail(f"needs at least 2 points, got {len(points)}")
+    for k in range(1, len(points)):
+        if not points[k][0] > points[k - 1][0]:
+            raise _fail(f"x must increase from point to point (a water line is one height at each x): "
+                        f"point {k} [{points[k][0]:g}, {points[k][1]:g}] does not lie right of point {k - 1} "
+                        f"[{points[k - 1][0]:g}, {points[k - 1][1]:g}]")
+    return points
+
+
 def _bare_key(value: str) -> str:
     if not _BARE_KEY.match(value):
         raise _fail("names may only use letters, digits, _ and -")
@@ -387,6 +401,9 @@ OptPositivePa = _number_type(gt=0.0, optional=True, unit="Pa")
 OptNonNegativePa = _number_type(ge=0.0, optional=True, unit="Pa")
 Density = _number_type(gt=0.0, unit="kg/m3")
 OptDensity = _number_type(gt=0.0, optional=True, unit="kg/m3")
+#: a pore-pressure ratio r_u = u / sigma_v (1 would leave no effective stress)
+OptPoreRatio = _number_type(ge=0.0, lt=1.0, optional=True)
+UnitWeight = _number_type(gt=0.0, unit="N/m3")
 Int = Annotated[int, BeforeValidator(_to_int)]
 Str = Annotated[str, BeforeValidator(_to_str)]
 OptName = Annotated[
@@ -399,6 +416,7 @@ MaterialName = Annotated[str, BeforeValidator(_to_str), AfterValidator(_bare_key
 Vec2 = Annotated[tuple[float, float], BeforeValidator(_to_pair)]
 PositiveVec2 = Annotated[tuple[float, float], BeforeValidator(_to_pair), AfterValidator(_positive_pair)]
 Polygon = Annotated[tuple[Vec2, ...], BeforeValidator(_points), AfterValidator(_simple_polygon)]
+WaterLine = Annotated[tuple[Vec2, ...], BeforeValidator(_points), AfterValidator(_water_line)]
 
 
 class _Model(BaseModel):
@@ -417,12 +435,13 @@ class Header(_Model):
 
     @model_validator(mode="after")
     def _version(self) -> Header:
-        if self.schema_version != SCHEMA_VERSION:
+        if self.schema_version not in READABLE_SCHEMA_VERSIONS:
             raise _fail(_VERSION_MESSAGE)
         return self
 
 
-_VERSION_MESSAGE = f"unsupported schema version; this Runout reads schema version {SCHEMA_VERSION}"
+_VERSION_MESSAGE = ("unsupported schema version; this Runout reads schema versions "
+                    + ", ".join(str(v) for v in READABLE_SCHEMA_VERSIONS) + f" (and writes {SCHEMA_VERSION})")
 
 
 def _boundary_input(value: Any) -> Any:
@@ -482,6 +501,8 @@ class Material(_Model):
     damping_ratio: OptDampingRatio = None
     damping_frequency_hz: OptDampingFrequency = None
     damping_model: Annotated[Literal[DAMPING_MODELS], _choice(DAMPING_MODELS)] | None = None
+    saturated_density_kg_m3: OptDensity = None
+    ru: OptPoreRatio = None
 
 
 class MaterialChange(_Model):
@@ -498,6 +519,8 @@ class MaterialChange(_Model):
     damping_ratio: OptDampingRatio = None
     damping_frequency_hz: OptDampingFrequency = None
     damping_model: Annotated[Literal[DAMPING_MODELS], _choice(DAMPING_MODELS)] | None = None
+    saturated_density_kg_m3: OptDensity = None
+    ru: OptPoreRatio = None
 
 
 class Body(_Model):
@@ -535,6 +558,22 @@ class Structure(_Model):
     name: Name
     polygon_m: Polygon
     contact: Contact = Contact(type="slip")
+
+
+class Water(_Model):
+    """``[water]``: the ground water (docs/project-format.md, water; solver/water.py)."""
+
+    phreatic_line_m: WaterLine
+    free_water_line_m: WaterLine | None = None
+    unit_weight_n_m3: UnitWeight = 9810.0
+    inclined_line_correction: Annotated[bool, BeforeValidator(lambda v: _to_bool(v))] = False
+
+
+class StageWater(_Model):
+    """``[stages.water]``: where the stage moves the water (linearly over its duration)."""
+
+    phreatic_line_m: WaterLine | None = None
+    free_water_line_m: WaterLine | None = None
 
 
 class Particles(_Model):
@@ -636,6 +675,7 @@ class Stage(_Model):
     limit_equilibrium: bool | None = None
     failure: Failure | None = None
     strength_factor: OptPositive = None
+    water: StageWater | None = None
 
     @property
     def label(self) -> str:
@@ -711,7 +751,7 @@ class Target(_Model):
 
 
 class Project(_Model):
-    """A whole project file (schema version 1).
+    """A whole project file (schema version 2).
 
     Build one with :func:`validate_project` (or :mod:`projects.document`), which reports every
     problem at once. ``materials`` keeps the file's order: material ids follow it.
@@ -722,6 +762,7 @@ class Project(_Model):
     materials: Annotated[dict[MaterialName, Material], _nonempty_list("material ([materials.NAME])")]
     bodies: Annotated[list[Body], _nonempty_list("body ([[bodies]])")]
     structures: list[Structure] = []
+    water: Water | None = None
     particles: Particles = Particles()
     numerics: Numerics = Numerics()
     stages: Annotated[list[Stage], _nonempty_list("stage ([[stages]])")]
@@ -789,6 +830,18 @@ def _plain(value: Any) -> Any:
 # Validation entry point
 
 
+def migrate(data: Mapping[str, Any]) -> Mapping[str, Any]:
+    """A file of an older readable schema version as the current version's data.
+
+    Version 1 to 2 adds keys only ([water], ``saturated_density_kg_m3``, ``ru``, a stage's
+    ``water``, the ``pore_pressure`` field): a version 1 file means the same under version 2.
+    """
+    header = data.get("runout")
+    if isinstance(header, Mapping) and header.get("schema_version") == 1:
+        data = {**data, "runout": {**header, "schema_version": SCHEMA_VERSION}}
+    return data
+
+
 def validate_project(data: Mapping[str, Any]) -> Project:
     """Validate TOML-shaped data into a :class:`Project`, reporting every problem at once.
 
@@ -810,9 +863,10 @@ def validate_project(data: Mapping[str, Any]) -> Project:
         raise ProjectError([Problem("", None, "a project must be a TOML table")])
     header = data.get("runout")
     version = header.get("schema_version") if isinstance(header, Mapping) else None
-    if isinstance(version, int) and not isinstance(version, bool) and version != SCHEMA_VERSION:
+    if isinstance(version, int) and not isinstance(version, bool) and version not in READABLE_SCHEMA_VERSIONS:
         # Other problems would be judged by the wrong schema; report the version alone.
         raise ProjectError([Problem("runout.schema_version", version, _VERSION_MESSAGE)])
+    data = migrate(data)
     problems: list[Problem] = []
     project = None
     try:
@@ -967,7 +1021,37 @@ def _rule_problems(data: Mapping[str, Any]) -> list[Problem]:
     problems += _numerics_rules(_table(data.get("numerics")))
     problems += _stage_rules(_array(data.get("stages")), materials)
     problems += _hazard_rules(_table(data.get("hazard")), _array(data.get("targets")), domain)
+    problems += _water_rules(data.get("water"), _array(data.get("stages")))
     return problems
+
+
+def _water_rules(water: Any, stages: list[Any]) -> list[Problem]:
+    """A stage moves the water of [water]; it names a line to move; no water move in a strength
+    reduction (its trials need one water state)."""
+    problems = []
+    for index, stage in enumerate(stages):
+        if not isinstance(stage, Mapping) or "water" not in stage:
+            continue
+        path = f"stages.{index}.water"
+        move = stage["water"]
+        if water is None:
+            problems.append(Problem(path, None, "a stage moves the water of [water]: add a [water] table with the "
+                                    "phreatic_line_m at the start"))
+        if isinstance(move, Mapping) and not move:
+            problems.append(Problem(path, None, "needs phreatic_line_m or free_water_line_m (where the stage moves it)"))
+        if stage.get("type") == "strength-reduction":
+            problems.append(Problem(path, None, "not allowed on a strength-reduction stage (its trials share one "
+                                    "water state: move the water in the stage before it)"))
+    return problems
+
+
+def _saturated_rule(path: str, values: Mapping[str, Any]) -> list[Problem]:
+    """A saturated density is at least the dry one."""
+    wet, dry = _num(values.get("saturated_density_kg_m3")), _num(values.get("density_kg_m3"))
+    if wet is not None and dry is not None and wet < dry:
+        return [Problem(f"{path}.saturated_density_kg_m3", wet,
+                        f"must be >= density_kg_m3 ({dry:g}): below the water table a soil's pores hold water")]
+    return []
 
 
 def _hazard_rules(hazard: Mapping[str, Any], targets: list[Any], domain: Mapping[str, Any]) -> list[Problem]:
@@ -1069,6 +1153,7 @@ def _material_rules(materials: Mapping[str, Any]) -> list[Problem]:
                         Problem(f"{path}.{key}", material[key], 'only allowed with model "drucker-prager"')
                     )
         problems += _damping_rule(path, material)
+        problems += _saturated_rule(path, material)
     return problems
 
 
@@ -1343,6 +1428,8 @@ def _change_rules(path: str, changes: Mapping[str, Any], current: dict[str, dict
             continue
         material = current[name]
         problems += _damping_rule(change_path, {**material, **change})
+        if "saturated_density_kg_m3" in change or "density_kg_m3" in change:
+            problems += _saturated_rule(change_path, {**material, **change})
         if material.get("model") == "linear-elastic":
             for key in PLASTIC_KEYS:
                 if key in change:

@@ -13,6 +13,7 @@ SI unit    accepted
 =========  =========================================================================
 Pa         Pa, kPa, MPa, GPa, N/m2, kN/m2, MN/m2 (also ``m^2``, ``m²``)
 kg/m3      kg/m3, g/cm3, t/m3; unit weights N/m3, kN/m3 (divided by 9.81 m/s2)
+N/m3       N/m3, kN/m3 (a unit weight: the water's)
 m          m, cm, mm, km
 s          s, ms, min, h
 =========  =========================================================================
@@ -34,6 +35,7 @@ _DENSITY = {
     "n/m3": 1.0 / UNIT_WEIGHT_GRAVITY_M_S2,
     "kn/m3": 1e3 / UNIT_WEIGHT_GRAVITY_M_S2,
 }
+_WEIGHT = {"n/m3": 1.0, "kn/m3": 1e3}
 _LENGTH = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "km": 1e3}
 _TIME = {"s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0}
 
@@ -41,12 +43,14 @@ _TIME = {"s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0}
 UNITS: dict[str, tuple[str, dict[str, float]]] = {
     "Pa": ("a stress or modulus", _PRESSURE),
     "kg/m3": ("a density or unit weight", _DENSITY),
+    "N/m3": ("a unit weight", _WEIGHT),
     "m": ("a length", _LENGTH),
     "s": ("a time", _TIME),
 }
 _SHOWN = {
     "Pa": "Pa, kPa, MPa or GPa",
     "kg/m3": "kg/m3, g/cm3, t/m3 or a unit weight in kN/m3",
+    "N/m3": "N/m3 or kN/m3",
     "m": "m, cm, mm or km",
     "s": "s, ms, min or h",
 }
@@ -125,7 +129,7 @@ def parse_quantity(text: str | float | int, unit: str) -> float:
 
 
 def _example(unit: str) -> str:
-    return {"Pa": "kPa", "kg/m3": "kN/m3", "m": "m", "s": "s"}[unit]
+    return {"Pa": "kPa", "kg/m3": "kN/m3", "N/m3": "kN/m3", "m": "m", "s": "s"}[unit]
 
 
 def format_quantity(value_si: float, unit: str) -> str:

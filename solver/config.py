@@ -55,7 +55,10 @@ DEFAULT_CFL = 0.5
 DEFAULT_SPEED_BOUND_FACTOR = 3.0
 
 #: Frame fields a run may be asked for (``positions`` and ``active`` are always present).
-OUTPUT_FIELDS: tuple[str, ...] = ("displacement", "velocity", "stress", "plastic_strain", "material")
+OUTPUT_FIELDS: tuple[str, ...] = ("displacement", "velocity", "stress", "plastic_strain", "material",
+                                   "pore_pressure")
+#: Fields written only where the run has water (``pore_pressure``: none in a dry run).
+WATER_FIELDS: tuple[str, ...] = ("pore_pressure",)
 
 
 @dataclass(frozen=True)
@@ -83,6 +86,16 @@ class Material:
     damping_ratio: float = 0.0
     damping_frequency_hz: float = 0.0
     damping_model: str = DEFAULT_DAMPING_MODEL
+    #: density below the phreatic line (None: ``density_kg_m3`` there too; solver/water.py)
+    saturated_density_kg_m3: float | None = None
+    #: pore-pressure ratio ``r_u = u / sigma_v`` (total vertical stress), the engineers' shortcut
+    #: for a pore pressure in proportion to the overburden (0: none; solver/water.py)
+    ru: float = 0.0
+
+    @property
+    def wet_density_kg_m3(self) -> float:
+        """The density below the phreatic line."""
+        return self.density_kg_m3 if self.saturated_density_kg_m3 is None else self.saturated_density_kg_m3
 
     @property
     def damped(self) -> bool:
@@ -266,6 +279,32 @@ GRAVITY_RAMP_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
+class Water:
+    """Steady, drained ground water, prescribed (not solved): solver/water.py and docs/solver.md.
+
+    ``phreatic_line_m`` is the piezometric line of the water in the ground, a polyline with x
+    strictly increasing, extended level beyond its ends. Below it the pore pressure is
+    hydrostatic, ``u = gamma_w h`` with ``h`` the depth below the line along gravity, or
+    ``gamma_w h cos^2(theta)`` with ``inclined_correction`` (``theta`` the line's inclination
+    from level: seepage parallel to an inclined line). ``free_water_line_m`` is the level of
+    free water standing above the ground (a reservoir, a pond; None: the phreatic line); it
+    differs from the phreatic line where the water in the slope lags the free water (rapid
+    drawdown). ``unit_weight_n_m3`` is the water's unit weight under the full gravity of the
+    configuration.
+    """
+
+    phreatic_line_m: tuple[tuple[float, float], ...]
+    free_water_line_m: tuple[tuple[float, float], ...] | None = None
+    unit_weight_n_m3: float = 9810.0
+    inclined_correction: bool = False
+
+    @property
+    def free_water(self) -> tuple[tuple[float, float], ...]:
+        """The free water's level (the phreatic line where none is given)."""
+        return self.phreatic_line_m if self.free_water_line_m is None else self.free_water_line_m
+
+
+@dataclass(frozen=True)
 class Stage:
     """One stage of the analysis.
 
@@ -293,6 +332,9 @@ class Stage:
     stop_when_kinetic_energy_below: float | None = None
     min_duration_s: float = 0.0
     ramp_fraction: float | None = None
+    #: where the stage moves the ground water: linearly from its position at the stage's start to
+    #: this one over ``duration_s`` (None: unchanged; at once in a k0 stage)
+    water: Water | None = None
 
     @property
     def ramp_s(self) -> float:
@@ -371,6 +413,15 @@ class SimulationConfig:
     structures: tuple[Structure, ...] = ()
     #: hazard envelopes (None: none are accumulated)
     envelopes: EnvelopeConfig | None = None
+    #: the ground water at the start (None: dry, unless a stage brings water)
+    water: Water | None = None
+
+    @property
+    def has_water(self) -> bool:
+        """Whether any pore pressure is compiled in: a water line here or in a stage, or an r_u."""
+        return (self.water is not None or any(st.water is not None for st in self.stages)
+                or any(m.ru > 0.0 for m in self.materials)
+                or any(m.ru > 0.0 for st in self.stages for m in (st.materials or ())))
 
 
 @dataclass(frozen=True, eq=False)

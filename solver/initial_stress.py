@@ -32,7 +32,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from solver.config import Material, Particles
+from solver.config import Material, Particles, Water
+from solver.water import below_line, free_water_depth, pore_pressure
 
 #: Round-off tolerance of heights and bar edges, in cell sizes.
 TOLERANCE_CELLS = 1e-6
@@ -63,8 +64,14 @@ def _strips(lo_m: np.ndarray, hi_m: np.ndarray, tol_m: float):
 
 def k0_stress(particles: Particles, materials: Sequence[Material], gravity_m_s2, cell_size_m: float,
               k0: float | None = None, active: np.ndarray | None = None,
-              positions_m: np.ndarray | None = None) -> np.ndarray:
-    """Geostatic stress of every particle.
+              positions_m: np.ndarray | None = None, water: Water | None = None) -> np.ndarray:
+    """Geostatic effective stress of every particle.
+
+    Dry (``water`` None and no material with an r_u) the effective stress is the total stress.
+    With water the total vertical stress takes saturated densities below the phreatic line and
+    the weight of the free water standing above the ground over each particle's bar; the pore
+    pressure (solver/water.py) is taken off it, and K0 acts on the effective vertical stress:
+    ``sigma'_v = sigma_v + u``, ``sigma'_h = K0 sigma'_v`` (compression negative).
 
     Returns
     -------
@@ -81,11 +88,44 @@ def k0_stress(particles: Particles, materials: Sequence[Material], gravity_m_s2,
     down = g / gn
     across = np.array([-down[1], down[0]])
     mat = np.asarray(particles.material_ids)
+    wet = any(m.ru > 0.0 for m in materials) or water is not None
     rho = np.array([m.density_kg_m3 for m in materials])[mat]
+    if water is not None:
+        rho = np.where(below_line(water, x, g), np.array([m.wet_density_kg_m3 for m in materials])[mat], rho)
     volume = np.asarray(particles.volumes_m2, dtype=np.float64)
     weight = rho * volume * gn  # N per m out of plane
     if active is not None:
         weight = np.where(active, weight, 0.0)
+    if wet:
+        # the depth of material above each particle (unit weights of 1), for the ground surface
+        sigma_v, depth = _overburden(particles, x, volume, cell_size_m, down, across, positions_m,
+                                     np.stack([weight, np.where(weight > 0.0, volume, 0.0)]))
+        depth = -depth
+        if water is not None:
+            surface = x - down[None, :] * depth[:, None]
+            sigma_v = sigma_v - water.unit_weight_n_m3 * free_water_depth(water, surface, g)
+        u = pore_pressure(water, materials, mat, x, g, vertical_stress_pa=sigma_v)
+        sigma_v = sigma_v + u
+    else:
+        sigma_v = _overburden(particles, x, volume, cell_size_m, down, across, positions_m, weight[None, :])[0]
+    if k0 is None:
+        k0_p = np.array([m.default_k0 for m in materials])[mat]
+    else:
+        k0_p = np.full(n, float(k0))
+    sigma_h = k0_p * sigma_v
+    # sigma = sigma_v d d^T + sigma_h a a^T in the plane, sigma_zz = sigma_h
+    stress[:, 0] = sigma_v * down[0] ** 2 + sigma_h * across[0] ** 2
+    stress[:, 1] = sigma_v * down[1] ** 2 + sigma_h * across[1] ** 2
+    stress[:, 2] = sigma_v * down[0] * down[1] + sigma_h * across[0] * across[1]
+    stress[:, 3] = sigma_h
+    return stress
+
+
+def _overburden(particles: Particles, x: np.ndarray, volume: np.ndarray, cell_size_m: float, down: np.ndarray,
+                across: np.ndarray, positions_m, weights: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The overburden of every particle for each row of ``weights`` ((k, N): what each particle
+    weighs), compression negative: one array per row."""
+    n = len(x)
     width = np.sqrt(np.maximum(volume, 0.0))
     tol = TOLERANCE_CELLS * cell_size_m
     centre = x @ across
@@ -95,8 +135,7 @@ def k0_stress(particles: Particles, materials: Sequence[Material], gravity_m_s2,
     if bounds is not None and moved <= 1e-3 * cell_size_m and abs(abs(across[axis]) - 1.0) < 1e-12:
         # the lattice's own boxes (gravity along a grid axis): a part of a sub-cell cut by an
         # outline is as wide as it is, not sqrt(V), and its bar lies where it does, so the bars
-        # still tile each row (a sqrt(V) bar about its centroid left the particle line against a
-        # structure face 0.55 cells off the node line at 0.85 of its overburden)
+        # still tile each row
         box = np.asarray(bounds, dtype=np.float64)
         lo = box[:, axis] * across[axis]
         hi = box[:, axis + 2] * across[axis]
@@ -112,33 +151,25 @@ def k0_stress(particles: Particles, materials: Sequence[Material], gravity_m_s2,
     owner = np.repeat(np.arange(n), count)
     strip = np.repeat(first, count) + (np.arange(owner.size) - np.repeat(np.cumsum(count) - count, count))
     bar_w = np.bincount(owner, weights=strip_w[strip], minlength=n)  # the bar's width on the strips
-    share = weight[owner] * strip_w[strip] / bar_w[owner]
     height = -(x @ down)
     level = np.round(height / tol).astype(np.int64)[owner]
     # group entries at the same height in a strip (round-off tolerant), tallest first
     order = np.lexsort((-level, strip))
-    str_s, lev_s, w_s = strip[order], level[order], share[order]
+    str_s, lev_s = strip[order], level[order]
     new_group = np.r_[True, (str_s[1:] != str_s[:-1]) | (lev_s[1:] != lev_s[:-1])]
     group = np.cumsum(new_group) - 1
-    group_weight = np.bincount(group, weights=w_s)
     group_strip = str_s[new_group]
-    # weight of all groups above, within the strip
-    csum = np.cumsum(group_weight)
     strip_start = np.r_[True, group_strip[1:] != group_strip[:-1]]
     start_index = np.maximum.accumulate(np.where(strip_start, np.arange(len(group_strip)), 0))
-    before = np.r_[0.0, csum[:-1]]
-    above = before - np.r_[0.0, csum][start_index]
-    entry_above = np.empty(owner.size)
-    entry_above[order] = above[group] + 0.5 * group_weight[group]
-    sigma_v = -np.bincount(owner, weights=entry_above, minlength=n) / bar_w
-    if k0 is None:
-        k0_p = np.array([m.default_k0 for m in materials])[mat]
-    else:
-        k0_p = np.full(n, float(k0))
-    sigma_h = k0_p * sigma_v
-    # sigma = sigma_v d d^T + sigma_h a a^T in the plane, sigma_zz = sigma_h
-    stress[:, 0] = sigma_v * down[0] ** 2 + sigma_h * across[0] ** 2
-    stress[:, 1] = sigma_v * down[1] ** 2 + sigma_h * across[1] ** 2
-    stress[:, 2] = sigma_v * down[0] * down[1] + sigma_h * across[0] * across[1]
-    stress[:, 3] = sigma_h
-    return stress
+    out = []
+    for weight in weights:
+        share = weight[owner] * strip_w[strip] / bar_w[owner]
+        group_weight = np.bincount(group, weights=share[order])
+        # weight of all groups above, within the strip
+        csum = np.cumsum(group_weight)
+        before = np.r_[0.0, csum[:-1]]
+        above = before - np.r_[0.0, csum][start_index]
+        entry_above = np.empty(owner.size)
+        entry_above[order] = above[group] + 0.5 * group_weight[group]
+        out.append(-np.bincount(owner, weights=entry_above, minlength=n) / bar_w)
+    return tuple(out)

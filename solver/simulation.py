@@ -57,8 +57,10 @@ from solver.config import (
     SimulationConfig,
     SolverError,
     Stage,
+    Water,
 )
 from solver.initial_stress import k0_stress
+from solver.water import blend_water, pore_pressure
 
 log = logging.getLogger(__name__)
 
@@ -208,7 +210,7 @@ class Simulation:
         self.particles = particles
         self.precision = config.numerics.precision
         self.arch = runtime.acquire(config.numerics.arch, self.precision)
-        from solver.engine import Engine  # defines Taichi kernels; import after the runtime exists
+        from solver.engine import PAD, Engine  # defines Taichi kernels; import after the runtime exists
 
         np_float = np.float32 if self.precision == "f32" else np.float64
         g = np.asarray(config.gravity_m_s2, dtype=float)
@@ -216,6 +218,13 @@ class Simulation:
         #: the grid origin, m: the engine works in coordinates relative to it (float64 here)
         self.origin_m = np.asarray(config.grid.origin_m, dtype=np.float64)
         local_grid = dataclasses.replace(config.grid, origin_m=(0.0, 0.0))
+        # ground water (solver/water.py): compiled in only where the run has some
+        groundwater = None
+        if config.has_water:
+            from solver.groundwater import GroundWater
+
+            groundwater = GroundWater(local_grid.cells[0] + 1 + 2 * PAD, -PAD * local_grid.cell_size_m,
+                                      local_grid.cell_size_m, config.materials, config.gravity_m_s2)
         self.engine = Engine(
             local_grid, config.materials, len(particles), config.numerics.scheme, np_float,
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
@@ -225,7 +234,17 @@ class Simulation:
             structures=tuple(dataclasses.replace(st, polygon_m=tuple(
                 (float(x - self.origin_m[0]), float(y - self.origin_m[1])) for x, y in st.polygon_m))
                 for st in config.structures),
+            **({"water": groundwater} if groundwater is not None else {}),
         )
+        #: the water's move in force: (start, end, duration) in the project's coordinates; the
+        #: engine moves it on step by step (its ``water.fraction``)
+        self._water_move: tuple[Water | None, Water | None, float] = (config.water, config.water, 0.0)
+        if not hasattr(self.engine, "water"):
+            self.engine.water = None
+        if groundwater is not None:
+            groundwater.set_water(self._local_water(config.water), None, 0.0)
+        #: the gravity of the last step (a gravity stage ramps it), for the frames' pore pressure
+        self._gravity_now = np.asarray(config.gravity_m_s2, dtype=float)
         self.engine.load_particles(np.asarray(particles.positions_m, dtype=np.float64) - self.origin_m,
                                    particles.volumes_m2, particles.material_ids,
                                    particles.velocities_m_s)
@@ -259,6 +278,37 @@ class Simulation:
         self._contacts_since_s = 0.0
 
     # ------------------------------------------------------------------ helpers
+    def _local_water(self, water: Water | None) -> Water | None:
+        """The water in the engine's coordinates (relative to the grid origin)."""
+        if water is None:
+            return None
+        ox, oy = (float(v) for v in self.origin_m)
+        shift = lambda line: None if line is None else tuple((x - ox, y - oy) for x, y in line)  # noqa: E731
+        return dataclasses.replace(water, phreatic_line_m=shift(water.phreatic_line_m),
+                                   free_water_line_m=shift(water.free_water_line_m))
+
+    def _start_water_move(self, index: int) -> None:
+        """At the start of stage ``index``: the water it moves, from where the stages before left it."""
+        start = self.config.water
+        for stage in self.config.stages[:index]:
+            start = stage.water if stage.water is not None else start
+        stage = self.config.stages[index]
+        if stage.water is None:
+            self._water_move = (start, start, 0.0)
+            if self.engine.water is not None:
+                self.engine.water.set_water(self._local_water(start), None, 0.0)
+            return
+        duration = stage.duration_s if stage.kind != "k0" else 0.0
+        self._water_move = (start, stage.water, duration)
+        self.engine.water.set_water(self._local_water(start), self._local_water(stage.water), duration)
+
+    def water_now(self) -> Water | None:
+        """Where the ground water is now (project coordinates; None: no line)."""
+        start, end, duration = self._water_move
+        if self.engine.water is None or duration <= 0.0:
+            return end
+        return blend_water(start, end, float(self.engine.water.fraction[None]))
+
     def _speed_bound(self, g: np.ndarray) -> float:
         gn = float(np.linalg.norm(g))
         lo = np.asarray(self.config.grid.origin_m)
@@ -293,6 +343,9 @@ class Simulation:
             self.envelopes.sync(self.time_s)  # envelopes are never below a frame's values
         want = self.config.output.fields
         names = ["x", "active"] + [name for key, name in _FRAME_FIELDS if key in want]
+        wet = self.engine.water is not None and "pore_pressure" in want
+        if wet:
+            names += ["s", "mat"]
         got = self.engine.state(tuple(dict.fromkeys(names)))  # one kernel launch for all of them
         relative = got["x"]
         fields: dict[str, np.ndarray] = {"positions": relative.astype(np.float64) + self.origin_m,
@@ -302,6 +355,8 @@ class Simulation:
         for key, name in _FRAME_FIELDS:
             if key in want and key != "displacement":
                 fields["material_id" if key == "material" else key] = got[name]
+        if wet:
+            fields["pore_pressure"] = self._pore_pressure(fields["positions"], got["mat"], got["s"])
         for name, arr in fields.items():
             if arr.dtype.kind == "f" and not np.all(np.isfinite(arr[fields["active"]])):
                 raise InstabilityError(
@@ -310,6 +365,22 @@ class Simulation:
         self.last_frame = frame
         self.cursor.frames += 1
         return frame
+
+    def _pore_pressure(self, positions_m: np.ndarray, mat: np.ndarray, stress: np.ndarray) -> np.ndarray:
+        """The particles' pore pressure now (Pa, float32), by the engine's rule (solver/water.py)."""
+        g = self._gravity_now
+        gn = float(np.linalg.norm(g))
+        s = np.asarray(stress, dtype=np.float64)
+        ru = np.array([m.ru for m in self._materials])[np.asarray(mat)]
+        if gn > 0.0:
+            d = g / gn
+            s_gg = d[0] ** 2 * s[:, 0] + 2.0 * d[0] * d[1] * s[:, 2] + d[1] ** 2 * s[:, 1]
+        else:
+            s_gg = np.zeros(len(s))
+        total_v = s_gg / (1.0 - np.minimum(ru, 0.999999))
+        u = pore_pressure(self.water_now(), self._materials, mat, positions_m, g, self.config.gravity_m_s2,
+                          vertical_stress_pa=total_v)
+        return u.astype(s.dtype if s.dtype == np.float64 else np.float32)
 
     def _contact_forces(self) -> tuple[ContactForce, ...]:
         """Mean and peak force on each contact since the last frame (see :class:`ContactForce`)."""
@@ -373,6 +444,8 @@ class Simulation:
                "message": self.message, "cursor": dataclasses.asdict(self.cursor),
                "contacts_since_s": self._contacts_since_s}
         arrays = self.engine.state()
+        if self.engine.water is not None:  # how far the water has moved
+            arrays.update({f"water/{k}": v for k, v in self.engine.water.state().items()})
         if self.envelopes is not None:  # a resumed run continues its envelopes
             arrays.update({f"envelopes/{k}": v for k, v in self.envelopes.state().items()})
         return Checkpoint(run=run, arrays=arrays, fingerprint=self.fingerprint)
@@ -396,8 +469,12 @@ class Simulation:
         for stage in self.config.stages[: self.cursor.stage_index + 1]:
             table = stage.materials if stage.materials is not None else table
         if table != self._materials:
-            self.engine.materials.load(table)
-            self._materials = table
+            self._load_materials(table)
+        if self.engine.water is not None and self.cursor.stage_index < len(self.config.stages):
+            # the stage's water move, then how far it had gone (the engine's state holds it)
+            self._start_water_move(self.cursor.stage_index)
+            self.engine.water.load_state({k.split("/", 1)[1]: v for k, v in checkpoint.arrays.items()
+                                          if k.startswith("water/")})
     def equilibrium_check(self, stage: Stage, dt: float, max_speed_m_s: float) -> dict[str, Any]:
         """Measure the unbalanced force of the current state (the engine is left as it was).
 
@@ -419,6 +496,7 @@ class Simulation:
         e = self.engine
         g = np.asarray(self.config.gravity_m_s2, dtype=float)
         saved = e.state()
+        water = None if e.water is None else e.water.state()
         try:
             active = saved["active"].astype(bool)
             mass = saved["m"].astype(np.float64)[active]
@@ -427,6 +505,8 @@ class Simulation:
             dv = (e.state(("v",))["v"].astype(np.float64) - v0)[active]
         finally:
             e.load_state(saved)
+            if water is not None:
+                e.water.load_state(water)
         accel = np.linalg.norm(dv, axis=1) / dt if dt > 0 else np.zeros(len(dv))
         weight = float(mass.sum() * np.linalg.norm(g))
         unbalanced = float((mass * accel).sum())
@@ -526,13 +606,15 @@ class Simulation:
             c.stage_index = index
             if c.phase == "start":
                 if stage.materials is not None and stage.materials != self._materials:
-                    e.materials.load(stage.materials)
-                    self._materials = stage.materials
+                    self._load_materials(stage.materials)
                     log.info("stage %r: material parameters changed", stage.name)
+                if e.water is not None:
+                    self._start_water_move(index)
                 if stage.kind == "k0":
                     now = e.state(("active", "x"))
                     stress = k0_stress(self.particles, self._materials, cfg.gravity_m_s2,
-                                       cfg.grid.cell_size_m, stage.k0, now["active"].astype(bool), now["x"])
+                                       cfg.grid.cell_size_m, stage.k0, now["active"].astype(bool), now["x"],
+                                       water=self._local_water(self.water_now()))
                     e.set_stress(stress)
                     self.equilibrium = {**self.equilibrium_check(stage, c.dt_s, float(e.diagnostics()["max_speed"])),
                                         **self.plastic_points(stage, stress, now["active"].astype(bool))}
@@ -556,6 +638,7 @@ class Simulation:
                         gravity = g_full * ramp
                     else:
                         gravity = g_full
+                    self._gravity_now = gravity
                     e.step(h, (gravity[0], gravity[1]), damping)
                     if self.first_step_at is None:  # start-up ends here (kernels compiled or loaded)
                         self.first_step_at = time.perf_counter()
@@ -675,8 +758,13 @@ class Simulation:
         """Replace the material table now (one row per material of the configuration)."""
         if len(materials) != len(self.config.materials):
             raise SolverError(f"the material table must have {len(self.config.materials)} rows")
+        self._load_materials(tuple(materials))
+
+    def _load_materials(self, materials: tuple[Material, ...]) -> None:
         self.engine.materials.load(materials)
-        self._materials = tuple(materials)
+        if self.engine.water is not None:
+            self.engine.water.load_materials(materials)
+        self._materials = materials
 
     def snapshot(self, stage: Stage, index: int, stage_time_s: float = 0.0) -> Frame:
         """A frame of the current state, labelled with ``stage`` (number ``index``)."""

@@ -125,7 +125,7 @@ def test_layout_of_saved_file(project):
     text = dumps_project(project)
     for line in (
         "[runout]",
-        "schema_version = 1",
+        "schema_version = 2",
         "[domain.boundaries]",
         'bottom = "fixed"',
         "[materials.sand]",
@@ -136,7 +136,7 @@ def test_layout_of_saved_file(project):
         "[output]",
     ):
         assert line in text.splitlines(), line
-    assert text.startswith("# Runout project file, schema version 1")
+    assert text.startswith("# Runout project file, schema version 2")
 
 
 def test_tables_inside_stages_and_long_polygons_round_trip(project):
@@ -357,11 +357,11 @@ def test_overrides_on_raw_data_do_not_modify_it():
             "materials.sand.colour=red",
             "materials.sand.colour: unknown key; allowed: model, density_kg_m3, youngs_modulus_pa, "
             "poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, tensile_strength_pa, "
-            "mohr_coulomb_match, damping_ratio, damping_frequency_hz, damping_model",
+            "mohr_coulomb_match, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru",
         ),
         ("stages.1.material_changes.sand.model=x", "stages.1.material_changes.sand.model: unknown key; allowed: "
          "density_kg_m3, youngs_modulus_pa, poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, "
-         "tensile_strength_pa, damping_ratio, damping_frequency_hz, damping_model"),
+         "tensile_strength_pa, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru"),
         ("materials.sand.poisson_ratio=0.6", "materials.sand.poisson_ratio = 0.6: must be >= 0 and < 0.5"),
         ("numerics.scheme=flip", 'numerics.scheme = "flip": must be one of "mpm", "apic", "apic-affine"'),
         ("runout.title=1", "runout.title = 1: must be a string"),

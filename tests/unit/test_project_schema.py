@@ -84,7 +84,7 @@ def test_valid_base_and_defaults():
     assert project.numerics.scheme == "apic-affine"
     assert project.numerics.time_step_s == 2e-5 and project.numerics.cfl is None
     assert project.output.interval_s == 0.01
-    assert project.output.fields == ("displacement", "velocity", "stress", "plastic_strain", "material")
+    assert project.output.fields == ("displacement", "velocity", "stress", "plastic_strain", "material", "pore_pressure")
     assert project.stages[1].label == "collapse"
     assert project.material_names == ("bars",)
 
@@ -221,7 +221,7 @@ GOLDEN = [
         {"bars": {"friction_angle": 10.0}},
         "stages.1.material_changes.bars.friction_angle: unknown key; allowed: density_kg_m3, "
         "youngs_modulus_pa, poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, "
-        "tensile_strength_pa, damping_ratio, damping_frequency_hz, damping_model",
+        "tensile_strength_pa, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru",
     ),
     (
         "stages.1.material_changes",
@@ -258,14 +258,14 @@ GOLDEN = [
         "output",
         {"fields": ["stress", "strain"]},
         'output.fields.1 = "strain": must be one of "displacement", "velocity", "stress", '
-        '"plastic_strain", "material"',
+        '"plastic_strain", "material", "pore_pressure"',
     ),
     ("output", {"fields": ["stress", "stress"]}, 'output.fields = ["stress", "stress"]: "stress" is listed twice'),
     ("output", {"interval_s": 0}, "output.interval_s = 0: must be > 0"),
     (
         "runout.schema_version",
-        2,
-        "runout.schema_version = 2: unsupported schema version; this Runout reads schema version 1",
+        3,
+        "runout.schema_version = 3: unsupported schema version; this Runout reads schema versions 1, 2 (and writes 2)",
     ),
     ("runout", DELETE, "runout: required key is missing"),
     ("domain.cell_size_m", DELETE, "domain.cell_size_m: required key is missing"),
@@ -313,7 +313,7 @@ GOLDEN = [
     (
         "simulation",
         {},
-        "simulation: unknown key; allowed: runout, domain, materials, bodies, structures, particles, numerics, stages, output, hazard, targets",
+        "simulation: unknown key; allowed: runout, domain, materials, bodies, structures, water, particles, numerics, stages, output, hazard, targets",
     ),
     (
         "bodies",
@@ -451,11 +451,16 @@ def test_several_problems_at_once_in_file_order():
 
 
 def test_schema_version_problem_is_reported_alone():
-    data = changed("runout.schema_version", 2)
+    data = changed("runout.schema_version", 3)
     data["materials"]["bars"]["poisson_ratio"] = 0.6
     assert problems_of(data) == [
-        "runout.schema_version = 2: unsupported schema version; this Runout reads schema version 1"
+        "runout.schema_version = 3: unsupported schema version; this Runout reads schema versions 1, 2 (and writes 2)"
     ]
+
+
+def test_a_schema_1_file_reads_as_schema_2():
+    data = changed("runout.schema_version", 1)
+    assert validate_project(data).runout.schema_version == 2
 
 
 def test_not_a_table():
