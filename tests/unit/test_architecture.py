@@ -1,13 +1,45 @@
-"""The direction of dependencies (docs/DESIGN.md): app -> {studies, sweeps} -> projects -> {geometry, solver, stability}.
+"""The direction of dependencies (docs/DESIGN.md): app -> {studies, benchmarks, sweeps} -> projects ->
+{geometry, solver, stability}.
 
-Each package is imported in a fresh interpreter and the modules it must not pull in are checked.
+The import-linter contracts of ``.importlinter`` (layers, independence, no Qt/PyVista/VTK below app, no
+circles between the modules of a package) are checked on the whole import graph, function-local
+imports included. Besides, each package is imported in a fresh interpreter and the modules it must
+not pull in at run time are checked.
 """
 
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_the_import_linter_contracts_are_kept():
+    """``lint-imports`` (the venv's own) on ``.importlinter``: exit status 0 only when every contract is kept."""
+    lint = Path(sys.executable).with_name("lint-imports")
+    if not lint.is_file():
+        pytest.fail(f"{lint} is missing: install the test extras (pip install -e .[test])")
+    out = subprocess.run([str(lint), str(ROOT / ".importlinter"), "--no-cache"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout[-6000:] + out.stderr[-2000:]
+    assert "0 broken" in out.stdout
+
+
+def test_a_broken_contract_is_reported(tmp_path):
+    """The check can fail: a contract that the tree breaks (the app imports projects) gives a non-zero status."""
+    lint = Path(sys.executable).with_name("lint-imports")
+    if not lint.is_file():
+        pytest.fail(f"{lint} is missing: install the test extras (pip install -e .[test])")
+    config = tmp_path / "broken.ini"
+    config.write_text("[importlinter]\nroot_packages =\n    app\n    projects\n\n"
+                      "[importlinter:contract:upside-down]\nname = upside down\ntype = forbidden\n"
+                      "source_modules =\n    app\nforbidden_modules =\n    projects\n", encoding="utf-8")
+    out = subprocess.run([str(lint), str(config), "--no-cache"], cwd=ROOT, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode != 0 and "upside down BROKEN" in out.stdout
 
 FORBIDDEN = {
     "solver": ["PySide6", "pyvista", "vtk", "gmsh", "geometry", "projects", "app"],
@@ -28,6 +60,9 @@ FORBIDDEN = {
     "app.cli": ["PySide6", "pyvista", "taichi", "gmsh"],
     "studies": ["PySide6", "pyvista", "app"],
     "benchmarks.bench": ["PySide6", "pyvista", "app"],
+    "projects.measures": ["PySide6", "pyvista", "vtk", "taichi", "app", "solver", "studies", "sweeps"],
+    "projects.atomic": ["PySide6", "pyvista", "taichi", "numpy", "app", "solver", "geometry"],
+    "sweeps.folder": ["PySide6", "pyvista", "vtk", "app", "taichi"],
     "stability": ["PySide6", "pyvista", "vtk", "gmsh", "taichi", "solver", "geometry", "projects", "app",
                   "scipy", "shapely"],
     # the sweep driver schedules `runout run` processes: no solver runtime, no GUI in it
@@ -87,7 +122,6 @@ def test_the_workbench_process_never_imports_taichi(tmp_path):
     Taichi (nor the solver's engine) loaded. One process answers both: the modules loaded after
     the imports, then those loaded with the window open."""
     import os
-    from pathlib import Path
 
     example = Path(__file__).resolve().parents[2] / "projects" / "examples" / "tiny_column.toml"
     env = dict(os.environ, QT_QPA_PLATFORM="offscreen", QT_API="pyside6", RUNOUT_CONFIG_DIR=str(tmp_path))
@@ -107,8 +141,6 @@ def test_runout_starts_itself_in_one_way_only():
     """Child runs of Runout (the workbench's, the sweeps') are started by
     ``projects.runner.runout_command`` (``python -m app``), the one place that decides it; no
     production module spells its own ``-m app.cli`` command line."""
-    from pathlib import Path
-
     from projects.runner import runout_command
 
     assert runout_command("run", "p.toml") == [sys.executable, "-m", "app", "run", "p.toml"]
