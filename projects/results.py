@@ -125,6 +125,8 @@ _STR_COLUMNS = frozenset({"stage"})
 #: Final states of a run as written to ``summary.json``.
 FINAL_STATUSES: tuple[str, ...] = ("completed", "stopped", "failed")
 RUNNING = "running"
+#: The version of the results folder's layout and files (docs/results.md); summary.json carries it.
+RESULTS_FORMAT_VERSION = 2
 #: What :attr:`Results.status` says for a folder whose run never closed it.
 INTERRUPTED = "interrupted"
 
@@ -645,6 +647,7 @@ class ResultsWriter:
             "particle_steps_per_s": 0.0,
             "frames": 0,
             "runout_version": runout_version(),
+            "results_format_version": RESULTS_FORMAT_VERSION,
             "started_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         }
         self.summary.update(earlier)

@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from projects.results import ResultsError, ResultsWriter, is_results_dir
 from projects.results_folder import check_results_dir, lock_holder
 from solver.config import InstabilityError, SolverError
@@ -565,6 +567,7 @@ def _run(
         if driver is not None:
             writer.own(TRIALS_NAME)
         hazard = HazardOutput(writer.out_dir, sim, settings(resolved.project), writer.submit)
+    watch = _FailureWatch(sim, settings(resolved.project).mobilised_displacement_m)
     setup_s = time.perf_counter() - started
     status, message = "failed", "the run ended unexpectedly"
     loop_start = time.perf_counter()
@@ -581,6 +584,7 @@ def _run(
         frames = (sim.run(cancel=cancel, on_progress=on_progress) if driver is None
                   else driver.run(sim, cancel=cancel, on_progress=on_progress))
         for frame in frames:
+            watch.see(frame)
             if writer is not None:
                 writer.write_frame(frame)
                 hazard.write()  # the envelopes with every frame: a killed run keeps them
@@ -629,7 +633,7 @@ def _run(
             "wall_time_s": time.perf_counter() - started,
             "particle_steps_per_s": particles * steps / loop_s if loop_s > 0 else 0.0,
         }
-        extra = {"setup_time_s": setup_s, **_equilibrium(sim),
+        extra = {"setup_time_s": setup_s, **_equilibrium(sim), **watch.summary(),
                  # the stability limit at rest (material damping shortens it: docs/solver.md)
                  "critical_time_step_s": float(sim.critical_time_step()),
                  "time_step_shrink_by_damping": float(resolved.estimate["time_step_shrink_by_damping"])}
@@ -651,6 +655,40 @@ def _run(
             summary = {"status": status, "message": message, **numbers, **extra}
     logger.info("run %s: %s", summary["status"], summary["message"])
     return RunResult(summary["status"], summary["message"], writer.out_dir if writer else Path(), summary)
+
+
+class _FailureWatch:
+    """Where the ground water was when the slope failed: the first frame of a dynamic stage in
+    which a particle has moved more than the hazard's ``mobilised_displacement_m`` (one cell by
+    default), for ``summary.json``'s ``water_at_failure`` (None when no frame did). Runs without
+    water record nothing."""
+
+    def __init__(self, sim: Any, threshold_m: float):
+        self.sim = sim
+        self.threshold_m = float(threshold_m)
+        self.wet = getattr(sim.engine, "water", None) is not None
+        self.found: dict[str, Any] | None = None
+
+    def see(self, frame: Frame) -> None:
+        if not self.wet or self.found is not None:
+            return
+        d = frame.diagnostics
+        stage = self.sim.config.stages[d.stage_index] if d.stage_index < len(self.sim.config.stages) else None
+        disp = frame.fields.get("displacement")
+        if stage is None or stage.kind != "dynamic" or disp is None:
+            return
+        moved = np.linalg.norm(np.asarray(disp, dtype=np.float64), axis=1)[np.asarray(frame.fields["active"], bool)]
+        if moved.size and float(moved.max()) > self.threshold_m:
+            water = self.sim.water_now()
+            self.found = {
+                "time_s": float(d.time_s), "stage": d.stage, "stage_time_s": float(d.stage_time_s),
+                "max_displacement_m": float(moved.max()),
+                "phreatic_line_m": None if water is None else [list(p) for p in water.phreatic_line_m],
+                "free_water_line_m": None if water is None else [list(p) for p in water.free_water],
+            }
+
+    def summary(self) -> dict[str, Any]:
+        return {"water_at_failure": self.found} if self.wet else {}
 
 
 def _equilibrium(sim: Any) -> dict[str, Any]:
