@@ -14,7 +14,7 @@ import logging
 import math
 import os
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -144,6 +144,184 @@ def field_values(arrays: Mapping[str, np.ndarray], field: str) -> np.ndarray:
     if field == "material":
         return data.astype(np.int64)
     return data.astype(np.float64)
+
+
+# ------------------------------------------------------------------ ground water in pictures
+#: The phreatic line's colour, the free-water line's and the free water's shade (the workbench's too).
+WATER_LINE_COLOR = "#1565c0"
+FREE_WATER_LINE_COLOR = "#0b8fd6"
+FREE_WATER_COLOR = "#a9d8f7"
+
+
+def water_line_across(line: Any, x0: float, x1: float) -> np.ndarray:
+    """A water line's points from ``x0`` to ``x1`` (m): its vertices between them and its height at
+    both ends (a line is level beyond its ends, as the solver extends it: solver.water.line_height)."""
+    from solver.water import line_height
+
+    pts = np.asarray(line, dtype=np.float64).reshape(-1, 2)
+    if not len(pts):
+        return np.zeros((0, 2))
+    inside = pts[(pts[:, 0] > x0) & (pts[:, 0] < x1)]
+    ends = np.array([x0, x1], dtype=np.float64)
+    return np.vstack([[x0, float(line_height(pts, ends[:1])[0])], inside, [x1, float(line_height(pts, ends[1:])[0])]])
+
+
+def free_water_polygons(line: Any, bodies: Sequence[Any], box: tuple[float, float, float, float]
+                        ) -> list[np.ndarray]:
+    """The free water: where the free-water line is above the ground surface (the upper outline of
+    ``bodies``, each a (K, 2) polygon), between the two, inside the domain ``box`` (x0, x1, y0, y1).
+
+    Returns the exterior rings (each (K, 2), m) of the shaded area; none when the line is nowhere
+    above the ground.
+    """
+    from shapely.geometry import Polygon
+    from shapely.ops import unary_union
+
+    x0, x1, y0, y1 = box
+    if not x1 > x0:
+        return []
+    top = water_line_across(line, x0, x1)
+    if not len(top):
+        return []
+    bottom = min(y0, float(top[:, 1].min())) - 1.0
+    region = Polygon([(x0, bottom), *map(tuple, top), (x1, bottom)])
+    shadows = []  # below each edge of each body, down past the region's bottom: under the ground surface
+    for poly in bodies:
+        pts = np.asarray(poly, dtype=np.float64).reshape(-1, 2)
+        if len(pts) < 3:
+            continue
+        ring = np.vstack([pts, pts[:1]])
+        for (ax, ay), (bx, by) in zip(ring[:-1], ring[1:]):
+            if abs(bx - ax) > 1e-12:
+                shadows.append(Polygon([(ax, ay), (bx, by), (bx, bottom - 1.0), (ax, bottom - 1.0)]))
+    if not region.is_valid:
+        region = region.buffer(0)
+    water = region.difference(unary_union(shadows)) if shadows else region
+    water = water.intersection(Polygon([(x0, y0), (x1, y0), (x1, y1), (x0, y1)]))
+    parts = getattr(water, "geoms", [water])
+    out = []
+    for part in parts:
+        if getattr(part, "geom_type", "") == "Polygon" and part.area > 1e-9 * (x1 - x0) * max(y1 - y0, 1e-9):
+            out.append(np.asarray(part.exterior.coords, dtype=np.float64)[:-1])
+    return out
+
+
+@dataclass(frozen=True)
+class WaterShown:
+    """The water a picture draws: the phreatic line, the free-water line (None: the phreatic line is
+    the free water's level too) and the free water's outlines, m."""
+
+    phreatic_line_m: np.ndarray
+    free_water_line_m: np.ndarray | None
+    free_water: tuple[np.ndarray, ...]
+
+
+def water_shown(water: Any, bodies: Sequence[Any], box: tuple[float, float, float, float]) -> WaterShown | None:
+    """What to draw of ``water`` (a solver.config.Water, a schema Water or None) across the domain ``box``."""
+    if water is None:
+        return None
+    phreatic = getattr(water, "phreatic_line_m", None)
+    if phreatic is None:
+        return None
+    free = getattr(water, "free_water_line_m", None)
+    x0, x1 = box[0], box[1]
+    if free is not None and _same_line(free, phreatic):
+        free = None  # a blend of two stages' water writes the free level out even where it is the line
+    level = free if free is not None else phreatic
+    return WaterShown(water_line_across(phreatic, x0, x1),
+                      None if free is None else water_line_across(free, x0, x1),
+                      tuple(free_water_polygons(level, bodies, box)))
+
+
+def _same_line(a: Any, b: Any) -> bool:
+    from solver.water import line_height
+
+    pa, pb = np.asarray(a, dtype=np.float64).reshape(-1, 2), np.asarray(b, dtype=np.float64).reshape(-1, 2)
+    xs = np.union1d(pa[:, 0], pb[:, 0])
+    return bool(np.allclose(line_height(pa, xs), line_height(pb, xs), rtol=0.0, atol=1e-9))
+
+
+class WaterTimeline:
+    """Where the ground water of a run was at each of its frames.
+
+    The project that ran (``project.toml`` of the results folder) gives the water at the start and
+    at the end of each stage (:func:`projects.build.solver_water`); a stage moves it linearly over
+    its duration (a k0 stage at once), so at a frame of stage ``i`` at stage time ``t`` the water is
+    :func:`solver.water.blend_water` of the stage's start and end at ``t / duration``.
+    """
+
+    def __init__(self, project: Any) -> None:
+        from projects.build import solver_water
+
+        self.project = project
+        self.stages = list(project.stages) if project is not None else []
+        self.waters = solver_water(project) if project is not None else [None]
+
+    @classmethod
+    def of(cls, results: Results) -> WaterTimeline | None:
+        """The timeline of a results folder; None when the run had no [water] (or no project.toml)."""
+        text = getattr(results, "project_text", "")
+        if not text:
+            return None
+        from projects.document import loads_project
+        from projects.schema import ProjectError
+
+        try:
+            project = loads_project(text, source=str(results.path / "project.toml"))
+        except (ProjectError, ValueError) as err:
+            logger.warning("%s: the project that ran is not readable (%s); no water drawn", results.path, err)
+            return None
+        if project.water is None:
+            return None
+        return cls(project)
+
+    @property
+    def moves(self) -> bool:
+        """Whether any stage moves the water."""
+        return any(a != b for a, b in zip(self.waters[:-1], self.waters[1:]))
+
+    def at(self, stage_index: int | None, stage_time_s: float | None) -> Any:
+        """The water (solver.config.Water) at ``stage_time_s`` into stage ``stage_index`` (None:
+        the start of the run)."""
+        from solver.water import blend_water
+
+        if stage_index is None or not 0 <= int(stage_index) < len(self.stages):
+            return self.waters[0]
+        i = int(stage_index)
+        stage = self.stages[i]
+        duration = float(getattr(stage, "duration_s", None) or 0.0) if stage.type != "k0" else 0.0
+        t = float(stage_time_s) if stage_time_s is not None and math.isfinite(float(stage_time_s)) else duration
+        fraction = 1.0 if duration <= 0.0 else min(max(t / duration, 0.0), 1.0)
+        return blend_water(self.waters[i], self.waters[i + 1], fraction)
+
+    def at_frame(self, results: Results, index: int) -> Any:
+        """The water at frame ``index`` of ``results`` (its row of ``series.csv``)."""
+        stage, time = frame_stage(results, index)
+        return self.at(stage, time)
+
+
+def frame_stage(results: Results, index: int) -> tuple[int | None, float | None]:
+    """(stage index, stage time in s) of frame ``index`` from ``series.csv`` (None, None if unknown)."""
+    series = results.series or {}
+    frames, stages, times = series.get("frame"), series.get("stage_index"), series.get("stage_time_s")
+    if stages is None or times is None or not len(stages):
+        return None, None
+    row = None
+    if frames is not None:
+        hits = np.flatnonzero(np.asarray(frames) == index)
+        row = int(hits[-1]) if len(hits) else None
+    if row is None and index < len(stages):
+        row = index
+    if row is None:
+        return None, None
+    return int(stages[row]), float(times[row])
+
+
+def project_bodies(project: Any) -> list[np.ndarray]:
+    """The project's body polygons (the ground the free water stands on), (K, 2) each."""
+    if project is None:
+        return []
+    return [np.asarray(b.polygon_m, dtype=np.float64) for b in project.bodies]
 
 
 def _quiet_vtk() -> None:
@@ -358,6 +536,8 @@ class _Scene:
         # real coordinates: VTK draws in float32, which resolves 0.25 m at y = 4e6 m (UTM), so a
         # scene in real-world coordinates collapsed onto a few rows of squares.
         self._shift = np.array([view.bounds[0], view.bounds[2]], dtype=np.float64)
+        self._water = WaterTimeline.of(results)
+        self._water_drawn: Any = False  # the water last drawn (False: none yet)
 
     def close(self) -> None:
         self.plotter.close()
@@ -441,6 +621,7 @@ class _Scene:
             self._place_camera()
         else:
             self.cloud.copy_from(cloud)
+        self._draw_water(index)
         time_s = float(self.results.times[index])
         label = f"t = {time_s:.3f} s"
         if self._text is None:
@@ -450,6 +631,23 @@ class _Scene:
             )
         else:
             self._text.SetInput(label)
+
+    def _draw_water(self, index: int) -> None:
+        """The phreatic line (blue), the free-water line where it differs and the free water
+        (light blue, between its line and the ground surface) at frame ``index``'s time."""
+        if self._water is None:
+            return
+        water = self._water.at_frame(self.results, index)
+        if water == self._water_drawn:
+            return
+        self._water_drawn = water
+        box = _domain_box(self.results) or self._view.bounds
+        for name in ("water-fill", "water-line", "free-water-line"):
+            self.plotter.remove_actor(name, render=False)
+        shown = water_shown(water, project_bodies(self._water.project), box)
+        if shown is None:
+            return
+        add_water_actors(self.plotter, shown, self._shift, line_width=max(2.5, self.size[1] / 200.0))
 
     def _add_points(self) -> None:
         info = self.info
@@ -504,6 +702,37 @@ class _Scene:
         # pyvista renders by itself only for the first screenshot of an offscreen plotter
         self.plotter.render()
         return self.plotter.screenshot(return_img=True)
+
+
+def add_water_actors(plotter: Any, shown: WaterShown, shift: Any = (0.0, 0.0), line_width: float = 3.0,
+                     z: tuple[float, float] = (-0.02, 0.02), prefix: str = "") -> None:
+    """Add the water of ``shown`` to a pyvista plotter (drawn less ``shift``): the free water filled
+    at ``z[0]`` (behind the particles), the lines at ``z[1]`` (over them). Actors are named
+    ``PREFIXwater-fill``, ``PREFIXwater-line`` and ``PREFIXfree-water-line``."""
+    import pyvista as pv
+
+    shift = np.asarray(shift, dtype=np.float64)
+    faces = []
+    for ring in shown.free_water:
+        pts = np.c_[ring - shift, np.full(len(ring), z[0])]
+        face = pv.PolyData(pts, faces=np.r_[len(pts), np.arange(len(pts))])
+        try:
+            face = face.triangulate()
+        except (RuntimeError, ValueError):
+            logger.debug("could not triangulate the free water")
+        faces.append(face)
+    common = dict(render=False, reset_camera=False, pickable=False, lighting=False)
+    if faces:
+        merged = faces[0].merge(faces[1:]) if len(faces) > 1 else faces[0]
+        plotter.add_mesh(merged, color=FREE_WATER_COLOR, opacity=0.75, name=f"{prefix}water-fill", **common)
+    for key, line, color, width in (("water-line", shown.phreatic_line_m, WATER_LINE_COLOR, line_width),
+                                    ("free-water-line", shown.free_water_line_m, FREE_WATER_LINE_COLOR,
+                                     0.7 * line_width)):
+        if line is None or len(line) < 2:
+            continue
+        lift = z[1] if key == "water-line" else 0.5 * z[1]  # the phreatic line over the free-water line
+        plotter.add_mesh(pv.MultipleLines(np.c_[line - shift, np.full(len(line), lift)]), color=color,
+                         line_width=width, name=f"{prefix}{key}", **common)
 
 
 def _scene_for(
