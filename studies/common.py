@@ -202,12 +202,6 @@ class WallClockLimit:
         return self.fired
 
 
-def spacing_of(volumes_m2: np.ndarray) -> float:
-    """Particle spacing ``sqrt(median volume)`` (m) of initial volumes (m2)."""
-    v = np.asarray(volumes_m2, dtype=float)
-    return float(np.sqrt(np.median(v))) if v.size else 0.0
-
-
 def run_project_measured(
     project: Any,
     out_dir: Path,

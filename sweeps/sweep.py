@@ -39,10 +39,6 @@ class SweepResult:
     wall_time_s: float = 0.0
     stopped: bool = False
 
-    @property
-    def csv_path(self) -> Path:
-        return self.out_dir / CSV_NAME
-
     def count(self, status: str) -> int:
         return sum(r.status == status for r in self.records)
 

@@ -1,4 +1,4 @@
-"""Contact scenes shared by the contact tests and the full matrix (benchmarks/contact_matrix.py).
+"""Contact scenes of the contact tests (a test fixture).
 
 A block starts at rest on a contact under gravity, with the stress of a block at rest on the
 slope (:func:`slope_stress`; or stress free), settles on the contact held fixed (local damping,
@@ -32,10 +32,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from solver.config import Boundary, Grid, Material, Structure  # noqa: F401
+from solver.config import DEFAULT_DAMPING_MODEL, Boundary, Grid, Material, Structure  # noqa: F401
 
 G = 9.81
 DENSITY = 2000.0
@@ -164,12 +165,8 @@ class WallIncline:
     ``aspect`` times as long as thick (at least MIN_LENGTH_CELLS long)."""
 
     def __init__(self, scheme: str, precision: str, thickness_cells: int, youngs_pa: float,
-                 side: str = "bottom", scatter: str = "serial", aspect: float = ASPECT, engine_class=None):
-        """``engine_class``: an :class:`solver.engine.Engine` subclass (the diagnosis runs the
-        node-by-node law of earlier sessions), the engine itself by default."""
+                 side: str = "bottom", scatter: str = "serial", aspect: float = ASPECT):
         from solver.engine import Engine
-
-        Engine = engine_class or Engine  # noqa: N806
 
         self.dx = dx = cell_size_for(youngs_pa)
         self.side = side
@@ -251,8 +248,6 @@ class RampIncline:
 
     def __init__(self, scheme: str, precision: str, thickness_cells: int, youngs_pa: float, theta_deg: float,
                  delta_deg: float = 0.0, scatter: str = "serial", aspect: float = ASPECT):
-        from solver.engine import Engine
-
         self.dx = dx = cell_size_for(youngs_pa)
         self.theta = theta_deg
         th = math.radians(theta_deg)
@@ -366,3 +361,227 @@ def _slide(e, dt: float, gravity, theta_deg: float, delta_deg: float, slope, bas
     analytic = analytic_distance(theta_deg, delta_deg, t_end)
     frictionless = analytic_distance(theta_deg, 0.0, t_end)
     return Outcome(distance, analytic, frictionless, analytic > 0.0, steps, dx)
+
+
+# ---------------------------------------------------------------------------------------------
+# The project path: the same block as a project file, run as a user runs it.
+
+#: The project path's defaults: 5 cm cells, a 0.2 s gravity stage (damped), 2 x 2 particles per
+#: cell, the project's default time step (cfl 0.5).
+PROJECT_CELL_M = 0.05
+GRAVITY_STAGE_S = 0.2
+#: A 1-cell sheet is this many cells long (thicker blocks: ``aspect`` x their thickness).
+SHEET_LENGTH_CELLS = 20
+
+
+@dataclass(frozen=True)
+class ProjectCase:
+    """One case of the project path: its project file's text and how to read its slip.
+
+    ``base_row`` and ``slip`` take the particles' start positions and displacements (m, N x 2)."""
+
+    text: str
+    contact: str
+    theta_deg: float
+    delta_deg: float
+    duration_s: float
+    cell_m: float
+    surface_point: tuple[float, float]  # a point of the contact surface
+    normal: tuple[float, float]  # the contact's outward normal (into the block)
+    slope: tuple[float, float]  # down the slope
+
+    def base_row(self, start) -> "np.ndarray":
+        """The lowest particle row: start positions within half a cell of the contact."""
+        import numpy as np
+
+        return (np.asarray(start) - self.surface_point) @ np.asarray(self.normal) < 0.5 * self.cell_m
+
+    def outcome(self, start, displacement):
+        """The :class:`Outcome` of the frame: the mean slip of the lowest row
+        along the slope against the analytic (sliding) or frictionless (sticking) distance."""
+        import numpy as np
+
+        row = self.base_row(start)
+        slip = float((np.asarray(displacement)[row] @ np.asarray(self.slope)).mean())
+        analytic = analytic_distance(self.theta_deg, self.delta_deg, self.duration_s)
+        frictionless = analytic_distance(self.theta_deg, 0.0, self.duration_s)
+        return Outcome(slip, analytic, frictionless, analytic > 0, 0, self.cell_m)
+
+
+def _f(value: float) -> str:
+    return repr(float(value))
+
+
+def project_text(contact: str, scheme: str, precision: str, thickness_cells: int, youngs_pa: float,
+                 theta_deg: float, delta_deg: float, *, cell_m: float = PROJECT_CELL_M, start: str = "gravity",
+                 aspect: float = 4.0, duration_s: float | None = None, gravity_s: float | None = GRAVITY_STAGE_S,
+                 per_cell: int = 2, start_cells: float = 1.0, damping_ratio: float = 0.0,
+                 damping_model: str = DEFAULT_DAMPING_MODEL, damping_frequency_factor: float = 1.0) -> ProjectCase:
+    """A block at rest on a frictional contact as a project file.
+
+    ``contact``: ``"bottom"``, ``"left"`` or ``"right"`` (a friction side, the incline made by
+    tilting gravity) or ``"ramp"`` (a friction structure at ``theta_deg`` under vertical gravity).
+    ``start``: ``"gravity"`` (a damped gravity stage of ``gravity_s`` first; ``None``: the duration
+    :func:`projects.checks.recommended_initial_stage` gives the project), ``"k0"`` or
+    ``"free"`` (the dynamic stage only). The dynamic stage lasts ``duration_s`` (default: the
+    analytic travel of 20 cells plus 5 %, :func:`run_time`); one frame at
+    its end. ``start_cells``: on the ramp, how far down the face from the ramp's convex top vertex
+    the block's upslope end starts (cells). ``damping_ratio``: the block's material damping
+    (docs/solver.md), that fraction of critical at the block's first shear mode on its base,
+    ``c_s / (4 H)`` (times ``damping_frequency_factor``), by ``damping_model``.
+    """
+    import numpy as np
+
+    dx = cell_m
+    n = int(thickness_cells)
+    length = SHEET_LENGTH_CELLS if n == 1 else int(round(aspect * n))
+    T = run_time(theta_deg, delta_deg, dx) if duration_s is None else duration_s
+    if start == "gravity" and gravity_s is None:
+        # the recommended stage depends on the block alone, not on the room around it
+        probe = project_text(contact, scheme, precision, thickness_cells, youngs_pa, theta_deg, delta_deg,
+                             cell_m=cell_m, start=start, aspect=aspect, duration_s=duration_s, gravity_s=1.0,
+                             per_cell=per_cell, start_cells=start_cells, damping_ratio=damping_ratio,
+                             damping_model=damping_model, damping_frequency_factor=damping_frequency_factor)
+        import tomllib
+
+        from projects.checks import recommended_initial_stage
+        from projects.schema import validate_project
+
+        gravity_s = recommended_initial_stage(validate_project(tomllib.loads(probe.text))).get("duration_s", 1.0)
+    travel = TRAVEL_CELLS * 1.15 + 6  # cells of room down the slope
+    if start == "gravity":
+        # a sliding block slides during the gravity stage too: undamped at most a r^2 / 6 over the
+        # linear ramp of length r, then v h + a h^2 / 2 over the hold h at full gravity; about 0.3
+        # of it with the default damping
+        from solver.config import GRAVITY_RAMP_FRACTION
+
+        slide = G * (math.sin(math.radians(theta_deg)) - math.tan(math.radians(delta_deg)) * math.cos(math.radians(theta_deg)))
+        r = GRAVITY_RAMP_FRACTION * gravity_s
+        h = gravity_s - r
+        travel += math.ceil(max(slide, 0.0) * (r * r / 6 + r * h / 2 + h * h / 2) / dx)
+    th = math.radians(theta_deg)
+    s, c = math.sin(th), math.cos(th)
+    boundaries = {"left": '"open"', "right": '"open"', "bottom": '"open"', "top": '"open"'}
+    friction = f'{{ type = "friction", friction_angle_deg = {_f(delta_deg)} }}'
+    structures = ""
+    if contact == "bottom":
+        gravity = (G * s, -G * c)
+        origin, size = (0.0, 0.0), ((length + travel + 2) * dx, (n + 4) * dx)
+        x0 = 2 * dx
+        block = [(x0, 0.0), (x0 + length * dx, 0.0), (x0 + length * dx, n * dx), (x0, n * dx)]
+        surface, normal, slope = (0.0, 0.0), (0.0, 1.0), (1.0, 0.0)
+        boundaries["bottom"] = friction
+    elif contact in ("left", "right"):
+        sign = -1.0 if contact == "left" else 1.0  # gravity's push into the wall
+        gravity = (sign * G * c, -G * s)
+        origin, size = (0.0, 0.0), ((n + 4) * dx, (length + travel + 2) * dx)
+        y0 = travel * dx
+        xa, xb = (0.0, n * dx) if contact == "left" else (4 * dx, (n + 4) * dx)
+        block = [(xa, y0), (xb, y0), (xb, y0 + length * dx), (xa, y0 + length * dx)]
+        wall_x = 0.0 if contact == "left" else (n + 4) * dx
+        surface, normal, slope = (wall_x, 0.0), (-sign, 0.0), (0.0, -1.0)
+        boundaries[contact] = friction
+    elif contact == "ramp":
+        gravity = (0.0, -G)
+        # the ramp's level and upright faces on node lines (no off-node warning): the run across
+        # a whole number of cells, the top a whole number of cells above the bottom face
+        across = math.ceil((length + travel) * c)
+        run_along = across * dx / c
+        t_hat = np.array([c, -s])
+        n_hat = np.array([s, c])
+        top = np.array([2 * dx, (math.ceil(run_along * s / dx) + 2) * dx])
+        foot = top + run_along * t_hat
+        below = 0.0
+        ramp = [(top[0] - 2 * dx, top[1]), tuple(top), tuple(foot), (foot[0], below), (top[0] - 2 * dx, below)]
+        a = top + start_cells * dx * t_hat
+        block = [tuple(a), tuple(a + length * dx * t_hat), tuple(a + length * dx * t_hat + n * dx * n_hat),
+                 tuple(a + n * dx * n_hat)]
+        lo = np.array([0.0, below - 2 * dx])
+        hi = np.array([foot[0] + 4 * dx, top[1] + (n + 4) * dx])
+        origin, size = tuple(lo), tuple(hi - lo)
+        surface, normal, slope = tuple(top), tuple(n_hat), tuple(t_hat)
+        boundaries["left"] = boundaries["bottom"] = '"slip"'
+        points = ", ".join(f"[{_f(x)}, {_f(y)}]" for x, y in ramp)
+        structures = (f'\n[[structures]]\nname = "ramp"\npolygon_m = [{points}]\n'
+                      f'contact = {friction}\n')
+    else:
+        raise ValueError(f"contact {contact!r}: one of bottom, left, right, ramp")
+    damping = ""
+    if damping_ratio > 0.0:
+        c_s = math.sqrt(youngs_pa / (2.0 * (1.0 + POISSON)) / DENSITY)
+        damping = f"damping_ratio = {_f(damping_ratio)}\ndamping_frequency_hz = {_f(damping_frequency_factor * c_s / (4.0 * n * dx))}\n"
+        if damping_model != DEFAULT_DAMPING_MODEL:
+            damping += f'damping_model = "{damping_model}"\n'
+    stages = ""
+    if start == "gravity":
+        stages += '[[stages]]\nname = "initial stress"\ntype = "gravity"\nduration_s = GRAVITY_S\n\n'
+    elif start == "k0":
+        stages += '[[stages]]\nname = "initial stress"\ntype = "k0"\n\n'
+    elif start != "free":
+        raise ValueError(f"start {start!r}: one of gravity, k0, free")
+    stages += f'[[stages]]\nname = "run"\ntype = "dynamic"\nduration_s = {_f(T)}\n'
+    polygon = ", ".join(f"[{_f(x)}, {_f(y)}]" for x, y in block)
+    sides = "\n".join(f"{k} = {v}" for k, v in boundaries.items())
+    text = f"""[runout]
+schema_version = 1
+title = "block on a {contact} contact, {theta_deg:g} deg incline, {delta_deg:g} deg friction"
+
+[domain]
+origin_m = [{_f(origin[0])}, {_f(origin[1])}]
+size_m = [{_f(size[0])}, {_f(size[1])}]
+cell_size_m = {_f(dx)}
+gravity_m_s2 = [{_f(gravity[0])}, {_f(gravity[1])}]
+
+[domain.boundaries]
+{sides}
+
+[materials.block]
+model = "linear-elastic"
+density_kg_m3 = {_f(DENSITY)}
+youngs_modulus_pa = {_f(youngs_pa)}
+poisson_ratio = {_f(POISSON)}
+{damping}
+[[bodies]]
+name = "block"
+material = "block"
+polygon_m = [{polygon}]
+{structures}
+[particles]
+per_cell = {per_cell}
+
+[numerics]
+scheme = "{scheme}"
+precision = "{precision}"
+arch = "cpu"
+
+{stages}
+[output]
+interval_s = {_f(T)}
+fields = ["displacement"]
+"""
+    if start == "gravity":
+        text = text.replace("GRAVITY_S", _f(gravity_s))
+    return ProjectCase(text, contact, float(theta_deg), float(delta_deg), T, dx, tuple(map(float, surface)),
+                       tuple(map(float, normal)), tuple(map(float, slope)))
+
+
+def run_case(case: ProjectCase, out_dir: Path):
+    """Run a :class:`ProjectCase` through :func:`projects.runner.run_project` into ``out_dir``
+    and read its slip from the last frame. Returns ``(Outcome, RunResult)``."""
+    import tomllib
+
+    from projects.results import read_vtp
+    from projects.runner import run_project
+    from projects.schema import validate_project
+
+    project = validate_project(tomllib.loads(case.text))
+    result = run_project(project, out_dir, overwrite=True)
+    if result.status != "completed":
+        raise RuntimeError(f"{case.contact} {case.theta_deg:g}/{case.delta_deg:g}: {result.status}: {result.message}")
+    frames = sorted(Path(out_dir, "frames").glob("frame_*.vtp"))
+    frame = read_vtp(frames[-1], {"Points", "displacement"})
+    displacement = frame["displacement"][:, :2].astype(float)
+    start = frame["Points"][:, :2].astype(float) - displacement
+    outcome = case.outcome(start, displacement)
+    outcome.steps = int(result.summary.get("steps", 0))
+    return outcome, result

@@ -332,7 +332,7 @@ def test_the_run_is_told_which_file_it_is_a_copy_of(qtbot, tmp_path):
 def _open_near_limit_block(window, tmp_path):
     """A soft 5-cell block sliding 5 degrees above a 35-degree friction limit (the near-limit
     warning), opened in the workbench; its Run panel, estimate up to date."""
-    from benchmarks.contact_matrix import project_text
+    from tests.contact_scenes import project_text
 
     path = tmp_path / "block.toml"
     path.write_text(project_text("bottom", "apic-affine", "f32", 5, 1e6, 40, 35, gravity_s=None).text, encoding="utf-8")

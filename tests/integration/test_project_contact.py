@@ -4,11 +4,10 @@ written as a project file, run by ``projects.runner.run_project``, its slip read
 The user's way, at a realistic scale (5 cm cells for both stiffnesses): a tilted
 ``domain.gravity_m_s2`` with a friction side (bottom, left or right), or a ``[[structures]]`` ramp
 with a friction contact under vertical gravity; a 0.2 s ``gravity`` stage, then a ``dynamic`` stage
-until the analytic travel is 20 cells (``benchmarks.contact_matrix.project_text``). The slip is
+until the analytic travel is 20 cells (``tests.contact_scenes.project_text``). The slip is
 the mean displacement along the slope of the lowest particle row. Sliding: within 3 % of
 ``1/2 g (sin th - tan d cos th) t^2``; sticking: under 0.1 % of the frictionless distance (the
-issue's tolerances). The whole matrix: ``python -m benchmarks.contact_matrix --path project``
-(docs/validation.md, contact through the project path).
+issue's tolerances). The whole matrix: docs/validation.md, contact through the project path.
 """
 
 from __future__ import annotations
@@ -22,7 +21,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from benchmarks.contact_matrix import project_text, run_case
+from tests.contact_scenes import project_text, run_case
 from projects.checks import NEAR_LIMIT_DAMPING, project_warnings
 from projects.document import dumps_project
 from projects.results import read_contacts
@@ -83,7 +82,7 @@ def test_a_block_slides_or_sticks_as_coulomb_says_through_the_project_path(
 # Stiff blocks 5 deg from the friction limit: until friction was decided by wall column (the wall
 # node and its ghosts one contact point, docs/solver.md, contact) every 20-cell block at 40/45 slid
 # +5.1-5.5 % of the frictionless distance and the 5-cell apic-affine one +1.3 %; a finite-element model
-# of the same block holds (benchmarks/contact_fem.py). Measured after: 0.000-0.005 %.
+# of the same block holds. Measured after: 0.000-0.005 %.
 NEAR_LIMIT = [
     ("bottom", "apic-affine", "f32", 20, 1e8, 40, 45, 0.2),
     ("bottom", "mpm", "f32", 20, 1e8, 40, 45, 0.2),

@@ -8,7 +8,7 @@ weight, and the base slips in every low phase, on slopes it would stand on at re
 checks that what Runout gives there is the physics and not a contact defect: over the block's
 first shear period ``4 H / c_s`` the slip of its lowest particle row equals the one-dimensional
 elastic wave solution of a layer on a rigid Coulomb incline
-(``studies.contact_scenes.column_wave_slip``, finite elements converged to 0.1 %; no MPM) within
+(``tests.contact_scenes.column_wave_slip``, finite elements converged to 0.1 %; no MPM) within
 ``TOLERANCE``, over schemes, thicknesses, stiffnesses, friction margins and contacts. Measured when
 the test was written (docs/validation.md, a block released stress free): on the walls 0.91-1.09 of
 the wave solution, 0.98-1.06 for 20-cell blocks; the slip itself is 11-23 % of the frictionless distance,
@@ -24,8 +24,8 @@ from __future__ import annotations
 
 import pytest
 
-from benchmarks.contact_matrix import project_text, run_case
-from studies.contact_scenes import column_wave_slip, shear_period
+from tests.contact_scenes import project_text, run_case
+from tests.contact_scenes import column_wave_slip, shear_period
 
 CELL = 0.05
 TOLERANCE = 0.15  # of the wave solution's slip; measured deviations up to 9.3 % (walls), 6 % (ramp, 20 cells)

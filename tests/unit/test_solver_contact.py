@@ -1,13 +1,13 @@
 """The grid contact law (docs/solver.md, contact): Coulomb friction on walls and structures, the
 force on each contact, and structures that no particle enters (CPU, small scenes).
 
-Inclines: a block at rest, in equilibrium (:func:`studies.contact_scenes.slope_stress`), on a
+Inclines: a block at rest, in equilibrium (:func:`tests.contact_scenes.slope_stress`), on a
 frictional contact; sliding cases within 3 % of ``1/2 g (sin th - tan d cos th) t^2`` over at least
 20 cells of travel, sticking cases slip less than 0.1 % of the frictionless distance (the issue's
 tolerances). Walls are made inclines by tilting gravity (exact and cheap); the ramp is an inclined
 structure under vertical gravity, its normal no grid axis.
 
-The wall rows are a covering design of the matrix that benchmarks/contact_matrix.py runs in full
+The wall rows are a covering design of the full incline matrix
 (docs/validation.md, contact): every value of every axis (3 schemes, f32/f64, 1/5/20 cells thick,
 E = 1e6/1e8 Pa, bottom/left/right wall), and every pair of values of any two of those axes in some
 row (nine rows: scheme x thickness x side is a Latin square, precision and stiffness spread so
@@ -33,7 +33,7 @@ sheet is within the tolerance there since the mirror walls' normal impulse bring
 (``MIRROR_ROWS``; before, +2 to +8 %), through the wall column and without pulling the ghost back
 (session 17: apic +2.1 -> +1.3 %, apic-affine -0.6 %, mpm +0.04 % at 38/36). The others are strict xfails: they fail the suite if they ever meet
 the tolerances, so that this note is updated. Measured per contact node
-(benchmarks/contact_diagnose.py; docs/validation.md, contact), neither is friction that changes
+(docs/validation.md, contact), neither is friction that changes
 direction under elastic waves (no node slips up the slope; slip steps give exactly mu N): the creep
 is the upslope part of the base, unloaded by the weight's moment, slipping at mu N (a 20-cell block
 twice as long as thick creeps 6.6 %); the excess slide is friction lost at wall nodes that an opening
@@ -42,11 +42,8 @@ more friction than their own tangential momentum can give); at low friction too 
 13 deg on 12 deg: +35 %); that chatter grows with the friction and not from the small-mass
 nodes (treating them as MUSL does, or as empty, leaves it; docs/validation.md). ``ASPECT_ROWS``: a 20-cell block twice as
 long as thick holds the tolerances at 20/10 and 20/30 deg and creeps 6.4 % at 40/45 (strict xfail).
-The diagnosis itself is tested: stepped stage by stage it gives the engine's slip, and every slip
-step of the law gives exactly mu N. So is the stability analysis (benchmarks/contact_stability.py):
-the step with the law linearised about a steady slide grows a perturbation exponentially with
-friction and not without (the chatter's root at high friction is a flutter of the discretised
-elastic block, not the contact's time integration; docs/validation.md, contact).
+The chatter's root at high friction is a flutter of the discretised elastic block, not the
+contact's time integration (docs/validation.md, contact).
 """
 
 import math
@@ -59,7 +56,7 @@ from solver.config import (Boundary, Grid, Material, Numerics, Output, Particles
                            Structure)
 from solver.simulation import Simulation
 from solver.structures import corner_normals, corner_zone, node_contacts, signed_distance
-from studies.contact_scenes import RampIncline, WallIncline
+from tests.contact_scenes import RampIncline, WallIncline
 
 SLIDE_TOL = 0.03
 STICK_TOL = 1e-3
@@ -106,10 +103,10 @@ def _check(outcome, label):
         assert outcome.error < STICK_TOL, f"{label}: slipped {outcome.distance_m:.3g} m of {outcome.frictionless_m:.3g} m"
 
 
-def _wall_cases(scheme, precision, thickness, youngs, side, angles, aspect=4.0):
-    runtime.acquire("cpu", precision)
+def _wall_cases(scheme, precision, thickness, youngs, side, angles, aspect=4.0, arch="cpu", scatter="serial"):
+    runtime.acquire(arch, precision)
     try:
-        scene = WallIncline(scheme, precision, thickness, youngs, side, aspect=aspect)
+        scene = WallIncline(scheme, precision, thickness, youngs, side, scatter=scatter, aspect=aspect)
         for theta, delta in angles:
             _check(scene.run(theta, delta), f"{scheme} {precision} {thickness} cells E={youngs:g} {side} th={theta} d={delta}")
     finally:
@@ -131,6 +128,23 @@ def test_the_wall_rows_cover_every_pair_of_values():
 def test_a_block_at_rest_on_a_frictional_wall_slides_or_sticks_as_coulomb_says(scheme, precision, thickness,
                                                                                youngs, side, angles):
     _wall_cases(scheme, precision, thickness, youngs, side, angles)
+
+
+#: Rows of the covering design run on a GPU (the atomic scatter, the GPU's only one).
+GPU_ROWS = [
+    ("mpm", "f32", 20, 1e8, "bottom", [(20, 10), (20, 30)]),
+    ("apic", "f32", 1, 1e8, "bottom", [(30, 20), (10, 20)]),
+    ("apic-affine", "f32", 20, 1e6, "left", [(30, 20), (20, 30)]),
+    ("apic-affine", "f64", 5, 1e6, "bottom", [(40, 30), (40, 45)]),
+]
+
+
+@pytest.mark.gpu
+@pytest.mark.skipif(not runtime.gpu_available(), reason="needs a GPU")
+@pytest.mark.parametrize("scheme, precision, thickness, youngs, side, angles", GPU_ROWS)
+def test_on_a_gpu_a_block_at_rest_on_a_frictional_wall_slides_or_sticks_as_coulomb_says(scheme, precision, thickness,
+                                                                                        youngs, side, angles):
+    _wall_cases(scheme, precision, thickness, youngs, side, angles, arch="gpu", scatter="atomic")
 
 
 # A sheet sliding just above the friction limit, where a small friction deficit is a large error: the
@@ -174,31 +188,6 @@ ASPECT_ROWS = [
 @pytest.mark.parametrize("scheme, precision, thickness, youngs, side, angles", ASPECT_ROWS)
 def test_a_block_twice_as_long_as_thick(scheme, precision, thickness, youngs, side, angles):
     _wall_cases(scheme, precision, thickness, youngs, side, angles, aspect=2.0)
-
-
-def test_the_contact_diagnosis_steps_as_the_engine_and_every_slip_step_gives_mu_n():
-    """benchmarks/contact_diagnose.py steps stage by stage and reads the law at the wall line: its slip
-    is the scene's (one kernel a step), its counts cover every step of every wall node under the
-    block, and the law gives exactly mu N in every slip step (stick / slip / separation; issue 11); its
-    momentum audit (normal impulse against the weight's, friction felt against recorded) balances."""
-    from benchmarks.contact_diagnose import diagnose, node_law_engine
-
-    args = ("apic", "f64", 5, 1e8, 30.0, 20.0)
-    r = diagnose(*args)
-    runtime.acquire("cpu", "f64")
-    try:  # the diagnosis reads the node-by-node law (the engine's is by wall column)
-        engine_slip = WallIncline(*args[:4], "bottom", engine_class=node_law_engine()).run(30.0, 20.0).distance_m
-    finally:
-        runtime.release()
-    assert r["slip_m"] == pytest.approx(engine_slip, rel=1e-9)
-    assert np.allclose(r["fractions"].sum(1), 1.0)
-    assert abs(r["lost_slip"]) < 1e-9 and r["lost_stick"] >= 0.0
-    assert r["fractions"][:, 1].mean() > 0.5  # it slides: most node-steps slip down the slope
-    assert 0.9 < r["wall_ratio"] <= 1.0 + 1e-9
-    # its momentum audit: the recorded normal impulse is the weight's, and the friction the block's
-    # momentum says it felt is the recorded one (the impulse balance's 2 %)
-    assert r["audit"]["normal"] == pytest.approx(1.0, abs=0.02)
-    assert r["audit"]["felt"] == pytest.approx(r["audit"]["friction"], rel=0.02)
 
 
 @pytest.mark.parametrize("angle_deg", [0.0, 20.0, 45.0, 70.0])
@@ -498,41 +487,6 @@ def test_classic_mpm_is_flip_away_from_contacts_and_pic_at_contact_nodes(side):
         assert np.abs(v1 - flip)[touched].max() > 0.1
     finally:
         runtime.release()
-
-
-def test_the_contact_step_linearised_about_a_steady_slide_is_unstable_only_with_friction():
-    """benchmarks/contact_stability.py (issue 11; docs/validation.md, contact): the step with the contact
-    law linearised about a steady slide (every wall node pressing and slipping, bilateral, sign fixed)
-    is an affine map; its dominant perturbation, measured by stepping two copies of a 5-cell block on a
-    38 deg wall, grows exponentially with friction (36 deg: about 5 per second, the same at cfl 0.5 and
-    0.1) and not without it (only the algebraic growth of an undamped elastic body, below 1.5 per
-    second and falling). Measured in the run's last quarter (the first is the transient).
-    The rate is the idealised problem's: finite elements of the same block (bilateral base with the
-    Coulomb coupling, eigenvalues of the undamped system; 2 m elements) give its body modes 5.2 per
-    second (converged: 5.3 with 1 m elements); the MPM within 25 % of it (measured 5.1)."""
-    from benchmarks.contact_stability import analyse, fem_growth
-
-    rate = {}
-    for delta in (0.0, 36.0):
-        r = analyse("apic", 5, 38.0, delta, "linear", seconds=1.3)
-        rate[delta] = r["quarters"][-1] / r["dt"]  # growth rate per second of the perturbation's amplitude
-    assert rate[0.0] < 1.5
-    fem = {mu: fem_growth(10.0, 80.0, 2.0, mu) for mu in (0.0, math.tan(math.radians(36.0)))}
-    assert fem[0.0]["growth"] < 1e-3  # round-off of the eigenvalues (rigid modes at zero)
-    assert rate[36.0] == pytest.approx(fem[math.tan(math.radians(36.0))]["body_growth"], rel=0.25)
-
-
-def test_the_idealised_block_in_finite_elements_holds_at_40_on_45_and_slides_without_friction():
-    """benchmarks/contact_fem.py, the reference that located the 40/45 failure in the MPM's wall
-    rows (docs/validation.md, contact): the same stiff block as finite elements with the engine's
-    node law holds 5 deg from the friction limit, and slides the analytic distance on a
-    frictionless incline (both within the issue's tolerances)."""
-    from benchmarks.contact_fem import run
-
-    held = run(1e8, 40.0, 45.0, cells=10, aspect=4.0, h=0.1)
-    assert held["error"] < 1e-3
-    free = run(1e8, 10.0, 0.0, cells=10, aspect=4.0, h=0.1)
-    assert abs(free["error"]) < 0.03
 
 
 def test_the_nodes_near_a_convex_vertex_form_its_zone():
