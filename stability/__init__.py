@@ -1,15 +1,17 @@
 """Limit-equilibrium slope stability (numpy only): Bishop's simplified method of slices.
 
 :mod:`stability.bishop` finds the critical circular slip surface of a 2D section made of
-polygons of Mohr-Coulomb soils. It knows nothing of the solver, the projects or the app; the
-strength-reduction driver (:mod:`projects.strength`) reports its factor beside the MPM one.
+polygons of Mohr-Coulomb soils, dry or with water (a phreatic line, free water, ``ru``). It
+knows nothing of the solver, the projects or the app; the strength-reduction driver (:mod:`projects.strength`) reports its factor beside the MPM one.
 """
 
 from stability.bishop import (
     Circle,
+    NoAdmissibleCircle,
     Section,
     SlipResult,
     Soil,
+    Water,
     bishop_factor,
     critical_circle,
     fellenius_factor,
@@ -18,9 +20,11 @@ from stability.bishop import (
 
 __all__ = [
     "Circle",
+    "NoAdmissibleCircle",
     "Section",
     "SlipResult",
     "Soil",
+    "Water",
     "bishop_factor",
     "critical_circle",
     "fellenius_factor",
