@@ -40,16 +40,34 @@ from projects.schema import (
 
 logger = logging.getLogger(__name__)
 
-SECTIONS: tuple[str, ...] = ("runout", "domain", "materials", "bodies", "structures", "particles", "numerics",
-                             "stages", "output", "targets")
+SECTIONS: tuple[str, ...] = ("runout", "domain", "materials", "bodies", "structures", "water", "particles",
+                             "numerics", "stages", "output", "targets")
 #: Up to this many particles (the estimate from the bodies' area) the workbench seeds the bodies as
 #: the run will, for the particle preview and the Run panel's count (0.3 s at 400,000); above,
 #: seeding on every edit would hold the window up for seconds.
 MAX_SEEDED_PARTICLES = 400_000
 #: The parts of a project drawn as polygons (edited with the same scene tools and vertex table).
 POLYGON_KINDS: tuple[str, ...] = ("bodies", "structures")
-#: What can be selected: a polygon's kind or ``"targets"``.
-SELECTABLE_KINDS: tuple[str, ...] = (*POLYGON_KINDS, "targets")
+#: What can be selected: a polygon's kind, ``"targets"`` or ``"water"`` (a water line: its index is
+#: a slot of :func:`water_line_path`).
+SELECTABLE_KINDS: tuple[str, ...] = (*POLYGON_KINDS, "targets", "water")
+#: The two water lines of ``[water]`` and of a stage's ``[stages.water]``, in slot order.
+WATER_LINE_KEYS: tuple[str, ...] = ("phreatic_line_m", "free_water_line_m")
+
+
+def water_line_path(slot: int) -> str:
+    """The key path of water line ``slot``: 0 and 1 are the project's phreatic and free-water
+    lines (``water.phreatic_line_m``, ``water.free_water_line_m``), 2 + 2 i and 3 + 2 i those
+    stage ``i`` moves the water to (``stages.i.water.phreatic_line_m``, ...)."""
+    stage, which = divmod(int(slot), 2)
+    key = WATER_LINE_KEYS[which]
+    return f"water.{key}" if stage == 0 else f"stages.{stage - 1}.water.{key}"
+
+
+def water_slot(stage: int | None, key: str) -> int:
+    """The slot of line ``key`` (``phreatic_line_m`` or ``free_water_line_m``) of the project
+    (``stage`` None) or of stage ``stage``."""
+    return (0 if stage is None else 2 + 2 * int(stage)) + WATER_LINE_KEYS.index(key)
 
 #: Label and unit of each numeric key of the project file (units as shown next to fields).
 FIELD_INFO: dict[str, tuple[str, str]] = {
@@ -73,9 +91,13 @@ FIELD_INFO: dict[str, tuple[str, str]] = {
     "stop_when_kinetic_energy_below": ("Stop when kinetic energy below", "× peak"),
     "coefficient": ("Damping coefficient", "–"),
     "per_cell": ("Particles per cell (per direction)", "–"),
+    "saturated_density_kg_m3": ("Saturated density", "kg/m³"),
+    "ru": ("Pore-pressure ratio r_u", "–"),
+    "unit_weight_n_m3": ("Unit weight of water", "N/m³"),
 }
 MATERIAL_KEYS: tuple[str, ...] = (
     "density_kg_m3",
+    "saturated_density_kg_m3",
     "youngs_modulus_pa",
     "poisson_ratio",
     "cohesion_pa",
@@ -84,6 +106,7 @@ MATERIAL_KEYS: tuple[str, ...] = (
     "tensile_strength_pa",
     "damping_ratio",
     "damping_frequency_hz",
+    "ru",
 )
 #: the keys only a Drucker-Prager material has (the file's rule: projects.schema.PLASTIC_KEYS)
 PLASTIC_KEYS: tuple[str, ...] = tuple(k for k in MATERIAL_KEYS if k in FILE_PLASTIC_KEYS)
@@ -92,6 +115,8 @@ OPTIONAL_MATERIAL_KEYS: dict[str, str] = {
     "tensile_strength_pa": "no cut-off",
     "damping_ratio": "undamped",
     "damping_frequency_hz": "none",
+    "saturated_density_kg_m3": "= density (no water in the pores)",
+    "ru": "none (pore pressure from the water lines)",
 }
 
 
@@ -275,6 +300,8 @@ def editable_data(data: Any) -> dict[str, Any] | None:
         "output": Mapping,
     }
     optional_lists = ("structures", "targets")
+    if "water" in data and not isinstance(data["water"], Mapping):
+        return None
     for key in optional_lists:
         if key in data and (not isinstance(data[key], list) or any(not isinstance(t, Mapping) for t in data[key])):
             return None
@@ -626,6 +653,13 @@ class ProjectDocument(QObject):
 
     def _clamp_selection(self) -> None:
         sel = self.selection
+        if sel.kind == "water":
+            line = get_path(self._data, water_line_path(sel.index)) if sel.index is not None else None
+            if not isinstance(line, list):
+                sel.select("water", None)
+            elif sel.vertex is not None and sel.vertex >= len(line):
+                sel.select("water", sel.index, len(line) - 1 if line else None)
+            return
         items = self._data.get(sel.kind, [])
         items = items if isinstance(items, list) else []
         index, vertex = sel.index, sel.vertex

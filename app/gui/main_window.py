@@ -326,15 +326,24 @@ class MainWindow(QMainWindow):
         self.panels.insertTab(at, self.structures_panel, "Structures")
         self.panels.insertTab(at + 1, self.targets_panel, "Targets")
         self.structures_panel.drawRequested.connect(self._start_drawing_structure)
+        from app.gui.water_panel import WaterPanel
+
+        self.water_panel = WaterPanel(self.doc)
+        self.panels.insertTab(at + 2, self.water_panel, "Water")
+        self.water_panel.drawRequested.connect(self._start_drawing_water)
         self.doc.selection.changed.connect(self._show_selection_panel)
 
     def _show_selection_panel(self) -> None:
         """A body, structure or target picked in the view brings its panel forward."""
         sel = self.doc.selection
         panel = {"bodies": self.bodies_panel, "structures": self.structures_panel,
-                 "targets": self.targets_panel}.get(sel.kind)
+                 "targets": self.targets_panel, "water": self.water_panel}.get(sel.kind)
         if sel.index is not None and panel is not None and self.panels.currentWidget() is not panel:
             self.panels.setCurrentWidget(panel)
+
+    def _start_drawing_water(self, slot: int) -> None:
+        self.tabs.setCurrentWidget(self.scene)
+        self.scene.set_mode("draw", "water", slot)
 
     def _start_drawing_structure(self) -> None:
         self.tabs.setCurrentWidget(self.scene)
@@ -784,6 +793,14 @@ class MainWindow(QMainWindow):
         """Show the panel (and item) a problem's key path names."""
         parts = path.split(".")
         section = parts[0] if parts else ""
+        if section == "water" or (section == "stages" and len(parts) > 2 and parts[2] == "water"):
+            from app.gui.document import WATER_LINE_KEYS, water_slot
+
+            stage = int(parts[1]) if section == "stages" and parts[1].isdigit() else None
+            key = next((p for p in parts if p in WATER_LINE_KEYS), "phreatic_line_m")
+            self.panels.setCurrentWidget(self.water_panel)
+            self.water_panel.choose(water_slot(stage, key))
+            return
         target = {"runout": self.domain_panel, "domain": self.domain_panel, "materials": self.materials_panel,
                   "bodies": self.bodies_panel, "particles": self.numerics_panel, "numerics": self.numerics_panel,
                   "stages": self.stages_panel, "output": self.output_panel,

@@ -51,6 +51,7 @@ from app.gui.document import (
 )
 from app.gui.fields import ChoiceField, IntField, NumberField, PairField, TextField, forget_typing
 from app.gui.settings import MaterialLibrary
+from app.gui.units import parse_quantity
 from projects.schema import (
     ARCHS,
     BOUNDARY_TYPES,
@@ -1141,6 +1142,7 @@ class StagesPanel(Panel):
             name = stage.get("name") or stage.get("type", "?")
             extra = f", {format_number(stage['duration_s'])} s" if "duration_s" in stage else ""
             changes = " + material changes" if stage.get("material_changes") else ""
+            changes += " + water" if isinstance(stage.get("water"), dict) else ""
             self.list.addItem(f"{i + 1}. {name}  ({stage.get('type', '?')}{extra}){changes}")
         if self._current is None or self._current >= len(stages):
             self._current = (len(stages) - 1) if stages else None
@@ -1201,10 +1203,13 @@ class StagesPanel(Panel):
     def _set_change(self) -> None:
         key = self.change_key.currentData()
         text = self.change_value.text().strip()
-        value = text if key == "damping_model" else parse_number(text)  # the schema checks the word
-        if value is None:
-            self.show_message("New value: must be a number")
-            return
+        if key == "damping_model":
+            value: Any = text  # the schema checks the word
+        else:  # a unit may follow the number, as in the material's own fields ("21 kN/m3", "5 kPa")
+            value, error = parse_quantity(text, FIELD_INFO.get(key, ("", ""))[1])
+            if value is None:
+                self.show_message(f"New value: {error or 'must be a number'}")
+                return
         self.set_change(self.change_material.currentText(), key, value)
 
     def _remove_change(self) -> None:
@@ -1245,7 +1250,8 @@ class OutputPanel(Panel):
         box = QGroupBox("Fields written (positions always)")
         vbox = QVBoxLayout(box)
         self.checks: dict[str, QCheckBox] = {}
-        units = {"displacement": "m", "velocity": "m/s", "stress": "Pa", "plastic_strain": "–", "material": "id"}
+        units = {"displacement": "m", "velocity": "m/s", "stress": "Pa", "plastic_strain": "–", "material": "id",
+                 "pore_pressure": "Pa"}
         for name in OUTPUT_FIELDS:
             check = QCheckBox(f"{name.replace('_', ' ')} ({units[name]})")
             check.toggled.connect(lambda on, n=name: self._toggled(n, on))

@@ -101,6 +101,7 @@ class ParticleScene(QWidget):
         self._auto_fit = True
         self.picked_id: int | None = None
         self.structure_count = 0
+        self._water_drawn: Any = False  # the water last drawn (False: none)
         #: what is drawn is drawn less this (the grid's corner): VTK draws in float32, which
         #: resolves 0.25 m at y = 4e6 m (real-world coordinates); picking adds it back
         self.offset = np.zeros(2)
@@ -120,6 +121,7 @@ class ParticleScene(QWidget):
             self.plotter.remove_scalar_bar(title, render=False)
         self.cloud = self.actor = self._text = None
         self._style_key = None
+        self._water_drawn = False
         self.picked_id = None
         self._fitted = False
         self.positions = np.zeros((0, 2))
@@ -177,6 +179,19 @@ class ParticleScene(QWidget):
                                           reset_camera=False, justification_horizontal="center",
                                           justification_vertical="bottom")
         self.structure_count = len(faces)
+
+    def show_water(self, shown: Any) -> None:
+        """The ground water (an :class:`app.render.WaterShown`, None: none): the phreatic line in
+        blue, the free-water line and the free water shaded, as :mod:`app.render` draws them."""
+        from app.render import add_water_actors
+
+        if shown is self._water_drawn:
+            return
+        self._water_drawn = shown
+        for name in ("water-fill", "water-line", "free-water-line"):
+            self.plotter.remove_actor(name, render=False)
+        if shown is not None:
+            add_water_actors(self.plotter, shown, self.offset, line_width=3.0)
 
     def show_arrays(self, arrays: dict[str, np.ndarray], time_s: float, caption: str = "") -> None:
         """Draw one frame (``positions``, ``active`` and the field's source array)."""
@@ -465,6 +480,17 @@ class _Controls(QWidget):
         self._sync_unit()
         self.styleChanged.emit()
 
+    def set_available(self, arrays: Any) -> None:
+        """Grey out the fields whose source the frames lack (``pore_pressure`` of a dry run), saying why."""
+        model = self.field.model()
+        for i in range(self.field.count()):
+            info = FIELDS[self.field.itemData(i)]
+            item = model.item(i)
+            ok = info.source in arrays
+            item.setEnabled(ok)
+            item.setToolTip("" if ok else f"this run did not write {info.source!r}"
+                            + (" (a run without ground water)" if info.source == "pore_pressure" else ""))
+
     def _sync_unit(self) -> None:
         info = FIELDS[self.field_name]
         self.unit.setText("" if info.categorical else info.unit)
@@ -526,6 +552,7 @@ class ResultsView(QWidget):
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.results: Any = None
+        self._water: Any = None  # (timeline, ground, box, cache) of a run with ground water
         self.live = False
         self.live_path: Path | None = None
         self.live_title = ""
@@ -817,6 +844,7 @@ class ResultsView(QWidget):
             self.scene.clear()
             self.scene.set_domain(_domain_of(results.summary), float(spacing), results.material_names)
             self.scene.show_structures(results.summary.get("structures") or [])
+            self._water = self._water_of(results)
         self.results = results
         self._show_contacts(results.path, live)
         if live:
@@ -872,7 +900,10 @@ class ResultsView(QWidget):
         time_s = float(self.results.times[index])
         self._apply_style()
         caption = f"frame {index + 1}/{n}" + ("   (live)" if self.live else "")
-        self.scene.show_arrays(self.results.frame(index), time_s, caption)
+        arrays = self.results.frame(index)
+        self.controls.set_available(arrays)
+        self.scene.show_water(self._water_shown(index))
+        self.scene.show_arrays(arrays, time_s, caption)
         self.controls.show_range(self.scene.shown_clim)
         stage = self._stage_at(index)
         self.controls.time_label.setText(f"t = {time_s:.4g} s   frame {index + 1}/{n}{stage}")
@@ -881,6 +912,30 @@ class ResultsView(QWidget):
         if self.section is not None:
             self.update_section()
         self.message.emit(self.scene.message)
+
+    @staticmethod
+    def _water_of(results: Any) -> Any:
+        """(timeline, ground polygons, domain box) of a run with [water], else None."""
+        from app.render import WaterTimeline, project_bodies
+
+        timeline = WaterTimeline.of(results)
+        box = _domain_of(results.summary)
+        if timeline is None or box is None:
+            return None
+        return timeline, project_bodies(timeline.project), box, {}
+
+    def _water_shown(self, index: int) -> Any:
+        """What to draw of the water at frame ``index`` (one per distinct water, kept)."""
+        from app.render import water_shown
+
+        if self._water is None:
+            return None
+        timeline, bodies, box, cache = self._water
+        water = timeline.at_frame(self.results, index)
+        if water not in cache:
+            cache.clear() if len(cache) > 64 else None
+            cache[water] = water_shown(water, bodies, box)
+        return cache[water]
 
     def _stage_at(self, index: int) -> str:
         stages = self.results.series.get("stage") if self.results is not None else None

@@ -26,7 +26,15 @@ from PySide6.QtCore import QEvent, QObject, QPointF, Qt, QTimer, Signal
 from PySide6.QtGui import QKeyEvent, QMouseEvent
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
-from app.gui.document import MAX_SEEDED_PARTICLES, POLYGON_KINDS, ProjectDocument, format_number
+from app.gui.document import (
+    MAX_SEEDED_PARTICLES,
+    POLYGON_KINDS,
+    WATER_LINE_KEYS,
+    ProjectDocument,
+    format_number,
+    get_path,
+    water_line_path,
+)
 from app.gui.object_panels import STRUCTURE_COLOR, TARGET_COLOR, contact_text
 from app.gui.panels import material_color
 
@@ -106,6 +114,46 @@ def target_place(target: Any) -> tuple[float, float | None] | None:
     return None
 
 
+def water_line_noun(slot: int) -> str:
+    """``"phreatic line"``, ``"free-water line"``, ``"phreatic line of stage 2"``, ..."""
+    stage, which = divmod(int(slot), 2)
+    noun = ("phreatic line", "free-water line")[which]
+    return noun if stage == 0 else f"{noun} of stage {stage}"
+
+
+def set_water_line(doc: ProjectDocument, slot: int, line: list[list[float]] | None, text: str) -> bool:
+    """Set (None: remove) water line ``slot`` as one undo step. Removing the project's phreatic line
+    removes the water: ``[water]`` and every stage's water move; a stage's water table left with
+    no line goes too."""
+    stage, which = divmod(int(slot), 2)
+    key = WATER_LINE_KEYS[which]
+
+    def mutate(d: dict[str, Any]) -> None:
+        if stage == 0:
+            table = d
+            name = "water"
+        else:
+            table = d["stages"][stage - 1]
+            name = "water"
+        if line is not None:
+            if not isinstance(table.get(name), dict):
+                table[name] = {}
+            table[name][key] = [[float(p[0]), float(p[1])] for p in line]
+            return
+        if slot == 0:
+            d.pop("water", None)
+            for st in d.get("stages", []):
+                if isinstance(st, dict):
+                    st.pop("water", None)
+            return
+        if isinstance(table.get(name), dict):
+            table[name].pop(key, None)
+            if stage > 0 and not table[name]:
+                table.pop(name)
+
+    return doc.edit(text, mutate)
+
+
 def _left(event: QEvent) -> bool:
     return event.button() == Qt.MouseButton.LeftButton  # type: ignore[attr-defined]
 
@@ -159,8 +207,10 @@ class SceneView(QWidget):
         self.show_particles = True
         self._preview_refused = False  # the status bar says the particle preview was refused
         self.draft: list[list[float]] = []
-        #: what a drawn polygon becomes: "bodies" or "structures"
+        #: what a drawn polygon becomes: "bodies" or "structures"; or "water": a water line
         self.draw_kind = "bodies"
+        #: the water line being drawn (a slot of app.gui.document.water_line_path)
+        self.draw_slot = 0
         self._cursor: np.ndarray | None = None
         self._drag: tuple[str, int, int | None] | None = None
         self._drag_count = 0
@@ -281,7 +331,7 @@ class SceneView(QWidget):
         every = sections is None
         if every or "domain" in sections:
             self._draw_domain()
-        if every or sections & {"domain", "bodies", "materials", "structures", "targets"}:
+        if every or sections & {"domain", "bodies", "materials", "structures", "targets", "water", "stages"}:
             self._draw_bodies()
         if every or sections & {"domain", "bodies", "particles", "materials", "structures"}:
             self._preview_timer.start()
@@ -433,8 +483,124 @@ class SceneView(QWidget):
                     self._add(pv.PolyData(_points3(poly[v:v + 1], 0.04)), color="#fbbc04", point_size=15,
                                 render_points_as_spheres=True, name="vertex", render=False)
         self._draw_targets()
+        self._draw_water()
         self._update_legend()
         self._draw_draft()
+
+    # -- ground water ---------------------------------------------------------------------------
+
+    def _water_line(self, slot: int) -> np.ndarray | None:
+        """Water line ``slot`` as (K, 2) points, None where the project has none there."""
+        line = _as_points(get_path(self.doc.data, water_line_path(slot)))
+        return line if line is not None and len(line) else None
+
+    def shown_water_slots(self) -> list[int]:
+        """The water lines drawn (and editable) in the view: the project's, and those of the stage
+        whose line is selected or being drawn."""
+        slots = [0, 1]
+        sel = self.doc.selection
+        stage = None
+        if self.mode == "draw" and self.draw_kind == "water" and self.draw_slot >= 2:
+            stage = self.draw_slot // 2
+        elif sel.kind == "water" and sel.index is not None and sel.index >= 2:
+            stage = sel.index // 2
+        if stage is not None:
+            slots += [2 * stage, 2 * stage + 1]
+        return [k for k in slots if self._water_line(k) is not None]
+
+    def _draw_water(self) -> None:
+        """The project's phreatic line (blue), its free-water line (lighter) and the free water
+        (shaded between that line, or the phreatic line, and the ground surface where it is above
+        the ground); a selected stage's lines in a lighter blue; the selected line's vertices."""
+        import pyvista as pv
+
+        from app.render import FREE_WATER_COLOR, FREE_WATER_LINE_COLOR, WATER_LINE_COLOR, free_water_polygons
+        from app.render import water_line_across
+        from solver.water import line_height
+
+        pl = self.plotter
+        for name in ("water-fill", "water-line-0", "water-line-1", "water-stage-0", "water-stage-1",
+                     "water-vertices", "water-vertex", "water-labels-labels"):
+            pl.remove_actor(name, render=False)
+        box = self._domain_box()
+        if box is None:
+            return
+        x0, x1 = box[0], box[1]
+        bodies = [p for p in (_as_points(b.get("polygon_m")) for b in self._polygons("bodies"))
+                  if p is not None and len(p) >= 3]
+        level = self._water_line(1)
+        if level is None:
+            level = self._water_line(0)
+        if level is not None and len(level) >= 2 and np.all(np.diff(level[:, 0]) > 0):
+            faces = []
+            for ring in free_water_polygons(level, bodies, box):
+                face = pv.PolyData(_points3(ring, -0.012), faces=np.r_[len(ring), np.arange(len(ring))])
+                try:
+                    face = face.triangulate()
+                except (RuntimeError, ValueError):
+                    logger.debug("could not triangulate the free water")
+                faces.append(face)
+            if faces:
+                merged = faces[0].merge(faces[1:]) if len(faces) > 1 else faces[0]
+                self._add(merged, color=FREE_WATER_COLOR, opacity=0.7, name="water-fill", lighting=False,
+                          pickable=False)
+        labels, label_points = [], []
+        for slot in self.shown_water_slots():
+            line = self._water_line(slot)
+            stage, which = divmod(slot, 2)
+            ordered = len(line) >= 2 and np.all(np.diff(line[:, 0]) > 0)
+            across = water_line_across(line, x0, x1) if ordered else line
+            name = f"water-line-{which}" if stage == 0 else f"water-stage-{which}"
+            color = (WATER_LINE_COLOR if which == 0 else FREE_WATER_LINE_COLOR) if stage == 0 else "#64b5f6"
+            width = (3.0 if which == 0 else 2.0) if stage == 0 else 2.5
+            segments = [(across[k], across[k + 1]) for k in range(len(across) - 1)]
+            if segments:
+                self._add(_lines(segments), color=color, line_width=width, name=name, lighting=False,
+                          pickable=False)
+                # named at a quarter (the project's) or three quarters (a stage's) of the domain
+                at = x0 + (0.25 if stage == 0 else 0.75) * (x1 - x0) + (0.1 * (x1 - x0) if which else 0.0)
+                kind = "free water" if which else "phreatic line"
+                labels.append(f"▽ {kind}" if stage == 0 else f"▽ {kind} after stage {stage}")
+                label_points.append([at, float(line_height(line, np.array([at]))[0]), 0.05])
+        if labels:
+            self._add_water_labels(label_points, labels)
+        sel = self.doc.selection
+        if sel.kind == "water" and sel.index is not None:
+            line = self._water_line(sel.index)
+            if line is not None:
+                self._add(pv.PolyData(_points3(line, 0.035)), color="white", point_size=10,
+                          render_points_as_spheres=True, name="water-vertices")
+                if sel.vertex is not None and sel.vertex < len(line):
+                    self._add(pv.PolyData(_points3(line[sel.vertex:sel.vertex + 1], 0.045)), color="#fbbc04",
+                              point_size=15, render_points_as_spheres=True, name="water-vertex")
+
+    def _add_water_labels(self, points: list[list[float]], labels: list[str]) -> None:
+        from app.render import WATER_LINE_COLOR
+
+        self.plotter.add_point_labels(np.array(points), labels, name="water-labels", font_size=10,
+                                      text_color=WATER_LINE_COLOR, shape=None, show_points=False,
+                                      always_visible=True, render=False, reset_camera=False,
+                                      justification_horizontal="center", justification_vertical="bottom")
+
+    def move_water_vertex(self, slot: int, vertex: int, xy: Any, merge_key: str | None = None) -> None:
+        """Move vertex ``vertex`` of water line ``slot`` to ``xy``; its x stays between its
+        neighbours' (a water line has one height at each x)."""
+        line = self._water_line(slot)
+        if line is None or not 0 <= vertex < len(line):
+            return
+        x, y = float(xy[0]), float(xy[1])
+        cell = self.doc.get("domain.cell_size_m")
+        gap = 1e-3 * float(cell) if isinstance(cell, (int, float)) and cell > 0 else 1e-6
+        if vertex > 0:
+            x = max(x, float(line[vertex - 1, 0]) + gap)
+        if vertex < len(line) - 1:
+            x = min(x, float(line[vertex + 1, 0]) - gap)
+        path = water_line_path(slot)
+
+        def mutate(d: dict[str, Any]) -> None:
+            get_path(d, path)[vertex] = [x, y]
+
+        self.doc.edit(f"move vertex {vertex + 1} of the {water_line_noun(slot)}", mutate, merge_key)
 
     def _hatch_step(self, poly: np.ndarray) -> float:
         """The spacing of a structure's hatching, m: about 1/60 of the domain's larger side, closer
@@ -536,7 +702,7 @@ class SceneView(QWidget):
     def _draft_crosses(self) -> bool:
         from geometry.polygons import self_intersections
 
-        if len(self.draft) < 3:
+        if len(self.draft) < 3 or self.draw_kind == "water":
             return False
         try:
             return bool(self_intersections(np.array(self.draft, dtype=float)))
@@ -618,21 +784,27 @@ class SceneView(QWidget):
 
     # -- modes --------------------------------------------------------------------------------
 
-    def set_mode(self, mode: str, kind: str | None = None) -> None:
+    def set_mode(self, mode: str, kind: str | None = None, slot: int | None = None) -> None:
         """``"select"`` (pick, drag vertices, pan) or ``"draw"`` (click vertices of a new polygon of
-        ``kind``: ``"bodies"`` or ``"structures"``; by default what is being drawn, else a body)."""
+        ``kind``: ``"bodies"`` or ``"structures"``; by default what is being drawn, else a body; or
+        ``"water"``: water line ``slot``, clicked from left to right, which it replaces)."""
         if kind is None:
             kind = self.draw_kind if mode == self.mode else "bodies"
-        if kind not in POLYGON_KINDS:
-            raise ValueError(f"cannot draw {kind!r}: one of {', '.join(POLYGON_KINDS)}")
-        if mode == self.mode and kind == self.draw_kind:
+        if kind not in (*POLYGON_KINDS, "water"):
+            raise ValueError(f"cannot draw {kind!r}: one of {', '.join((*POLYGON_KINDS, 'water'))}")
+        slot = self.draw_slot if slot is None else int(slot)
+        if mode == self.mode and kind == self.draw_kind and (kind != "water" or slot == self.draw_slot):
             return
         self.draw_kind = kind
+        self.draw_slot = slot
         self.mode = mode
         self.draft = []
         self._cursor = None
         self.plotter.setCursor(Qt.CursorShape.CrossCursor if mode == "draw" else Qt.CursorShape.ArrowCursor)
-        if mode == "draw":
+        if mode == "draw" and kind == "water":
+            self.message.emit(f"Drawing the {water_line_noun(slot)}. Click its points from left to right; "
+                              "double-click or Enter to finish; Backspace removes the last, Esc cancels")
+        elif mode == "draw":
             noun = "body" if kind == "bodies" else "structure"
             self.message.emit(f"Drawing a {noun}. Click to add vertices; click the first vertex, double-click or Enter to close; "
                               "Backspace removes the last, Esc cancels")
@@ -683,6 +855,15 @@ class SceneView(QWidget):
     def add_draft_point(self, xy: Any) -> None:
         """Add a vertex to the polygon being drawn (closes it when ``xy`` is its first vertex)."""
         p = np.asarray(xy, dtype=float)
+        if self.draw_kind == "water":
+            if self.draft and p[0] <= self.draft[-1][0]:
+                self.message.emit(f"A water line goes from left to right: click right of x = "
+                                  f"{format_number(self.draft[-1][0])} m")
+                return
+            self.draft.append([float(p[0]), float(p[1])])
+            self._draw_draft()
+            self.plotter.render()
+            return
         if len(self.draft) >= 3:
             first = np.asarray(self.draft[0])
             if np.hypot(*(p - first)) <= PICK_PIXELS * self.pixel_size_m():
@@ -696,7 +877,9 @@ class SceneView(QWidget):
 
     def close_draft(self) -> bool:
         """Turn the drawn polygon into a new body of the selected (or first) material, or a new
-        structure (slip contact) when a structure is being drawn."""
+        structure (slip contact) when a structure is being drawn; or the water line being drawn."""
+        if self.draw_kind == "water":
+            return self._close_water()
         if len(self.draft) < 3:
             self.message.emit(f"A {'body' if self.draw_kind == 'bodies' else 'structure'} needs at least 3 vertices")
             return False
@@ -733,6 +916,18 @@ class SceneView(QWidget):
         self.set_mode("select")
         return True
 
+    def _close_water(self) -> bool:
+        if len(self.draft) < 2:
+            self.message.emit("A water line needs at least 2 points")
+            return False
+        slot, line = self.draw_slot, [list(p) for p in self.draft]
+        self.draft = []
+        self._cursor = None
+        set_water_line(self.doc, slot, line, f"draw the {water_line_noun(slot)}")
+        self.doc.selection.select("water", slot)
+        self.set_mode("select")
+        return True
+
     def cancel_draft(self) -> None:
         self.draft = []
         self._draw_draft()
@@ -755,6 +950,13 @@ class SceneView(QWidget):
             k = int(np.argmin(d))
             if d[k] <= tol and (best is None or d[k] < best[0] - 1e-12):
                 best = (float(d[k]), kind, i, k)
+        if best is None or sel.kind == "water":  # a selected water line wins over polygons
+            for slot in sorted(self.shown_water_slots(), key=lambda k: k != sel.index):
+                line = self._water_line(slot)
+                d = np.hypot(*(line - xy).T)
+                k = int(np.argmin(d))
+                if d[k] <= tol:
+                    return "water", slot, k
         return None if best is None else (best[1], best[2], best[3])
 
     def _polygon_at(self, xy: np.ndarray) -> tuple[str, int] | None:
@@ -818,6 +1020,11 @@ class SceneView(QWidget):
     def delete_selected_vertex(self) -> None:
         sel = self.doc.selection
         kind, index, vertex = sel.kind, sel.index, sel.vertex
+        if kind == "water" and index is not None and vertex is not None:
+            path = water_line_path(index)
+            self.doc.edit(f"delete vertex {vertex + 1} of the {water_line_noun(index)}",
+                          lambda d: get_path(d, path).pop(vertex))
+            return
         if kind not in POLYGON_KINDS or index is None or vertex is None:
             return
         self.doc.edit("delete vertex", lambda d: d[kind][index]["polygon_m"].pop(vertex))
@@ -858,6 +1065,8 @@ class SceneView(QWidget):
             key = f"drag-{self._drag_count}"
             if kind == "targets":
                 self.move_target(index, self.snapped(xy), merge_key=key)
+            elif kind == "water":
+                self.move_water_vertex(index, vertex, self.snapped(xy), merge_key=key)
             else:
                 self.move_vertex(index, vertex, self.snapped(xy, moving=self._drag), merge_key=key, kind=kind)
             return True

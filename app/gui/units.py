@@ -16,7 +16,7 @@ import re
 from app.gui.document import parse_number
 
 #: The SI unit of :mod:`projects.units` for each unit a field shows.
-_PROJECT_UNITS = {"Pa": "Pa", "kg/m³": "kg/m3", "kg/m3": "kg/m3", "m": "m", "s": "s"}
+_PROJECT_UNITS = {"Pa": "Pa", "kg/m³": "kg/m3", "kg/m3": "kg/m3", "N/m³": "N/m3", "m": "m", "s": "s"}
 _ANGLE = {"°", "deg", "degree", "degrees"}
 _NUMBER = re.compile(r"^\s*([-+]?[0-9 \u202f.,]*[0-9](?:[eE][-+]?[0-9]+)?)\s*(.*?)\s*$")
 
