@@ -23,20 +23,19 @@ def transfer_only(eng) -> None:
 @ti.kernel
 def _contact_everywhere(eng: ti.template()):
     for I in ti.grouped(eng.g_mom):
-        eng.g_mom[I] = eng._contact(I, eng.g_mom[I], 1.0, False, "updated", 0.0, 0.0)
-    if ti.static(eng.COLUMN_FRICTION):
-        eng._wall_columns(False)
+        eng.g_mom[I] = eng.contact.apply(I, eng.g_mom[I], 1.0, False, "updated", 0.0, 0.0)
+    eng.walls.columns_updated(0.0, ti.Vector([0.0, 0.0]), 0.0, False)
 
 
 def apply_contacts(eng, node_velocity: np.ndarray) -> np.ndarray:
     """The contact law of the sides and structures applied to a whole grid of node velocities,
     shape (nx, ny, 2) (every node as if it held material of unit mass), the friction sides' wall
-    columns included (``Engine._wall_columns``)."""
+    columns included (solver.walls)."""
     eng.g_mom.from_numpy(np.asarray(node_velocity, dtype=eng.np_float))
     eng.g_mass.fill(1.0)
     _contact_everywhere(eng)
     out = eng.g_mom.to_numpy()
     eng.g_mom.fill(0.0)  # the steps rely on zeros outside the box of written nodes
     eng.g_mass.fill(0.0)
-    eng.contact_step.fill(0.0)
+    eng.contact.contact_step.fill(0.0)
     return out

@@ -464,7 +464,7 @@ def test_classic_mpm_is_flip_away_from_contacts_and_pic_at_contact_nodes(side):
         v1 = e.v.to_numpy()
         g_new = e.g_mom.to_numpy()
         g_old = e.g_v_old.to_numpy()
-        held = (e.node_struct.to_numpy() >= 0) if structures else np.zeros(g_new.shape[:2], bool)
+        held = (e.contact.node_struct.to_numpy() >= 0) if structures else np.zeros(g_new.shape[:2], bool)
         if side == "bottom":
             held[:, :PAD + 1] = True
         elif side == "left":
