@@ -29,8 +29,8 @@ solved by fixed-point iteration from the ordinary (Fellenius 1936) value
 ``F = sum[c' l + (W - u b) cos(alpha) tan(phi')] / (sum[W sin(alpha)] + M_w / R)`` with
 ``l = b / cos(alpha)`` (the effective normal force ``(W - u b) cos(alpha)``, Duncan and Wright
 2005 ch. 6: the older ``W cos(alpha) - u l`` goes far wrong, even negative, under high pore
-pressure and deep free water, Whitman and Bailey 1967). For ``phi = 0`` both reduce to the same exact moment balance of a circle.
-``m_alpha / cos(alpha) = 1 + tan(alpha) tan(phi) / F`` is floored at 0.2 (the usual guard
+pressure and deep free water, Whitman and Bailey 1967). For ``phi = 0`` both reduce to the
+same exact moment balance of a circle. ``m_alpha / cos(alpha) = 1 + tan(alpha) tan(phi) / F`` is floored at 0.2 (the usual guard
 against steep negative base angles at the toe of deep circles, after Whitman and Bailey 1967);
 it never acts where phi = 0. The effective base force ``W - u b`` is floored at 0 (no tension).
 In each column ``c' b`` is written ``c' l cos(alpha)`` with the exact length ``l`` of the arc
@@ -52,28 +52,37 @@ line); both are polylines in x, extended horizontally beyond their ends.
 - Free water stands wherever the free-water line is above the ground surface (a reservoir, a
   flooded toe). Its weight ``gamma_w (h_fw - y_ground)`` per unit width is added to the weight
   ``W`` of each slice below it (where it covers the ground the phreatic line must be at or above
-  its surface, so that the pore pressure below is at least hydrostatic), and the horizontal thrust of the free water on each end
-  of the sliding mass, ``P = gamma_w d^2 / 2`` on the vertical from the arc's end (depth ``d``
-  below the free-water surface) up to the surface, acting ``d / 3`` above the arc's end, enters
-  the moment balance as ``M_w`` (its moment about the centre, positive where it drives the
-  slide). The water outside the sliding mass thus holds it as a buttress; for still water this
-  is the same as submerged weights with the pore pressure in excess of hydrostatic, and buoyancy
-  alone changes no factor of a cohesionless slope. Rapid drawdown: a free-water line below the
-  phreatic line (the reservoir has fallen, the water in the slope has not).
+  its surface, so that the pore pressure below is at least hydrostatic), and the horizontal
+  thrust of the free water on each end of the sliding mass, ``P = gamma_w d^2 / 2`` on the
+  vertical from the arc's end (depth ``d`` below the free-water surface) up to the surface,
+  acting ``d / 3`` above the arc's end, enters the moment balance as ``M_w`` (its moment about the centre, positive where it drives the
+  slide). The water outside the sliding mass thus holds it as a buttress. Where the submerged
+  end(s) of the mass stand in one level water body (the free water over the mass all at the
+  same level ``h``) the water's weight and thrust together are, exactly in the continuum, the
+  buoyancy ``gamma_w (min(h, y_ground) - y_base) b`` of each slice's soil below ``h`` (Archimedes
+  over the sliding mass): ``M_w`` is evaluated in that form, on the slices' own lever arms, so
+  that deep water's large weight and thrust do not cancel through the raster's round-off. Hence
+  still water is the same as buoyant weights below it with the pore pressure in excess of
+  hydrostatic, and buoyancy alone changes no factor of a cohesionless slope. Rapid drawdown: a
+  free-water line below the phreatic line (the reservoir has fallen, the water in the slope has
+  not).
 - ``ru`` (Bishop and Morgenstern 1960, "Stability coefficients for earth slopes", Geotechnique
   10(4), 129-150): a soil's pore-pressure ratio gives ``u = ru sigma_v`` on a slice base in it,
-  ``sigma_v = W / b`` the vertical total stress there. Where a water line also applies the
+  ``sigma_v = W / b`` the vertical total stress there (free water standing on it included). Where a water line also applies the
   larger of the two pore pressures is taken.
 
 On an infinite slope of angle ``b`` with a slip plane at depth ``z`` (seepage parallel to the
-slope, the line at ``m z`` above the plane, cos^2 correction) these give the closed forms
+slope, the line at ``m z`` above the plane, cos^2 correction; ``gamma_m`` the moist unit weight)
+these give the closed forms
 ``F = [c' + (gamma_m (1 - m) z + gamma_sat m z - gamma_w m z) cos^2(b) tan(phi')]
 / [(gamma_m (1 - m) z + gamma_sat m z) sin(b) cos(b)]`` and, with ``ru``,
 ``F = c' / (gamma z sin(b) cos(b)) + (1 - ru / cos^2(b)) tan(phi') / tan(b)``.
 
 Slices are the columns of a fine raster over the section (``columns`` of them, default 300):
 the weight of a slice is the raster's cumulative weight above the slip surface in its column
-(``rows`` cells per column, default 600), its strength that of the soil at the base. A slip
+(``rows`` cells per column, default 600), its strength that of the soil at the base. Where an
+arc comes out of the ground and goes back in (in front of the toe of a cut standing on a floor,
+under a hollow) the sliding mass is its run of columns with the most soil above the arc. A slip
 circle must cut at least ``MIN_SLICES`` columns, and its driving moment must exceed
 ``DRIVE_MIN`` of its weight times its radius (a circle in level ground drives nothing; the
 raster's round-off is not a mechanism): where no circle is left, the search raises
@@ -366,6 +375,8 @@ class Section:
                                  f"y = {float(self.phreatic[low[0]]):.6g} m; where free water covers the ground "
                                  f"the phreatic line must be at or above its surface")
         self.weight_above = above
+        #: a step of the ground between neighbouring columns higher than this is a vertical face
+        self._face_step = max(4.0 * self.dy, 5.0 * self.dx)
         self.wet = water is not None or bool(np.any(self.ru > 0.0))
 
     # ------------------------------------------------------------------ slices of circles
@@ -411,14 +422,18 @@ class Section:
         # an arc that passes through an end of the section below the ground there: not admissible
         # at a wall; at a free end it comes out through the face, above the face's foot
         ends_ok = np.ones(len(xc), dtype=bool)
-        for col, edge, side, free in ((0, self.x_min, -half, self.free_ends[0]),
-                                      (-1, self.x_max, half, self.free_ends[1])):
+        for col, edge, side, free, inner in ((0, self.x_min, -half, self.free_ends[0], 1),
+                                             (-1, self.x_max, half, self.free_ends[1], -2)):
             through = mass[:, col] & (np.abs(dxs[:, col] + side) < d_exit[:, col])
+            y_edge = yc - np.sqrt(np.clip(r ** 2 - (edge - xc) ** 2, 0.0, None))
             if free:
-                y_edge = yc - np.sqrt(np.clip(r ** 2 - (edge - xc) ** 2, 0.0, None))
                 ends_ok &= ~through | (y_edge >= self.bottom[col] - tol)
             else:
-                ends_ok &= ~through
+                # the ground at the wall: the end column's top carried on to the edge along the
+                # surface's slope there (a toe at the section's corner), unless a face is there
+                top, step = self.top[col], self.top[inner] - self.top[col] if len(self.x) > 1 else 0.0
+                at_wall = top if abs(step) > self._face_step else max(top - 0.5 * step, self.bottom[col])
+                ends_ok &= ~through | (y_edge >= at_wall - tol)
         # the lower arc must come out through the ground on both sides: its ends (xc -+ r, yc) lie
         # above the ground (else the slip surface would have to turn back over the centre)
         buried = (self._ground_beyond(xc - r) > yc) | (self._ground_beyond(xc + r) > yc)
@@ -622,7 +637,7 @@ def _surface_points(section: Section, radii: int) -> tuple[np.ndarray, np.ndarra
     levels = np.array([0.0, 0.1, 0.25, 0.5, 0.75])
     top, has = section.top, section.has_material
     step = np.abs(np.diff(top))
-    for j in np.flatnonzero((step > max(4.0 * section.dy, 5.0 * section.dx)) & has[:-1] & has[1:]):
+    for j in np.flatnonzero((step > section._face_step) & has[:-1] & has[1:]):
         lo, hi = sorted((top[j], top[j + 1]))
         fx.extend([section.x_min + (j + 1) * section.dx] * len(levels))
         fy.extend(lo + levels * (hi - lo))

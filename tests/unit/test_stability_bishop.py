@@ -20,7 +20,15 @@ import math
 import numpy as np
 import pytest
 
-from stability.bishop import Circle, Section, Soil, bishop_factor, critical_circle, fellenius_factor, slices_factor
+from stability.bishop import (
+    Circle,
+    Section,
+    Soil,
+    bishop_factor,
+    critical_circle,
+    fellenius_factor,
+    slices_factor,
+)
 
 GAMMA = 20e3  # N/m3
 

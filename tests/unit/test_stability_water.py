@@ -27,7 +27,14 @@ import math
 import numpy as np
 import pytest
 
-from stability.bishop import Circle, Section, Soil, Water, bishop_factor, critical_circle
+from stability.bishop import (
+    Circle,
+    Section,
+    Soil,
+    Water,
+    bishop_factor,
+    critical_circle,
+)
 
 GW = 9810.0
 L = 20.0  # the infinite slope's segment (m)
@@ -117,6 +124,22 @@ def test_still_water_equals_buoyant_weights_below_it(level_m, circle):
     assert f_wet == pytest.approx(f_dry, rel=0.005)
 
 
+@pytest.mark.parametrize("level_m", [2.0, 5.0, 8.0])
+@pytest.mark.parametrize("circle", [Circle(30.0, 25.0, 26.0), Circle(26.0, 16.0, 17.0)])
+def test_free_water_thrust_on_the_ends_equals_buoyant_weights(level_m, circle):
+    """A free-water line that is not one level (1 mm of rise over 67 m) takes the thrust on the
+    ends of the sliding mass and the weight of the water explicitly: the same factor as buoyant
+    weights below the level."""
+    polygon, _, end = simple_slope(10.0, 30.0)
+    c, phi, gamma, gamma_sat = 8e3, math.radians(30.0), 18e3, 20.5e3
+    water = Water(np.array([[0.0, level_m + 1e-3], [end, level_m + 1e-3]]),
+                  free_water_line=np.array([[0.0, level_m], [end, level_m + 1e-3]]))
+    wet = Section([polygon], [Soil(c, phi, gamma, gamma_sat)], columns=300, rows=600, water=water)
+    dry = Section([polygon, clip_below(polygon, level_m)], [Soil(c, phi, gamma), Soil(c, phi, gamma_sat - GW)],
+                  columns=300, rows=600)
+    assert bishop_factor(wet, circle) == pytest.approx(bishop_factor(dry, circle), rel=0.005)
+
+
 def clip_below(polygon, level):
     """The part of a polygon below y = level (Sutherland-Hodgman against one edge)."""
     out = []
@@ -171,10 +194,10 @@ def test_dry_water_none_and_a_line_below_everything_agree():
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(phreatic_line=[[0.0, 1.0], [0.0, 2.0]]), "phreatic_line: x = .* must increase strictly"),
-    (dict(phreatic_line=[[0.0, 1.0], [5.0, 2.0]], free_water_line=[[3.0, 1.0], [1.0, 2.0]]), "free_water_line: x"),
-    (dict(phreatic_line=[[0.0, 1.0], [5.0, 2.0]], unit_weight_n_m3=-1.0), "unit_weight_n_m3 = -1.0"),
-    (dict(phreatic_line="abc"), "phreatic_line = 'abc'"),
+    ({"phreatic_line": [[0.0, 1.0], [0.0, 2.0]]}, "phreatic_line: x = .* must increase strictly"),
+    ({"phreatic_line": [[0.0, 1.0], [5.0, 2.0]], "free_water_line": [[3.0, 1.0], [1.0, 2.0]]}, "free_water_line: x"),
+    ({"phreatic_line": [[0.0, 1.0], [5.0, 2.0]], "unit_weight_n_m3": -1.0}, "unit_weight_n_m3 = -1.0"),
+    ({"phreatic_line": "abc"}, "phreatic_line = 'abc'"),
 ])
 def test_water_bad_input_one_line_errors(kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -182,9 +205,9 @@ def test_water_bad_input_one_line_errors(kwargs, match):
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(saturated_unit_weight_n_m3=15e3), "saturated_unit_weight_n_m3 = 15000.0: must be finite and at least"),
-    (dict(ru=1.0), "ru = 1.0: allowed 0 <= ru < 1"),
-    (dict(ru=-0.1), "ru = -0.1"),
+    ({"saturated_unit_weight_n_m3": 15e3}, "saturated_unit_weight_n_m3 = 15000.0: must be finite and at least"),
+    ({"ru": 1.0}, "ru = 1.0: allowed 0 <= ru < 1"),
+    ({"ru": -0.1}, "ru = -0.1"),
 ])
 def test_soil_bad_water_keys_one_line_errors(kwargs, match):
     with pytest.raises(ValueError, match=match):
