@@ -219,10 +219,57 @@ def structure_patches(ax, structures: Sequence[Mapping[str, Any]] | None) -> Non
                     color="0.25", zorder=4)
 
 
+def water_lines(project: Any, summary: Mapping[str, Any]) -> list[tuple[str, Any, Any]]:
+    """The water lines a report draws on the section: (label, phreatic line, free-water line or
+    None), each (K, 2) m: at the start, at the end of the run where a stage moved it, and at the
+    failure where ``summary.json`` has ``water_at_failure``."""
+    if project is None or getattr(project, "water", None) is None:
+        return []
+    from projects.build import solver_water
+
+    waters = solver_water(project)
+    out = [("water at the start", waters[0].phreatic_line_m, waters[0].free_water_line_m)]
+    failure = summary.get("water_at_failure")
+    if isinstance(failure, Mapping) and failure.get("phreatic_line_m"):
+        out.append((f"water at the failure (t = {_fmt(failure.get('time_s'), 's')})", failure["phreatic_line_m"],
+                    failure.get("free_water_line_m")))
+    if waters[-1] != waters[0]:
+        out.append(("water at the end", waters[-1].phreatic_line_m, waters[-1].free_water_line_m))
+    return out
+
+
+#: How each of :func:`water_lines` is drawn: colour and line style.
+_WATER_STYLES = (("#1565c0", "-"), ("#c2185b", "-."), ("#1565c0", "--"))
+
+
+def _water_on(ax, water: Sequence[tuple[str, Any, Any]], x_range: tuple[float, float],
+              ground: tuple[Any, Any] | None = None) -> None:
+    """Draw the water lines on a section's axes; the first one's free water shaded above ``ground``
+    (x, y of the ground surface)."""
+    from app.render import water_line_across
+
+    x0, x1 = x_range
+    for k, (label, phreatic, free) in enumerate(water):
+        color, style = _WATER_STYLES[min(k, len(_WATER_STYLES) - 1)]
+        line = water_line_across(phreatic, x0, x1)
+        ax.plot(line[:, 0], line[:, 1], color=color, ls=style, lw=1.6, label=f"phreatic line, {label}")
+        if free is not None:
+            level = water_line_across(free, x0, x1)
+            ax.plot(level[:, 0], level[:, 1], color="#0b8fd6", ls=style, lw=1.0, label=f"free-water line, {label}")
+        else:
+            level = line
+        if k == 0 and ground is not None:
+            gx, gy = (np.asarray(v, dtype=float) for v in ground)
+            wy = np.interp(gx, level[:, 0], level[:, 1])
+            ax.fill_between(gx, gy, wy, where=wy > gy, color="#a9d8f7", alpha=0.8, step="mid", lw=0,
+                            label="free water")
+
+
 def profiles_png(doc: Mapping[str, Any], path: Path,
-                 structures: Sequence[Mapping[str, Any]] | None = None) -> Path:
+                 structures: Sequence[Mapping[str, Any]] | None = None,
+                 water: Sequence[tuple[str, Any, Any]] | None = None) -> Path:
     """Envelope profiles along the section, targets and run-out points marked; ``structures``
-    (``summary.json``'s) drawn on the surfaces."""
+    (``summary.json``'s) drawn on the surfaces, and the ``water`` lines (:func:`water_lines`)."""
     p = doc["profile"]
     x = p["x_m"]
     fig = _figure(9.0, 10.5)
@@ -230,6 +277,8 @@ def profiles_png(doc: Mapping[str, Any], path: Path,
     ax = axes[0]
     ax.fill_between(x, p["floor_m"], p["ground_m"], color="0.85", step="mid", label="material at the release")
     structure_patches(ax, structures)
+    if water:
+        _water_on(ax, water, (float(x[0]), float(x[-1])), (x, p["ground_m"]))
     ax.step(x, p["ground_m"] + p["peak_flow_height_m"], where="mid", color="tab:orange",
             label="ground + peak flow height")
     ax.step(x, p["surface_m"], where="mid", color="tab:brown", lw=1.6, label="surface at the end")
@@ -508,6 +557,69 @@ def project_source(summary: Mapping[str, Any]) -> str:
     return str(path) if path else "-"
 
 
+def line_text(line: Any) -> str:
+    """A water line in words: ``level at y = 5 m`` or ``from y = 8 m at x = 0 m to y = 2 m at x = 40 m
+    (points (0, 8), (20, 5), (40, 2))``."""
+    pts = np.asarray(line, dtype=float).reshape(-1, 2)
+    if not len(pts):
+        return "-"
+    if np.allclose(pts[:, 1], pts[0, 1], rtol=0.0, atol=1e-9):
+        return f"level at y = {_fmt(pts[0, 1], 'm')}"
+    listed = ", ".join(f"({pt[0]:.4g}, {pt[1]:.4g})" for pt in pts[:12]) + (", ..." if len(pts) > 12 else "")
+    return (f"from y = {_fmt(pts[0, 1], 'm')} at x = {_fmt(pts[0, 0], 'm')} to y = {_fmt(pts[-1, 1], 'm')} at "
+            f"x = {_fmt(pts[-1, 0], 'm')} (points {listed} m)")
+
+
+def _stage_text(stage: Any, project: Any) -> str:
+    stages = list(getattr(project, "stages", []) or [])
+    if isinstance(stage, bool):
+        return str(stage)
+    if isinstance(stage, int) and 0 <= stage < len(stages):
+        return f"stage {stage + 1} ({stages[stage].name or stages[stage].type})"
+    if isinstance(stage, str):
+        for i, st in enumerate(stages):
+            if st.name == stage:
+                return f"stage {i + 1} ({stage})"
+        return f"stage {stage}"
+    return "an unknown stage"
+
+
+def water_sentences(project: Any, summary: Mapping[str, Any]) -> list[str]:
+    """The report's words on the ground water: where it was at the start, where each stage moved
+    it, and where it was when the slope failed (``summary.json`` ``water_at_failure``)."""
+    out = []
+    water = getattr(project, "water", None) if project is not None else None
+    if water is not None:
+        text = f"At the start the phreatic line is {line_text(water.phreatic_line_m)}"
+        if water.free_water_line_m is not None:
+            text += f", the free water {line_text(water.free_water_line_m)}"
+        out.append(text + f" (unit weight of water {_fmt(water.unit_weight_n_m3 / 1000.0, 'kN/m3')}"
+                   + (", inclined-line correction" if water.inclined_line_correction else "") + ").")
+        for i, stage in enumerate(project.stages):
+            move = stage.water
+            if move is None:
+                continue
+            what = []
+            if move.phreatic_line_m is not None:
+                what.append(f"the phreatic line to {line_text(move.phreatic_line_m)}")
+            if move.free_water_line_m is not None:
+                what.append(f"the free water to {line_text(move.free_water_line_m)}")
+            over = "at once" if stage.type == "k0" or not stage.duration_s else f"over {_fmt(stage.duration_s, 's')}"
+            out.append(f"{_stage_text(i, project).capitalize()} moves {' and '.join(what)}, {over}.")
+    if "water_at_failure" in summary:
+        failure = summary.get("water_at_failure")
+        if isinstance(failure, Mapping):
+            text = (f"The slope failed at t = {_fmt(failure.get('time_s'), 's')}, in "
+                    f"{_stage_text(failure.get('stage'), project)}, with the phreatic line "
+                    f"{line_text(failure.get('phreatic_line_m') or [])}")
+            if failure.get("free_water_line_m"):
+                text += f" and the free water {line_text(failure['free_water_line_m'])}"
+            out.append(text + ".")
+        else:
+            out.append("The slope did not fail under the water of this run.")
+    return out
+
+
 def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str] | None = None,
                  *, scene_size: tuple[int, int] = (1200, 560)) -> Path:
     """Write the hazard report of a results folder.
@@ -561,7 +673,8 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
         after = "displacement" if "displacement" in have else before
         pictures["scene_before"] = render_frame(res, 0, before, out / "scene_before.png", size=scene_size)
         pictures["scene_after"] = render_frame(res, -1, after, out / "scene_after.png", size=scene_size)
-    pictures["profiles"] = profiles_png(doc, out / "profiles.png", summary.get("structures"))
+    water = water_lines(project, summary)
+    pictures["profiles"] = profiles_png(doc, out / "profiles.png", summary.get("structures"), water)
     pictures["energy"] = energy_png(res.series, doc, out / "energy.png")
     pictures["targets"] = targets_png(doc, out / "targets.png")
     contact_table = _read_contacts(res.path / CONTACTS_CSV)
@@ -596,6 +709,14 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
                  f"{doc['sampling']['every_steps']} steps and at every frame ({doc['sampling']['updates']} updates): "
                  "a peak between updates is missed by at most its change over one interval, an arrival is late by "
                  "less than one interval.</p>")
+
+    water_text = water_sentences(project, summary)
+    if water_text:
+        parts.append("<h2>Ground water</h2>")
+        parts.extend(f"<p>{html.escape(t)}</p>" for t in water_text)
+        parts.append("<p class='note'>The phreatic line is drawn blue in the pictures (dashed: at the end of the "
+                     "run, dash-dotted: at the failure), the free water shaded light blue where it stands above "
+                     "the ground; the scene pictures show the water of their frame's time.</p>")
 
     parts.append("<h2>Scene before and after</h2><div class='scene'>")
     parts.append(_img(pictures.get("scene_before"), "the scene at the first frame"))
