@@ -520,6 +520,7 @@ class SceneView(QWidget):
 
         pl = self.plotter
         for name in ("water-fill", "water-line-0", "water-line-1", "water-stage-0", "water-stage-1",
+                     "water-line-0-halo", "water-line-1-halo", "water-stage-0-halo", "water-stage-1-halo",
                      "water-vertices", "water-vertex", "water-labels-labels"):
             pl.remove_actor(name, render=False)
         box = self._domain_box()
@@ -555,13 +556,19 @@ class SceneView(QWidget):
             width = (3.0 if which == 0 else 2.0) if stage == 0 else 2.5
             segments = [(across[k], across[k + 1]) for k in range(len(across) - 1)]
             if segments:
-                self._add(_lines(segments), color=color, line_width=width, name=name, lighting=False,
-                          pickable=False)
+                # a white edge keeps the line readable over particles of any colour (tab10's blue)
+                halo = self._add(_lines(segments), color="white", line_width=width + 3.0, name=f"{name}-halo",
+                                 lighting=False, pickable=False)
+                drawn = self._add(_lines(segments), color=color, line_width=width, name=name, lighting=False,
+                                  pickable=False)
+                halo.SetPosition(0.0, 0.0, 0.02)  # over the particles (z = 0.01), the line over its edge
+                drawn.SetPosition(0.0, 0.0, 0.025)
                 # named at a quarter (the project's) or three quarters (a stage's) of the domain
                 at = x0 + (0.25 if stage == 0 else 0.75) * (x1 - x0) + (0.1 * (x1 - x0) if which else 0.0)
                 kind = "free water" if which else "phreatic line"
-                labels.append(f"▽ {kind}" if stage == 0 else f"▽ {kind} after stage {stage}")
-                label_points.append([at, float(line_height(line, np.array([at]))[0]), 0.05])
+                labels.append(kind if stage == 0 else f"{kind} after stage {stage}")
+                lift = 0.015 * (box[3] - box[2])  # just above the line, clear of it
+                label_points.append([at, float(line_height(line, np.array([at]))[0]) + lift, 0.05])
         if labels:
             self._add_water_labels(label_points, labels)
         sel = self.doc.selection
@@ -578,7 +585,8 @@ class SceneView(QWidget):
         from app.render import WATER_LINE_COLOR
 
         self.plotter.add_point_labels(np.array(points), labels, name="water-labels", font_size=10,
-                                      text_color=WATER_LINE_COLOR, shape=None, show_points=False,
+                                      text_color=WATER_LINE_COLOR, shape="rect", shape_color="white",
+                                      shape_opacity=0.85, margin=2, show_points=False,
                                       always_visible=True, render=False, reset_camera=False,
                                       justification_horizontal="center", justification_vertical="bottom")
 
@@ -672,6 +680,11 @@ class SceneView(QWidget):
         if targets:
             extra += (f' &nbsp;<span style="color:{TARGET_COLOR}">┃</span>&nbsp;'
                       f'{targets} target{"" if targets == 1 else "s"}')
+        if self._water_line(0) is not None:
+            from app.render import FREE_WATER_COLOR, WATER_LINE_COLOR
+
+            extra += (f' &nbsp;<span style="color:{WATER_LINE_COLOR}">━</span>&nbsp;phreatic line'
+                      f' &nbsp;<span style="color:{FREE_WATER_COLOR}; font-size:14px">■</span>&nbsp;free water')
         grid = f"&nbsp;&nbsp;&nbsp;&nbsp;grid lines every {self.grid_step} cells" if self.grid_step > 1 else ""
         self.legend.setText(f"<b>Materials</b>&nbsp; {'&nbsp;&nbsp;'.join(parts) or 'none'}"
                             f" &nbsp;&nbsp;&nbsp;<b>Boundaries</b>{sides}"
