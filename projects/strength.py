@@ -255,18 +255,27 @@ def crest_point(positions_m: np.ndarray, gravity_m_s2, spacing_m: float) -> np.n
     return point_u * across + point_h * up
 
 
-def limit_equilibrium(project: Project, gravity_m_s2=None) -> Any:
+def limit_equilibrium(project: Project, gravity_m_s2=None, water: sc.Water | None = None) -> Any:
     """Bishop's critical circle of the project's bodies (in model coordinates).
 
-    Each body's material is a Mohr-Coulomb soil (``c``, ``phi``, ``rho |g|``; a linear-elastic
-    body is given a strength no slip circle will go through). The section is rotated so that
-    gravity points down; the circle's centre is rotated back.
+    Each body's material is a Mohr-Coulomb soil (``c'``, ``phi'``, ``rho |g|`` above the phreatic
+    line, the saturated density below it, its ``ru``; a linear-elastic body is given a strength
+    no slip circle will go through). ``water`` is the ground water in force (the phreatic and
+    free-water lines; None: dry). The section is rotated so that gravity points down; the
+    circle's centre is rotated back. An end of the section is a free face where the bodies stand
+    off that side of the domain or the side is open; else it is a wall no circle passes through.
 
     Returns
     -------
     stability.bishop.SlipResult, with the circle in model coordinates
+
+    Raises
+    ------
+    ValueError
+        One line: no admissible circle (stability.bishop.NoAdmissibleCircle), or water lines
+        that the rotation into gravity's frame folds back.
     """
-    from stability.bishop import Circle, Section, Soil, critical_circle
+    from stability.bishop import Circle, Section, Soil, Water, critical_circle
 
     g = np.asarray(project.domain.gravity_m_s2 if gravity_m_s2 is None else gravity_m_s2, dtype=float)
     gn = float(np.linalg.norm(g))
@@ -277,14 +286,39 @@ def limit_equilibrium(project: Project, gravity_m_s2=None) -> Any:
         pts = np.asarray(body.polygon_m, dtype=float)
         polygons.append(np.c_[pts @ across, pts @ up])
         if m.model == "drucker-prager":
-            soils.append(Soil(m.cohesion_pa or 0.0, math.radians(m.friction_angle_deg or 0.0), m.density_kg_m3 * gn))
+            wet = None if m.saturated_density_kg_m3 is None else m.saturated_density_kg_m3 * gn
+            soils.append(Soil(m.cohesion_pa or 0.0, math.radians(m.friction_angle_deg or 0.0), m.density_kg_m3 * gn,
+                              saturated_unit_weight_n_m3=wet, ru=m.ru or 0.0))
         else:
             soils.append(Soil(1e12, 0.0, m.density_kg_m3 * gn))
-    section = Section(polygons, soils)
+    section_water = None
+    if water is not None:
+        def rotated(line):
+            pts = np.asarray(line, dtype=float)
+            return np.c_[pts @ across, pts @ up]
+
+        section_water = Water(rotated(water.phreatic_line_m), rotated(water.free_water),
+                              unit_weight_n_m3=water.unit_weight_n_m3 * gn / math.hypot(*project.domain.gravity_m_s2),
+                              inclined_correction=water.inclined_correction)
+    section = Section(polygons, soils, water=section_water, free_ends=_free_ends(project))
     result = critical_circle(section)
     c = result.circle
     centre = c.centre_x_m * across + c.centre_y_m * up
     return replace(result, circle=Circle(float(centre[0]), float(centre[1]), c.radius_m))
+
+
+def _free_ends(project: Project) -> tuple[bool, bool]:
+    """Whether the section's left and right ends are free faces (for Bishop's search): the side is
+    open, or the bodies stand off it by more than a cell. Gravity along -y only; otherwise walls."""
+    g = project.domain.gravity_m_s2
+    if abs(g[0]) > 1e-12 * abs(g[1]):
+        return (False, False)
+    xs = np.concatenate([np.asarray(b.polygon_m, dtype=float)[:, 0] for b in project.bodies])
+    lo = project.domain.origin_m[0]
+    hi = lo + project.domain.size_m[0]
+    dx = project.domain.cell_size_m
+    sides = project.domain.boundaries
+    return (sides.left.type == "open" or xs.min() > lo + dx, sides.right.type == "open" or xs.max() < hi - dx)
 
 
 # ------------------------------------------------------------------------------ the driver
@@ -321,6 +355,13 @@ class StrengthReduction:
     _frames: int = 0
 
     # -------------------------------------------------------------- parts of the configuration
+    @property
+    def water(self) -> sc.Water | None:
+        """The ground water the trials stand in: where the stages before this one left it."""
+        from projects.build import solver_water
+
+        return solver_water(self.project)[self.settings.stage_index]
+
     @property
     def solver_split(self) -> int:
         """Number of solver stages before the strength-reduction stage."""
@@ -363,7 +404,7 @@ class StrengthReduction:
         cfg = sim.config
         if s.limit_equilibrium:
             try:
-                self.limit = limit_equilibrium(self.project)
+                self.limit = limit_equilibrium(self.project, water=self.water)
             except ValueError as err:
                 self.limit_error = str(err)
                 logger.warning("limit equilibrium: %s", err)

@@ -613,8 +613,10 @@ class Contacts:
                 F = R
             sig = F @ e.force_stress(p) @ R
             m = e.particle_mass(p)
-            vol = m / e.rho[p]
+            vol = e.particle_volume(p)
             body = F @ (m * g)
+            if ti.static(e.wet):
+                body += F @ e.water_force(p, vol)
             # only where the particle's stencil reaches a contact node of this structure
             base, fx, w, dw = e._stencil(x)
             held = 0.0

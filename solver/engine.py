@@ -99,7 +99,7 @@ class Engine:
     def __init__(self, grid: Grid, materials: tuple[Material, ...], n_particles: int, scheme: str,
                  np_float=np.float32, speed_bound_m_s: float = 1e30, remove_unstable: bool = False,
                  damping: bool = True, scatter: str = "auto", bands: int | None = None,
-                 structures: tuple[Structure, ...] = (), viscous: bool | None = None):
+                 structures: tuple[Structure, ...] = (), viscous: bool | None = None, water=None):
         if scheme not in ("mpm", "apic", "apic-affine"):
             raise ValueError(f"unknown scheme {scheme!r}; allowed: mpm, apic, apic-affine")
         self.scheme = scheme
@@ -143,6 +143,10 @@ class Engine:
                                else bool(viscous))
         self.contact = Contacts(self, structures)
         self.walls = MirrorWalls(self)
+        #: ground water (solver.groundwater.GroundWater, built by the caller where a run has water;
+        #: None: dry, and none of it is compiled in)
+        self.water = water
+        self.wet = water is not None
         self.structures = self.contact.structures
         self.n_structures = self.contact.n_structures
         self.n_contacts = self.contact.n_contacts
@@ -317,6 +321,7 @@ class Engine:
         c, walls, periodic = self.contact, self.walls, self.periodic
         if self.six_stage:  # mpm, apic: MPM-APIC's six stages
             stages = (
+                ("ground water", self.water_step, self.wet),
                 ("reset grid", self.reset_grid, True),                           # 1
                 ("corner normals", c.material_normals, c.has_zone),
                 ("P2G momentum", self.p2g_momentum, True),                      # 2: eqs 14-15
@@ -338,6 +343,7 @@ class Engine:
             )
         else:  # apic-affine: improved MPM-APIC's four stages
             stages = (
+                ("ground water", self.water_step, self.wet),
                 ("reset grid", self.reset_grid, True),                           # 1
                 ("corner normals", c.material_normals, c.has_zone),
                 ("P2G with stress and force", self.p2g_with_stress, True),      # 2: eqs 14-15, 24-30
@@ -376,6 +382,12 @@ class Engine:
                 stage(dt, g, damping, damped)
 
     # ------------------------------------------------------------------ the method's stages
+    @ti.func
+    def water_step(self, dt, g, damping, damped: ti.template()):
+        """The ground water's lines moved on by the step, and the step's gravity for its pressure."""
+        for _ in range(1):
+            self.water.begin_step(dt, g)
+
     @ti.func
     def reset_grid(self, dt, g, damping, damped: ti.template()):
         """Clear the nodes the last step wrote (and the contact's material normals there)."""
@@ -485,14 +497,33 @@ class Engine:
         scatter, the walls' ghost forces, the structures' mirror images)."""
         s = self.s[p]
         sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
+        if ti.static(self.wet):
+            # the pore pressure in excess of the free water's (solver/water.py): total stress
+            # sigma' - u I, less the free water's pressure, which acts as buoyancy (body_force)
+            sig -= self.water.excess_pressure(self.x[p], self.mat[p], s) * ti.Matrix.identity(float, 2)
         return self.damping.add_stress(p, sig)
 
     @ti.func
     def particle_mass(self, p):
         """The mass particle p gives the grid (kg/m): in P2G its mass and momentum shares and its
         body force ``weight * m * g`` (eq 10), in every force pass (the six-stage force scatter,
-        the walls' ghost forces, the structures' mirror images)."""
-        return self.m[p]
+        the walls' ghost forces, the structures' mirror images). Below the phreatic line the
+        saturated soil's."""
+        m = self.m[p]
+        if ti.static(self.wet):
+            m *= self.water.mass_ratio(self.x[p], self.mat[p])
+        return m
+
+    @ti.func
+    def particle_volume(self, p):
+        """Particle p's volume (m2 per m): its own mass over its density."""
+        return self.m[p] / self.rho[p]
+
+    @ti.func
+    def water_force(self, p, vol):
+        """The free water's pressure on particle p of volume vol, -vol grad p_w (N/m; buoyancy);
+        call only where ``self.wet``."""
+        return vol * self.water.buoyancy(self.x[p])
 
     # ------------------------------------------------------------------ particle passes
     # P2G and the force scatter visit every active particle: an update that writes the particle's
@@ -547,6 +578,8 @@ class Engine:
             weight = w[i][0] * w[j][1]
             grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
             force = -vol * mat_vec(sig, grad) + weight * m * g
+            if ti.static(self.wet):
+                force += weight * self.water_force(p, vol)
             I = base + offset
             self.to_grid.add(self.g_mass, I, weight * m)
             if ti.static(fuse_force):
@@ -640,7 +673,10 @@ class Engine:
         for i, j in ti.static(ti.ndrange(3, 3)):
             weight = w[i][0] * w[j][1]
             grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
-            self.to_grid.add(self.g_f, base + ti.Vector([i, j]), -vol * mat_vec(sig, grad) + weight * m * g)
+            force = -vol * mat_vec(sig, grad) + weight * m * g
+            if ti.static(self.wet):
+                force += weight * self.water_force(p, vol)
+            self.to_grid.add(self.g_f, base + ti.Vector([i, j]), force)
 
     @ti.func
     def _grid_update(self, dt, damping):
@@ -737,7 +773,7 @@ class Engine:
         ti.loop_config(serialize=self.plain)
         for p in range(self.n):
             if self.active[p]:
-                m = self.m[p]
+                m = self.particle_mass(p)
                 v = self.v[p]
                 self.diag[0] += 0.5 * m * v.dot(v)
                 self.diag[1] += m * v[0]

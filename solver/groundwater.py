@@ -9,7 +9,6 @@ Symbols: ``x`` a particle position (engine coordinates, m), ``g`` the step's gra
 ``s`` a particle's effective stress vec4 (xx, yy, xy, zz; Pa, tension positive).
 """
 
-from __future__ import annotations
 
 from collections.abc import Sequence
 
@@ -45,17 +44,20 @@ class GroundWater:
         self.full_g = float(np.linalg.norm(g))
         self.down = tuple(float(v) for v in (g / self.full_g if self.full_g > 0.0 else (0.0, -1.0)))
         n_mat = max(1, len(materials))
-        self.y_from = ti.field(float, self.columns)
-        self.y_to = ti.field(float, self.columns)
-        #: how far the line has moved from ``y_from`` to ``y_to`` (0-1), and by how much a second
+        # the phreatic line (row 0) and the free water's level (row 1) at the node columns, where
+        # the move starts and where it ends
+        self.y_from = ti.field(float, (2, self.columns))
+        self.y_to = ti.field(float, (2, self.columns))
+        #: how far the lines have moved from ``y_from`` to ``y_to`` (0-1), and by how much a second
         self.fraction = ti.field(float, ())
         self.rate = ti.field(float, ())
+        #: the step's gravity (a gravity stage ramps it; the pressures scale with its magnitude)
+        self.g_now = ti.Vector.field(2, float, ())
         #: the water's density (kg/m3: its unit weight over the full gravity), 0 where there is no line
         self.rho_w = ti.field(float, ())
         self.correct = ti.field(ti.i32, ())
         self.wet_ratio = ti.field(float, n_mat)
         self.ru = ti.field(float, n_mat)
-        self._water: tuple[Water | None, Water | None] = (None, None)
         self.load_materials(materials)
         self.set_water(None, None, 0.0)
 
@@ -72,26 +74,28 @@ class GroundWater:
         self.wet_ratio.from_numpy(ratio)
         self.ru.from_numpy(ru)
 
+    def _sampled(self, water: Water) -> np.ndarray:
+        xs = self.column_x()
+        return np.stack([line_height(water.phreatic_line_m, xs), line_height(water.free_water, xs)])
+
     def set_water(self, start: Water | None, end: Water | None, duration_s: float) -> None:
         """Move the water from ``start`` to ``end`` over ``duration_s`` (0: be at ``end`` now);
         lines in engine coordinates. ``None`` for both: no line (r_u only)."""
         end = start if end is None else end
         start = end if start is None else start
-        xs = self.column_x()
         if end is None:
-            self.y_from.from_numpy(np.zeros(self.columns))
-            self.y_to.from_numpy(np.zeros(self.columns))
+            self.y_from.from_numpy(np.zeros((2, self.columns)))
+            self.y_to.from_numpy(np.zeros((2, self.columns)))
             self.rho_w[None] = 0.0
             self.correct[None] = 0
         else:
-            self.y_from.from_numpy(line_height(start.phreatic_line_m, xs))
-            self.y_to.from_numpy(line_height(end.phreatic_line_m, xs))
+            self.y_from.from_numpy(self._sampled(start))
+            self.y_to.from_numpy(self._sampled(end))
             self.rho_w[None] = end.unit_weight_n_m3 / self.full_g if self.full_g > 0.0 else 0.0
             self.correct[None] = int(end.inclined_correction)
         moving = duration_s > 0.0 and start is not end
         self.fraction[None] = 0.0 if moving else 1.0
         self.rate[None] = 1.0 / duration_s if moving else 0.0
-        self._water = (start, end)
 
     def state(self) -> dict[str, np.ndarray]:
         """What a checkpoint keeps of the water's move (the lines themselves come from the stages)."""
@@ -103,57 +107,84 @@ class GroundWater:
 
     # ------------------------------------------------------------------ device side
     @ti.func
-    def advance(self, dt):
-        """Move the line on by one step (call once per step, from a serial part of the kernel)."""
+    def begin_step(self, dt, g):
+        """Move the lines on by one step and keep its gravity (once per step, from a serial loop)."""
         self.fraction[None] = ti.min(1.0, self.fraction[None] + self.rate[None] * dt)
+        self.g_now[None] = g
 
     @ti.func
-    def _line(self, x0):
-        """Height of the line and its slope at x0."""
-        X = (x0 - self.origin_x) * self.inv_dx
+    def _depth(self, x, row: ti.template()):
+        """Depth of x below line ``row`` (0 phreatic, 1 free water) along the full gravity (m,
+        negative above), the line's slope there and the squared cosine of its inclination from level."""
+        X = (x[0] - self.origin_x) * self.inv_dx
         i = ti.max(ti.min(ti.cast(ti.floor(X), ti.i32), self.columns - 2), 0)
         f = ti.max(ti.min(X - ti.cast(i, float), 1.0), 0.0)
         s = self.fraction[None]
-        ya = (1.0 - s) * self.y_from[i] + s * self.y_to[i]
-        yb = (1.0 - s) * self.y_from[i + 1] + s * self.y_to[i + 1]
-        return ya + f * (yb - ya), (yb - ya) * self.inv_dx
-
-    @ti.func
-    def _depth(self, x):
-        """Depth below the line along the full gravity (m, negative above) and cos^2 of the line's
-        inclination from level there."""
+        ya = (1.0 - s) * self.y_from[row, i] + s * self.y_to[row, i]
+        yb = (1.0 - s) * self.y_from[row, i + 1] + s * self.y_to[row, i + 1]
+        slope = (yb - ya) * self.inv_dx
         d = ti.Vector(self.down)
-        y, slope = self._line(x[0])
-        across = -d[1] + slope * d[0]
-        h = (y - x[1]) / ti.max(across, 1e-9)
+        across = ti.max(-d[1] + slope * d[0], 1e-9)
+        h = (ya + f * (yb - ya) - x[1]) / across
         c = across / ti.sqrt(1.0 + slope * slope)
-        return h, c * c
+        return h, slope, c * c
 
     @ti.func
-    def pressure(self, x, mat, s, g):
-        """Pore pressure (Pa, positive) of a particle at x of material mat with effective stress s."""
+    def pressure(self, x, mat, s):
+        """Pore pressure u (Pa, positive) of a particle at x of material mat with effective stress s."""
         u = 0.0
+        g = self.g_now[None]
         gn = g.norm()
-        ru = self.ru[mat]
         if gn > 0.0:
-            if ru > 0.0:
-                d = g / gn
-                s_gg = d[0] * d[0] * s[0] + 2.0 * d[0] * d[1] * s[2] + d[1] * d[1] * s[1]
-                u = ru / (1.0 - ru) * ti.max(-s_gg, 0.0)
-            elif self.rho_w[None] > 0.0:
-                h, c2 = self._depth(x)
+            if self.rho_w[None] > 0.0:
+                h, _, c2 = self._depth(x, 0)
                 if h > 0.0:
                     u = self.rho_w[None] * gn * h
                     if self.correct[None] != 0:
                         u *= c2
+            ru = self.ru[mat]
+            if ru > 0.0:  # the larger of the line's and the overburden's (solver/water.py)
+                d = g / gn
+                s_gg = d[0] * d[0] * s[0] + 2.0 * d[0] * d[1] * s[2] + d[1] * d[1] * s[1]
+                u = ti.max(u, ru / (1.0 - ru) * ti.max(-s_gg, 0.0))
         return u
 
     @ti.func
+    def excess_pressure(self, x, mat, s):
+        """The pore pressure in excess of the free water's hydrostatic pressure at x, u - p_w (Pa):
+        what the particle's stress carries in the force passes (solver/water.py)."""
+        return self.pressure(x, mat, s) - self.free_pressure(x)
+
+    @ti.func
+    def free_pressure(self, x):
+        """The free water's hydrostatic pressure p_w at x (Pa; 0 above its level)."""
+        p = 0.0
+        if self.rho_w[None] > 0.0:
+            h, _, _ = self._depth(x, 1)
+            p = self.rho_w[None] * self.g_now[None].norm() * ti.max(h, 0.0)
+        return p
+
+    @ti.func
+    def buoyancy(self, x):
+        """The body force of the free water's pressure on the skeleton, -grad p_w (N/m3)."""
+        g = self.g_now[None]
+        f = ti.Vector([0.0, 0.0])
+        if self.rho_w[None] > 0.0:
+            h, slope, _ = self._depth(x, 1)
+            if h > 0.0:
+                d = ti.Vector(self.down)
+                across = ti.max(-d[1] + slope * d[0], 1e-9)
+                # p_w = rho_w |g| h with h = (y_line(x) - y) / across: its gradient is
+                # rho_w |g| (slope, -1) / across
+                f = -self.rho_w[None] * g.norm() / across * ti.Vector([slope, -1.0])
+        return f
+
+    @ti.func
     def mass_ratio(self, x, mat):
-        """Saturated over dry density below the line, 1 above it."""
+        """Saturated over dry density below the phreatic line, 1 above it."""
         r = 1.0
         if self.rho_w[None] > 0.0:
-            h, _ = self._depth(x)
+            h, _, _ = self._depth(x, 0)
             if h > 0.0:
                 r = self.wet_ratio[mat]
         return r

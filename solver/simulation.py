@@ -234,13 +234,11 @@ class Simulation:
             structures=tuple(dataclasses.replace(st, polygon_m=tuple(
                 (float(x - self.origin_m[0]), float(y - self.origin_m[1])) for x, y in st.polygon_m))
                 for st in config.structures),
-            **({"water": groundwater} if groundwater is not None else {}),
+            water=groundwater,
         )
         #: the water's move in force: (start, end, duration) in the project's coordinates; the
         #: engine moves it on step by step (its ``water.fraction``)
         self._water_move: tuple[Water | None, Water | None, float] = (config.water, config.water, 0.0)
-        if not hasattr(self.engine, "water"):
-            self.engine.water = None
         if groundwater is not None:
             groundwater.set_water(self._local_water(config.water), None, 0.0)
         #: the gravity of the last step (a gravity stage ramps it), for the frames' pore pressure

@@ -104,7 +104,7 @@ class MirrorWalls:
         if ghost_lo[0] or ghost_lo[1] or ghost_hi[0] or ghost_hi[1]:
             sig = e.force_stress(p)
             m = e.particle_mass(p)
-            vol = m / e.rho[p]
+            vol = e.particle_volume(p)
             for k in range(9):  # a runtime loop: this rare path compiles once, not nine times
                 i = k // 3
                 j = k % 3
@@ -124,6 +124,8 @@ class MirrorWalls:
                     grad = ti.Vector([bspline_slope(fx[0], i) * wy,
                                       wx * bspline_slope(fx[1], j)]) * e.inv_dx
                     force = -vol * mat_vec(sig, grad) + wx * wy * m * g
+                    if ti.static(e.wet):
+                        force += wx * wy * e.water_force(p, vol)
                     I = base + ti.Vector([i, j])
                     # atomic where threads share the pass: few particles get here. In the split
                     # scatter a ghost node, like any node, belongs to one band.

@@ -13,16 +13,24 @@ e.g. Rocscience Slide2's automatic ``Hu = cos^2``). On an infinite slope modelle
 sides and inclined gravity, a line parallel to the slope with the correction is the closed form's
 seepage parallel to the slope, ``u = gamma_w m z cos^2 beta``.
 
-A material with a pore-pressure ratio ``r_u > 0`` takes its pore pressure from the overburden
-instead of the line (as limit-equilibrium programs treat a material given an ``r_u``):
-``u = r_u sigma_v`` with ``sigma_v`` the total vertical stress (along gravity); in terms of the
-effective stress the solver carries, ``u = r_u / (1 - r_u) sigma'_v``.
+A material with a pore-pressure ratio ``r_u > 0`` (Bishop and Morgenstern 1960) also has a pore
+pressure in proportion to its overburden, ``u = r_u sigma_v`` with ``sigma_v`` the total vertical
+stress (along gravity); in terms of the effective stress the solver carries,
+``u = r_u / (1 - r_u) sigma'_v``. Where a line also applies the larger of the two is taken (the
+same rule as the limit-equilibrium check, stability/bishop.py).
 
 The solver's stress is the effective stress ``sigma'``: the constitutive update and yield act on it.
-The force passes use the total stress ``sigma' - u I``, so the pore pressure's gradient acts on the
-soil skeleton: buoyancy and seepage forces follow from it, and at a submerged surface the surface
-particles' pore pressure carries the free water's weight, with no traction to apply. Below the
-line a particle's mass (its weight and its inertia) is that of its saturated density.
+The pore pressure's gradient acts on the soil skeleton as a body force, ``-grad u`` per unit
+volume, with the total weight of the saturated soil. It is applied in two parts: the free water's
+hydrostatic pressure ``p_w`` (``gamma_w`` times the depth below the free-water line, 0 above it)
+through its gradient at each particle, ``-V grad p_w`` (buoyancy), and the rest, the excess pore
+pressure ``u - p_w``, through the particles' stress in the force passes, ``sigma' - (u - p_w) I``
+(seepage forces, whose divergence MPM takes like any stress). Split so, the boundary of the soil
+is right without a traction: at a surface under free water ``u = p_w`` and the effective stress
+is free; where the pore pressure inside a face exceeds the water outside it (a reservoir drawn
+down faster than the slope drains) the surface particles' excess pore pressure pushes the face
+out, as the seepage out of it does. Below the phreatic line a particle's mass (its weight and
+its inertia) is that of its saturated density.
 
 The water's unit weight ``gamma_w`` is given for the full gravity of the run; in a gravity stage
 that ramps gravity up, the pore pressure ramps with it (``u`` in proportion to ``|g|``).
@@ -92,7 +100,7 @@ def pore_pressure(water: Water | None, materials: Sequence[Material], material_i
     """Pore pressure at points (Pa, positive in compression of the water), the solver's rule.
 
     ``vertical_stress_pa``: the total stress along gravity at the points (compression negative),
-    for the materials with an ``r_u`` (where it is None they get none).
+    for the materials with an ``r_u`` (where it is None they get only the line's).
     """
     x = np.asarray(positions_m, dtype=np.float64).reshape(-1, 2)
     mat = np.asarray(material_ids)
@@ -108,9 +116,7 @@ def pore_pressure(water: Water | None, materials: Sequence[Material], material_i
         gamma = water.unit_weight_n_m3 * gn / full
         u = gamma * np.maximum(h, 0.0) * (c2 if water.inclined_correction else 1.0)
     if vertical_stress_pa is not None:
-        u = np.where(ru > 0.0, ru * np.maximum(-np.asarray(vertical_stress_pa, dtype=np.float64), 0.0), u)
-    else:
-        u = np.where(ru > 0.0, 0.0, u)
+        u = np.maximum(u, ru * np.maximum(-np.asarray(vertical_stress_pa, dtype=np.float64), 0.0))
     return u
 
 

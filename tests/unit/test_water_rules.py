@@ -84,13 +84,19 @@ def test_the_inclined_correction_is_seepage_parallel_to_the_line(beta_deg):
     assert rotated[0] == pytest.approx(GAMMA_W * vertical_depth * math.cos(b) ** 2, rel=1e-12)
 
 
-def test_ru_replaces_the_line_for_its_material():
+def test_ru_gives_the_larger_of_its_pressure_and_the_lines():
     mats = [_soil(), _soil(ru=0.3)]
     x = np.array([[0.5, 1.0], [0.5, 1.0]])
     sigma_v = np.array([-50e3, -50e3])
     u = pore_pressure(Water(((0.0, 3.0), (1.0, 3.0))), mats, np.array([0, 1]), x, (0.0, -9.81),
                       vertical_stress_pa=sigma_v)
-    assert u == pytest.approx([GAMMA_W * 2.0, 0.3 * 50e3])
+    assert u == pytest.approx([GAMMA_W * 2.0, GAMMA_W * 2.0])
+    low = pore_pressure(Water(((0.0, 1.5), (1.0, 1.5))), mats, np.array([0, 1]), x, (0.0, -9.81),
+                        vertical_stress_pa=sigma_v)
+    assert low == pytest.approx([GAMMA_W * 0.5, 0.3 * 50e3])
+    high = pore_pressure(Water(((0.0, 9.0), (1.0, 9.0))), mats, np.array([0, 1]), x, (0.0, -9.81),
+                         vertical_stress_pa=sigma_v)
+    assert high == pytest.approx([GAMMA_W * 8.0, GAMMA_W * 8.0])
 
 
 @pytest.mark.parametrize("line, free", [(2.5, None), (4.0, None), (6.0, None), (4.0, 5.5), (6.0, 3.0)])
