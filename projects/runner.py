@@ -567,7 +567,7 @@ def _run(
         if driver is not None:
             writer.own(TRIALS_NAME)
         hazard = HazardOutput(writer.out_dir, sim, settings(resolved.project), writer.submit)
-    watch = _FailureWatch(sim, settings(resolved.project).mobilised_displacement_m)
+    watch = _FailureWatch(sim, settings(resolved.project), writer.out_dir if writer is not None else None)
     setup_s = time.perf_counter() - started
     status, message = "failed", "the run ended unexpectedly"
     loop_start = time.perf_counter()
@@ -658,37 +658,69 @@ def _run(
 
 
 class _FailureWatch:
-    """Where the ground water was when the slope failed: the first frame of a dynamic stage in
-    which a particle has moved more than the hazard's ``mobilised_displacement_m`` (one cell by
-    default), for ``summary.json``'s ``water_at_failure`` (None when no frame did). Runs without
-    water record nothing."""
+    """Where the ground water was when the slope failed, for ``summary.json``'s ``water_at_failure``.
 
-    def __init__(self, sim: Any, threshold_m: float):
+    The slope has failed when, by the end of the run, a particle has moved more than the hazard's
+    ``mobilised_displacement_m`` (one cell by default) in the dynamic stages; the failure began at
+    the first frame of a dynamic stage whose kinetic energy reached the hazard's
+    ``kinetic_energy_fraction`` of the run's peak (the measure that ends the slide, read from its
+    start). A resumed run reads the frames before it from series.csv. Runs without water record
+    nothing; a wet slope that did not fail records None.
+    """
+
+    def __init__(self, sim: Any, settings: Any, out_dir: Path | None):
         self.sim = sim
-        self.threshold_m = float(threshold_m)
+        self.threshold_m = float(settings.mobilised_displacement_m)
+        self.fraction = float(settings.kinetic_energy_fraction)
         self.wet = getattr(sim.engine, "water", None) is not None
-        self.found: dict[str, Any] | None = None
+        #: (time, stage index, stage time, kinetic energy) of each frame of a dynamic stage
+        self.frames: list[tuple[float, int, float, float]] = []
+        self.moved_m = 0.0
+        if self.wet and out_dir is not None and sim.time_s > 0.0:
+            self._read_earlier(out_dir / "series.csv")
+
+    def _dynamic(self, index: int) -> bool:
+        stages = self.sim.config.stages
+        return 0 <= index < len(stages) and stages[index].kind == "dynamic"
+
+    def _read_earlier(self, path: Path) -> None:
+        import csv
+
+        try:
+            with open(path, newline="") as fh:
+                for row in csv.DictReader(fh):
+                    t, index = float(row["time_s"]), int(row["stage_index"])
+                    if t <= self.sim.time_s + 1e-12 and self._dynamic(index):
+                        self.frames.append((t, index, float(row["stage_time_s"]), float(row["kinetic_energy_J_per_m"])))
+        except (OSError, KeyError, ValueError) as err:
+            logger.warning("water at failure: the frames before the resume are not read (%s)", err)
 
     def see(self, frame: Frame) -> None:
-        if not self.wet or self.found is not None:
+        if not self.wet:
             return
         d = frame.diagnostics
-        stage = self.sim.config.stages[d.stage_index] if d.stage_index < len(self.sim.config.stages) else None
-        disp = frame.fields.get("displacement")
-        if stage is None or stage.kind != "dynamic" or disp is None:
+        if not self._dynamic(d.stage_index):
             return
-        moved = np.linalg.norm(np.asarray(disp, dtype=np.float64), axis=1)[np.asarray(frame.fields["active"], bool)]
-        if moved.size and float(moved.max()) > self.threshold_m:
-            water = self.sim.water_now()
-            self.found = {
-                "time_s": float(d.time_s), "stage": d.stage, "stage_time_s": float(d.stage_time_s),
-                "max_displacement_m": float(moved.max()),
-                "phreatic_line_m": None if water is None else [list(p) for p in water.phreatic_line_m],
-                "free_water_line_m": None if water is None else [list(p) for p in water.free_water],
-            }
+        self.frames.append((float(d.time_s), d.stage_index, float(d.stage_time_s), float(d.kinetic_energy_J_per_m)))
+        disp = frame.fields.get("displacement")
+        if disp is not None:
+            moved = np.linalg.norm(np.asarray(disp, dtype=np.float64), axis=1)[np.asarray(frame.fields["active"], bool)]
+            self.moved_m = max(self.moved_m, float(moved.max(initial=0.0)))
 
     def summary(self) -> dict[str, Any]:
-        return {"water_at_failure": self.found} if self.wet else {}
+        if not self.wet:
+            return {}
+        if not self.frames or self.moved_m <= self.threshold_m:
+            return {"water_at_failure": None}
+        peak = max(ke for *_, ke in self.frames)
+        t, index, stage_time, _ = next(f for f in self.frames if f[3] >= self.fraction * peak)
+        water = self.sim.water_at(index, stage_time)
+        return {"water_at_failure": {
+            "time_s": t, "stage": self.sim.config.stages[index].name, "stage_time_s": stage_time,
+            "max_displacement_m": self.moved_m,
+            "phreatic_line_m": None if water is None else [list(p) for p in water.phreatic_line_m],
+            "free_water_line_m": None if water is None else [list(p) for p in water.free_water],
+        }}
 
 
 def _equilibrium(sim: Any) -> dict[str, Any]:

@@ -307,6 +307,18 @@ class Simulation:
             return end
         return blend_water(start, end, float(self.engine.water.fraction[None]))
 
+    def water_at(self, stage_index: int, stage_time_s: float) -> Water | None:
+        """Where the ground water was (or will be) at a time of a stage (project coordinates)."""
+        start = self.config.water
+        for stage in self.config.stages[:stage_index]:
+            start = stage.water if stage.water is not None else start
+        stage = self.config.stages[min(stage_index, len(self.config.stages) - 1)]
+        if stage.water is None or stage_index >= len(self.config.stages):
+            return start
+        if stage.kind == "k0" or stage.duration_s <= 0.0:
+            return stage.water
+        return blend_water(start, stage.water, min(1.0, max(0.0, stage_time_s / stage.duration_s)))
+
     def _speed_bound(self, g: np.ndarray) -> float:
         gn = float(np.linalg.norm(g))
         lo = np.asarray(self.config.grid.origin_m)
