@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -24,6 +25,49 @@ os.environ.setdefault("TI_OFFLINE_CACHE_MAX_SIZE_OF_FILES", str(1024 ** 3))
 # headless VTK without the "bad X server connection" warning (see app.render)
 if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+
+#: Environment variable that runs every case of the ``matrix`` tests (default: a covering sample).
+FULL_MATRIX = "RUNOUT_FULL_MATRIX"
+
+
+def covering_sample(items: list) -> list:
+    """A subset of one test's parametrised cases in which every word of their ids occurs at least
+    once (each scheme, precision, side, cell count, stiffness, angle pair...; greedy set cover in
+    the cases' own order: deterministic)."""
+    def pairs(item) -> set:
+        spec = getattr(item, "callspec", None)
+        if spec is None:
+            return set()
+        # pytest's own ids of values it cannot show (``cases3``: the fourth list of cases) name
+        # no value: nothing to cover
+        auto = re.compile("^(" + "|".join(re.escape(k) for k in spec.params) + r")\d+$")
+        return {word for word in spec.id.split("-") if not auto.match(word)}
+
+    wanted = set().union(*(pairs(i) for i in items)) if items else set()
+    chosen: list = []
+    while wanted:
+        best = max(items, key=lambda i: len(pairs(i) & wanted))
+        chosen.append(best)
+        wanted -= pairs(best)
+    return [i for i in items if i in chosen] or items[:1]
+
+
+def pytest_collection_modifyitems(config, items):
+    """Tests marked ``matrix`` (the solver's contact, thrust and scatter matrices) run a covering
+    sample of their cases: every scheme, precision, geometry and stiffness they list at least
+    once. ``RUNOUT_FULL_MATRIX=1`` runs every case (docs/validation.md says which to run when)."""
+    if os.environ.get(FULL_MATRIX) == "1":
+        return
+    groups: dict = {}
+    for item in items:
+        if item.get_closest_marker("matrix") is not None:
+            groups.setdefault((item.path, item.originalname), []).append(item)
+    keep = {id(i) for group in groups.values() for i in covering_sample(group)}
+    dropped = [i for group in groups.values() for i in group if id(i) not in keep]
+    if dropped:
+        config.hook.pytest_deselected(items=dropped)
+        items[:] = [i for i in items if i.get_closest_marker("matrix") is None or id(i) in keep]
 
 
 def synthetic_frames(n_frames: int = 4, *, nx: int = 40, ny: int = 20, lose_last: int = 5):

@@ -25,6 +25,9 @@ from projects.document import loads_project
 from projects.results import read_contacts
 from projects.runner import run_project
 
+# the suite runs a covering sample of each matrix below (tests/conftest.py, RUNOUT_FULL_MATRIX)
+pytestmark = pytest.mark.matrix
+
 G = 9.81
 RHO = 2000.0
 DT = 4.0e-4

@@ -10,6 +10,9 @@ import pytest
 from projects.document import apply_overrides, load_project
 from projects.runner import run_project
 
+# the suite runs a covering sample of each matrix below (tests/conftest.py, RUNOUT_FULL_MATRIX)
+pytestmark = pytest.mark.matrix
+
 
 def _box(x0: float, y0: float, w: float, h: float) -> str:
     return f"[[{x0!r},{y0!r}],[{x0 + w!r},{y0!r}],[{x0 + w!r},{y0 + h!r}],[{x0!r},{y0 + h!r}]]"

@@ -27,6 +27,9 @@ from projects.document import dumps_project
 from projects.results import read_contacts
 from projects.schema import validate_project
 
+# the suite runs a covering sample of each matrix below (tests/conftest.py, RUNOUT_FULL_MATRIX)
+pytestmark = pytest.mark.matrix
+
 SLIDE_TOL = 0.03
 STICK_TOL = 0.001
 

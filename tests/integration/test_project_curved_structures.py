@@ -41,6 +41,9 @@ from projects.results import open_results
 from projects.runner import run_project
 from solver.structures import signed_distance
 
+# the suite runs a covering sample of each matrix below (tests/conftest.py, RUNOUT_FULL_MATRIX)
+pytestmark = pytest.mark.matrix
+
 G = 9.81
 CELL = 0.02
 THICK = 3 * CELL

@@ -27,6 +27,9 @@ import pytest
 from tests.contact_scenes import project_text, run_case
 from tests.contact_scenes import column_wave_slip, shear_period
 
+# the suite runs a covering sample of each matrix below (tests/conftest.py, RUNOUT_FULL_MATRIX)
+pytestmark = pytest.mark.matrix
+
 CELL = 0.05
 TOLERANCE = 0.15  # of the wave solution's slip; measured deviations up to 9.3 % (walls), 6 % (ramp, 20 cells)
 ASPECT = {5: 16.0, 20: 8.0}

@@ -39,6 +39,9 @@ from projects.results import read_contacts
 from projects.runner import run_project
 from solver.config import line_of_action
 
+# the suite runs a covering sample of each matrix below (tests/conftest.py, RUNOUT_FULL_MATRIX)
+pytestmark = pytest.mark.matrix
+
 CELL = 0.02
 HEIGHT = 0.24
 WIDTH = 0.24

@@ -15,6 +15,9 @@ from projects.document import load_project
 from solver.simulation import Simulation
 from tests.conftest import TINY_PROJECT
 
+# the suite runs a covering sample of each matrix below (tests/conftest.py, RUNOUT_FULL_MATRIX)
+pytestmark = pytest.mark.matrix
+
 SETS = [
     "numerics.advanced.scatter=serial",
     'stages.0 = {name = "settle", type = "gravity", duration_s = 0.015}',

@@ -58,6 +58,9 @@ from solver.simulation import Simulation
 from solver.structures import corner_normals, corner_zone, node_contacts, signed_distance
 from tests.contact_scenes import RampIncline, WallIncline
 
+# the suite runs a covering sample of each matrix below (tests/conftest.py, RUNOUT_FULL_MATRIX)
+pytestmark = pytest.mark.matrix
+
 SLIDE_TOL = 0.03
 STICK_TOL = 1e-3
 

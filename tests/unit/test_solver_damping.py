@@ -22,6 +22,9 @@ import pytest
 from solver.config import Boundary, Grid, Material, Numerics, Output, Particles, SimulationConfig, Stage
 from solver.simulation import Simulation, critical_time_step
 
+# the suite runs a covering sample of each matrix below (tests/conftest.py, RUNOUT_FULL_MATRIX)
+pytestmark = pytest.mark.matrix
+
 CELLS = 20
 DX = 0.05
 E = 1e6

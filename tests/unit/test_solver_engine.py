@@ -10,6 +10,9 @@ from solver.config import Boundary, Grid, Material
 from solver.engine import PAD
 from tests.engine_hooks import apply_contacts, grid_totals, transfer_only
 
+# the suite runs a covering sample of each matrix below (tests/conftest.py, RUNOUT_FULL_MATRIX)
+pytestmark = pytest.mark.matrix
+
 MAT = (Material("e", "linear-elastic", 1000.0, 1e6, 0.3),)
 
 

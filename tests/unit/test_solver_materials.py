@@ -10,6 +10,9 @@ from solver.config import Material
 from solver.materials import MaterialPointDriver
 from solver.materials.drucker_prager import dp_constants
 
+# the suite runs a covering sample of each matrix below (tests/conftest.py, RUNOUT_FULL_MATRIX)
+pytestmark = pytest.mark.matrix
+
 E, NU = 10e6, 0.3
 K = E / (3 * (1 - 2 * NU))
 G = E / (2 * (1 + NU))

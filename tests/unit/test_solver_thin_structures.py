@@ -23,6 +23,9 @@ from solver.config import Boundary, Structure
 from solver.structures import signed_distance
 from tests.unit.test_solver_contact import thrown_block_frames
 
+# the suite runs a covering sample of each matrix below (tests/conftest.py, RUNOUT_FULL_MATRIX)
+pytestmark = pytest.mark.matrix
+
 DX = 0.02  # the cell of _box
 
 

@@ -22,6 +22,9 @@ import pytest
 from solver.config import Boundary, Grid, Material, Numerics, Output, Particles, SimulationConfig, Stage, Structure
 from solver.simulation import Simulation
 
+# the suite runs a covering sample of each matrix below (tests/conftest.py, RUNOUT_FULL_MATRIX)
+pytestmark = pytest.mark.matrix
+
 RHO, G = 1800.0, 9.81
 #: (friction angle deg, height m) of the columns of one run: the range in which the default cone
 #: (``plane-strain-associated``) holds Jaky's K0 state (up to about 35 deg; see docs/solver.md)
