@@ -522,6 +522,7 @@ def _report_equilibrium(result: RunResult, quiet: bool) -> None:
         f"initial equilibrium after {check.get('stage')!r}: unbalanced-force ratio "
         f"{ratio if ratio is None else format(ratio, '.3g')}, largest speed at its end "
         f"{check.get('max_speed_m_s', 0.0):.3g} m/s"
+        + ("; released into the next stage" if check.get("released") else "")
         + (f"; {plastic} plastic points (K0 stress outside the yield surface, returned to it at the "
            f"first step: K = {check.get('plastic_k0'):.3g})" if plastic else ""),
         markup=False,

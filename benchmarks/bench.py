@@ -76,6 +76,9 @@ YARDSTICK = "yardstick"
 #: pick itself, so that the profile shows them all in one run.
 SCATTER_VARIANTS = {f"apic-affine, {s} scatter": s for s in SCATTERS if s != "auto"}
 NOT_MEASURED_NO_GPU = "not measured: no GPU"
+#: Throughput variant: apic-affine with ground water (a phreatic line at half the block's height),
+#: timed beside the dry engine: the cost of the pore pressure (solver.groundwater).
+WATER_VARIANT = "apic-affine, water"
 
 #: The scene: the aluminium-bar collapse of Bui et al. (2008) at any particle count.
 BLOCK_M = (0.2, 0.1)
@@ -427,8 +430,19 @@ class _Variant:
             bound = config.numerics.speed_bound_factor * max(math.sqrt(2.0 * g * height), 1.0)
             # as Simulation builds it for this scene: no stage uses damping, so no grid force field
             scheme, scatter = ("apic-affine", SCATTER_VARIANTS[name]) if name in SCATTER_VARIANTS else (name, "auto")
+            water = None
+            if name == WATER_VARIANT:
+                from solver.config import Water
+                from solver.engine import PAD
+                from solver.groundwater import GroundWater
+
+                scheme = "apic-affine"
+                water = GroundWater(grid.cells[0] + 1 + 2 * PAD, -PAD * grid.cell_size_m, grid.cell_size_m,
+                                    config.materials, config.gravity_m_s2)
+                level = 0.5 * BLOCK_M[1]
+                water.set_water(Water(((0.0, level), (grid.size_m[0], level))), None, 0.0)
             self.obj = Engine(grid, config.materials, n, scheme, np_float, speed_bound_m_s=bound, damping=False,
-                              scatter=scatter)
+                              scatter=scatter, water=water)
             self.stress = _k0_stress(config, particles)
         self.reset()
         for _ in range(2):  # compile, then run the warm-up steps from a clean state
@@ -525,7 +539,8 @@ def _group(arch: str, precision: str, n: int, cfg: BenchConfig,
             return used, rows
         note(f"throughput: {arch} {precision} {n:,} particles")
         variants = []
-        for name in (YARDSTICK, *cfg.schemes):
+        wet = (WATER_VARIANT,) if "apic-affine" in cfg.schemes else ()
+        for name in (YARDSTICK, *cfg.schemes, *wet):
             config, particles = collapse_scene(n, precision, name if name in SCHEMES else "apic-affine", arch)
             variants.append(_Variant(name, config, particles, _np_float(precision)))
         steps = _common_steps(variants, cfg)
@@ -535,6 +550,7 @@ def _group(arch: str, precision: str, n: int, cfg: BenchConfig,
         n_real = len(variants[0].particles)
         yard = variants[0]
         apic = next((v for v in variants if v.name == "apic"), None)
+        dry = next((v for v in variants if v.name == "apic-affine"), None)
         for v in variants:
             rate = n_real * steps / min(v.times)
             rows.append({
@@ -548,6 +564,8 @@ def _group(arch: str, precision: str, n: int, cfg: BenchConfig,
                 "ratio_to_yardstick_best": min(yard.times) / min(v.times),
                 "ratio_to_apic": None if apic is None else paired_ratio(apic.times, v.times),
                 "ratio_to_apic_best": None if apic is None else min(apic.times) / min(v.times),
+                # the water variant's throughput over the dry engine's (1: water costs nothing)
+                "ratio_to_dry": paired_ratio(dry.times, v.times) if v.name == WATER_VARIANT and dry else None,
                 "build_and_compile_s": v.build_s,
                 "bytes_per_particle": v.memory["bytes_per_particle"],
                 "particle_bytes_per_particle": v.memory["particle_bytes_per_particle"],
@@ -1022,6 +1040,11 @@ def evaluate_targets(result: dict[str, Any]) -> list[dict[str, Any]]:
     ratio = affine["ratio_to_yardstick"] if affine else None
     targets.append(_target("apic-affine (Drucker-Prager) / yardstick", ">= 1.0", ratio,
                            None if ratio is None else ratio >= 1.0, where))
+    wet = _nearest(rows, 20_000, arch="cpu", precision="f32", variant=WATER_VARIANT)
+    ratio = wet["ratio_to_dry"] if wet else None
+    targets.append(_target("apic-affine with ground water / dry throughput", ">= 0.75", ratio,
+                           None if ratio is None else ratio >= 0.75, where,
+                           "the pore pressure's cost per step (solver.groundwater)"))
     empty = result.get("empty_domain")
     value = empty["variants"]["apic-affine"]["ratio"] if empty and "apic-affine" in empty["variants"] else None
     targets.append(_target("step time, domain twice as long / normal", "< 1.10", value,
@@ -1230,7 +1253,7 @@ def report_tables(result: dict[str, Any]) -> list[tuple[str, list[str], list[lis
                          f"{r['warm_median_s']:.2f}", _seconds(r.get("cold_cpu_s")),
                          _seconds(r.get("warm_cpu_median_s")), f"< {r['goal_s']:g}"] for r in result["startup"]]))
     rows = result["throughput"]
-    variants = [YARDSTICK, *[s for s in SCHEMES if any(r["variant"] == s for r in rows)]]
+    variants = [YARDSTICK, *[s for s in (*SCHEMES, WATER_VARIANT) if any(r["variant"] == s for r in rows)]]
     groups = sorted({(r["arch"], r["precision"], r["particles"]) for r in rows},
                     key=lambda g: (g[0], g[1], g[2]))
     header = ["arch", "prec", "particles", "cells"] + [
