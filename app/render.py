@@ -317,11 +317,24 @@ def frame_stage(results: Results, index: int) -> tuple[int | None, float | None]
     return int(stages[row]), float(times[row])
 
 
-def project_bodies(project: Any) -> list[np.ndarray]:
-    """The project's body polygons (the ground the free water stands on), (K, 2) each."""
-    if project is None:
+def particle_ground(positions: np.ndarray, spacing_m: float, box: tuple[float, float, float, float]
+                    ) -> list[np.ndarray]:
+    """The ground a frame's particles make, as columns one particle spacing wide (from the domain's
+    floor to half a spacing above the highest particle in each): what the free water of a frame
+    stands on once the slope has moved (the bodies are where it started)."""
+    pts = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+    x0, x1, y0, _y1 = box
+    if not len(pts) or not spacing_m > 0 or not x1 > x0:
         return []
-    return [np.asarray(b.polygon_m, dtype=np.float64) for b in project.bodies]
+    width = max(float(spacing_m), (x1 - x0) / 4000.0)
+    bins = np.clip(((pts[:, 0] - x0) // width).astype(np.int64), 0, int(math.ceil((x1 - x0) / width)) - 1)
+    top = np.full(int(bins.max()) + 1, -np.inf)
+    np.maximum.at(top, bins, pts[:, 1] + 0.5 * float(spacing_m))
+    out = []
+    for k in np.flatnonzero(np.isfinite(top)):
+        a, b = x0 + k * width, min(x0 + (k + 1) * width, x1)
+        out.append(np.array([[a, y0], [b, y0], [b, top[k]], [a, top[k]]]))
+    return out
 
 
 def _quiet_vtk() -> None:
@@ -638,13 +651,14 @@ class _Scene:
         if self._water is None:
             return
         water = self._water.at_frame(self.results, index)
-        if water == self._water_drawn:
-            return
         self._water_drawn = water
         box = _domain_box(self.results) or self._view.bounds
         for name in ("water-fill", "water-line", "free-water-line"):
             self.plotter.remove_actor(name, render=False)
-        shown = water_shown(water, project_bodies(self._water.project), box)
+        arrays = self.results.frame(index, {"positions", "active"})
+        ground = particle_ground(np.asarray(arrays["positions"])[np.asarray(arrays["active"], bool)],
+                                 self._spacing_m, box)
+        shown = water_shown(water, ground, box)
         if shown is None:
             return
         add_water_actors(self.plotter, shown, self._shift, line_width=max(2.5, self.size[1] / 200.0))

@@ -902,7 +902,7 @@ class ResultsView(QWidget):
         caption = f"frame {index + 1}/{n}" + ("   (live)" if self.live else "")
         arrays = self.results.frame(index)
         self.controls.set_available(arrays)
-        self.scene.show_water(self._water_shown(index))
+        self.scene.show_water(self._water_shown(index, arrays))
         self.scene.show_arrays(arrays, time_s, caption)
         self.controls.show_range(self.scene.shown_clim)
         stage = self._stage_at(index)
@@ -916,26 +916,25 @@ class ResultsView(QWidget):
     @staticmethod
     def _water_of(results: Any) -> Any:
         """(timeline, ground polygons, domain box) of a run with [water], else None."""
-        from app.render import WaterTimeline, project_bodies
+        from app.render import WaterTimeline
 
         timeline = WaterTimeline.of(results)
         box = _domain_of(results.summary)
         if timeline is None or box is None:
             return None
-        return timeline, project_bodies(timeline.project), box, {}
+        return timeline, box, float(results.summary.get("particle_spacing_m") or 0.0)
 
-    def _water_shown(self, index: int) -> Any:
-        """What to draw of the water at frame ``index`` (one per distinct water, kept)."""
-        from app.render import water_shown
+    def _water_shown(self, index: int, arrays: Any) -> Any:
+        """What to draw of the water at frame ``index``: its lines, and the free water on the ground
+        the frame's particles make (:func:`app.render.particle_ground`)."""
+        from app.render import particle_ground, water_shown
 
         if self._water is None:
             return None
-        timeline, bodies, box, cache = self._water
-        water = timeline.at_frame(self.results, index)
-        if water not in cache:
-            cache.clear() if len(cache) > 64 else None
-            cache[water] = water_shown(water, bodies, box)
-        return cache[water]
+        timeline, box, spacing = self._water
+        active = np.asarray(arrays["active"], dtype=bool)
+        ground = particle_ground(np.asarray(arrays["positions"])[active], spacing, box)
+        return water_shown(timeline.at_frame(self.results, index), ground, box)
 
     def _stage_at(self, index: int) -> str:
         stages = self.results.series.get("stage") if self.results is not None else None

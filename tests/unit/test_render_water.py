@@ -131,3 +131,17 @@ def test_the_free_water_lies_between_its_line_and_the_ground_surface():
     assert area == pytest.approx(0.2 * 0.02 + 0.6 * 0.12, rel=1e-9)
     assert render.free_water_polygons([[0.0, 0.05], [0.8, 0.05]], [np.array([[0, 0], [0.8, 0], [0.8, 0.1], [0, 0.1]])],
                                       box) == []
+
+
+def test_a_frame_s_free_water_stands_on_its_particles():
+    """Particles of a 0.2 m x 0.1 m block moved 0.3 m right (spacing 0.01 m): the free water under a
+    level line at 0.12 m lies over the block where it now is and down to the floor where it was."""
+    xs, ys = np.meshgrid(np.arange(0.005, 0.2, 0.01) + 0.3, np.arange(0.005, 0.1, 0.01))
+    ground = render.particle_ground(np.column_stack([xs.ravel(), ys.ravel()]), 0.01, (0.0, 0.8, 0.0, 0.15))
+    rings = render.free_water_polygons([[0.0, 0.12], [0.8, 0.12]], ground, (0.0, 0.8, 0.0, 0.15))
+    from shapely.geometry import Point, Polygon
+
+    water = [Polygon(r) for r in rings]
+    assert sum(w.area for w in water) == pytest.approx(0.2 * 0.02 + 0.6 * 0.12, rel=1e-6)
+    assert any(w.contains(Point(0.1, 0.05)) for w in water)  # where the block was
+    assert not any(w.contains(Point(0.4, 0.05)) for w in water)  # where it is
