@@ -327,7 +327,7 @@ def particle_ground(positions: np.ndarray, spacing_m: float, box: tuple[float, f
     if not len(pts) or not spacing_m > 0 or not x1 > x0:
         return []
     width = max(float(spacing_m), (x1 - x0) / 4000.0)
-    bins = np.clip(((pts[:, 0] - x0) // width).astype(np.int64), 0, int(math.ceil((x1 - x0) / width)) - 1)
+    bins = np.clip(((pts[:, 0] - x0) // width).astype(np.int64), 0, math.ceil((x1 - x0) / width) - 1)
     top = np.full(int(bins.max()) + 1, -np.inf)
     np.maximum.at(top, bins, pts[:, 1] + 0.5 * float(spacing_m))
     out = []

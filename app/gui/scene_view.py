@@ -514,8 +514,13 @@ class SceneView(QWidget):
         the ground); a selected stage's lines in a lighter blue; the selected line's vertices."""
         import pyvista as pv
 
-        from app.render import FREE_WATER_COLOR, FREE_WATER_LINE_COLOR, WATER_LINE_COLOR, free_water_polygons
-        from app.render import water_line_across
+        from app.render import (
+            FREE_WATER_COLOR,
+            FREE_WATER_LINE_COLOR,
+            WATER_LINE_COLOR,
+            free_water_polygons,
+            water_line_across,
+        )
         from solver.water import line_height
 
         pl = self.plotter

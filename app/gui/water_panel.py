@@ -11,6 +11,7 @@ linearly over its duration. Every edit is one undo step of the document
 from __future__ import annotations
 
 import re
+
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QBrush, QColor
 from PySide6.QtWidgets import (
@@ -29,7 +30,14 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.document import FIELD_INFO, ProjectDocument, format_number, get_path, parse_number, water_line_path
+from app.gui.document import (
+    FIELD_INFO,
+    ProjectDocument,
+    format_number,
+    get_path,
+    parse_number,
+    water_line_path,
+)
 from app.gui.fields import NumberField
 from app.gui.panels import Panel, _form, _NumberDelegate
 from app.gui.scene_view import set_water_line, water_line_noun

@@ -9,7 +9,12 @@ import numpy as np
 import pytest
 
 from app import report
-from tests.unit.test_render_water import DRY_PROJECT, WET_PROJECT, _blue_line_rows, wet_results
+from tests.unit.test_render_water import (
+    DRY_PROJECT,
+    WET_PROJECT,
+    _blue_line_rows,
+    wet_results,
+)
 
 
 def _with_failure(path, failure):
@@ -23,9 +28,9 @@ def _with_failure(path, failure):
      "The slope failed at t = 0.1 s, in stage 2 (collapse), with the phreatic line level at y = 0.06 m."),
     ({"time_s": 0.125, "stage": "collapse", "phreatic_line_m": [[0.0, 0.08], [0.4, 0.05], [0.8, 0.04]],
       "free_water_line_m": [[0.0, 0.09], [0.8, 0.09]]},
-     "The slope failed at t = 0.125 s, in stage 2 (collapse), with the phreatic line from y = 0.08 m at x = 0 m "
-     "to y = 0.04 m at x = 0.8 m (points (0, 0.08), (0.4, 0.05), (0.8, 0.04) m) and the free water level at "
-     "y = 0.09 m."),
+     ("The slope failed at t = 0.125 s, in stage 2 (collapse), with the phreatic line from y = 0.08 m at x = 0 m "
+      "to y = 0.04 m at x = 0.8 m (points (0, 0.08), (0.4, 0.05), (0.8, 0.04) m) and the free water level at "
+      "y = 0.09 m.")),
     (None, "The slope did not fail under the water of this run."),
 ])
 def test_the_report_says_where_the_water_was_at_the_failure(tmp_path, failure, sentence):
