@@ -7,6 +7,7 @@ import pytest
 
 from benchmarks.bench import (
     NOT_MEASURED_NO_GPU,
+    WATER_VARIANT,
     YARDSTICK,
     BenchConfig,
     BenchError,
@@ -67,7 +68,10 @@ def test_throughput_rows_hold_positive_rates_and_ratios(bench):
     result, _ = bench
     rows = result["throughput"]
     variants = {r["variant"] for r in rows if r["arch"] == "cpu"}
-    assert variants == {YARDSTICK, "apic", "apic-affine"}
+    assert variants == {YARDSTICK, "apic", "apic-affine", WATER_VARIANT}
+    wet = next(r for r in rows if r["variant"] == WATER_VARIANT)
+    assert _positive(wet["ratio_to_dry"])  # the cost of the ground water, timed beside the dry engine
+    assert all(r["ratio_to_dry"] is None for r in rows if r["variant"] != WATER_VARIANT)
     for row in rows:
         assert row["precision"] == "f32" and row["particles"] == 200
         for key in ("particle_steps_per_s", "ratio_to_yardstick", "ratio_to_apic", "ratio_to_yardstick_best",
@@ -143,7 +147,7 @@ def test_empty_domain_and_output_stall_give_ratios(bench):
 def test_targets_and_reports(bench):
     result, out = bench
     names = [t["name"] for t in result["targets"]]
-    assert len(names) == 8  # issue 6 and the hazard envelopes of issue 12
+    assert len(names) == 9  # throughput, memory, overhead, the ground water's cost, the hazard envelopes
     for t in result["targets"]:
         assert t["met"] in (True, False, None)
         assert (t["value"] is None) == (t["met"] is None)

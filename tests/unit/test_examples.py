@@ -14,7 +14,8 @@ from projects.build import estimate, resolve
 from projects.document import dumps_project, load_project, loads_project, save_project
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "projects" / "examples"
-NAMES = ["bui2008_aluminium_bars", "sand_column", "slope_sun_song_2015", "tiny_column", "slope_fos", "debris_barrier"]
+NAMES = ["bui2008_aluminium_bars", "sand_column", "slope_sun_song_2015", "tiny_column", "slope_fos", "debris_barrier",
+         "reservoir_drawdown", "rain_water_table"]
 PAPER_SCENES = NAMES[:3]
 
 
