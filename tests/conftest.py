@@ -31,10 +31,15 @@ if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
 FULL_MATRIX = "RUNOUT_FULL_MATRIX"
 
 
-def covering_sample(items: list) -> list:
-    """A subset of one test's parametrised cases in which every word of their ids occurs at least
-    once (each scheme, precision, side, cell count, stiffness, angle pair...; greedy set cover in
-    the cases' own order: deterministic)."""
+#: The most cases of one matrix test the suite runs.
+MATRIX_SAMPLE = 3
+
+
+def covering_sample(items: list, limit: int = MATRIX_SAMPLE) -> list:
+    """A subset of one test's parametrised cases, at most ``limit`` of them, chosen greedily to
+    hold as many words of their ids as they can (schemes, precisions, sides, cell counts,
+    stiffnesses, angle pairs...): a set cover, cut at ``limit``, in the cases' own order
+    (deterministic)."""
     def pairs(item) -> set:
         spec = getattr(item, "callspec", None)
         if spec is None:
@@ -46,7 +51,7 @@ def covering_sample(items: list) -> list:
 
     wanted = set().union(*(pairs(i) for i in items)) if items else set()
     chosen: list = []
-    while wanted:
+    while wanted and len(chosen) < limit:
         best = max(items, key=lambda i: len(pairs(i) & wanted))
         chosen.append(best)
         wanted -= pairs(best)
@@ -55,8 +60,8 @@ def covering_sample(items: list) -> list:
 
 def pytest_collection_modifyitems(config, items):
     """Tests marked ``matrix`` (the solver's contact, thrust and scatter matrices) run a covering
-    sample of their cases: every scheme, precision, geometry and stiffness they list at least
-    once. ``RUNOUT_FULL_MATRIX=1`` runs every case (docs/validation.md says which to run when)."""
+    sample of their cases (:func:`covering_sample`). ``RUNOUT_FULL_MATRIX=1`` runs every case
+    (docs/validation.md says which to run when)."""
     if os.environ.get(FULL_MATRIX) == "1":
         return
     groups: dict = {}
