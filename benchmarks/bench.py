@@ -1029,7 +1029,7 @@ def _target(name: str, goal: str, value: float | None, ok: bool | None, where: s
 
 
 def evaluate_targets(result: dict[str, Any]) -> list[dict[str, Any]]:
-    """The issue's targets against the measured figures (``met`` None: not measured)."""
+    """The performance targets against the measured figures (``met`` None: not measured)."""
     rows = result["throughput"]
     targets = []
     affine = _nearest(rows, 20_000, arch="cpu", precision="f32", variant="apic-affine")
@@ -1066,7 +1066,7 @@ def evaluate_targets(result: dict[str, Any]) -> list[dict[str, Any]]:
     targets.append(_target(f"hazard envelopes every {env['every_steps'] if env else 10} steps: added run time",
                            "< 5 %", value, None if value is None else value < 0.05,
                            f"{env['arch'].upper()} f32 {env['particles']:,} particles" if env else "not measured",
-                           "issue 12"))
+                           "maps updated on the device during the run (solver.envelopes), two targets"))
     gpu = _nearest(rows, 1_000_000, arch="gpu", precision="f32", variant="apic-affine")
     if gpu is not None and gpu["particles"] >= 500_000:
         value = gpu["particle_steps_per_s"]
@@ -1298,7 +1298,7 @@ def report_tables(result: dict[str, Any]) -> list[tuple[str, list[str], list[lis
             shown = f"{value:.2f}x"
         met = "not measured" if t["met"] is None else ("yes" if t["met"] else "no")
         body.append([t["name"], t["goal"], shown, met, t["where"] + (f"; {t['note']}" if t["note"] else "")])
-    tables.append(("Targets (issue 6)", ["target", "goal", "measured", "met", "where / note"], body))
+    tables.append(("Targets", ["target", "goal", "measured", "met", "where / note"], body))
 
     tables.extend(_profile_table(prof) for prof in result.get("profile", []))
 

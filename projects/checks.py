@@ -13,9 +13,8 @@ workbench shows them):
 - a structure thinner than 1 cell at its thickest: the at-rest thrust on a wall half a cell thick
   was up to 3.7 times the analytic one with faces 0.6-0.9 cells off a node line, and material
   thrown at an inclined one half a cell thick was ejected faster than the stability guard allows
-  (apic-affine); from 1 cell on it is within 4.3 % at every offset (since session 18 a node whose
-  stencil reaches past a thin part's far face holds the material beyond it,
-  ``solver.structures.far_normals``; before, a wall one cell thick took 0.92-0.97);
+  (apic-affine); from 1 cell on it is within 4.3 % at every offset (a node whose stencil reaches
+  past a thin part's far face holds the material beyond it, ``solver.structures.far_normals``);
 - a vertical or horizontal structure face a body touches, 0.55 to 0.85 cells from the last node
   line on the material's side (every scheme): the lattice-seeded material stops up to a quarter
   cell short of such a face and the at-rest thrust on it is 2.6-4.3 % low (docs/validation.md,

@@ -101,8 +101,8 @@ SERIES_COLUMNS: tuple[str, ...] = (
 #: material exerts on the contact (N per metre out of plane): the mean over the output interval that
 #: ends at ``time_s`` and the largest of one step in it (magnitude and components); normal and
 #: tangential for sides only (empty for structures); the mean force's moment about the grid origin
-#: (``domain.origin_m``; N m per metre, counter-clockwise positive; files written before session 16
-#: lack it). See :class:`solver.config.ContactForce`.
+#: (``domain.origin_m``; N m per metre, counter-clockwise positive; older files lack it).
+#: See :class:`solver.config.ContactForce`.
 CONTACT_COLUMNS: tuple[str, ...] = (
     "time_s",
     "contact",

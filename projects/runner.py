@@ -420,7 +420,7 @@ def _without_stop_frame(checkpoint: Checkpoint, out_path: Path, interval_s: floa
             if "moment_N_m_per_m" in rows and math.isfinite(rows["moment_N_m_per_m"][k]):
                 moment[c] = rows["moment_N_m_per_m"][k] * (t - since_s)
         arrays["contact_impulse"], arrays["contact_peak"] = impulse, peak
-        if "contact_moment" in arrays:  # (checkpoints written before session 16 have none)
+        if "contact_moment" in arrays:  # (older checkpoints have none)
             arrays["contact_moment"] = moment
     # last_output_step -1: a stop at a stage's last step still gets that stage's end frame
     run = {**run, "contacts_since_s": since_s, "cursor": {**cursor, "frames": frames - 1, "last_output_step": -1}}

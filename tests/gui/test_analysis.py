@@ -200,7 +200,7 @@ def test_export_report_writes_the_html_report_and_opens_it(window, make_results,
 
 def test_a_report_no_browser_can_show_is_named_in_the_status_bar(window, make_results, monkeypatch):
     """Without a desktop launcher (Xvfb, a bare session) Qt cannot hand the report to a browser; the
-    workbench said nothing (the session-16 walkthrough)."""
+    status bar says so and names the saved report."""
     path = make_results()
     write_hazard(path)
     window.open_results(path)

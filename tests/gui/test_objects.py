@@ -1,4 +1,4 @@
-"""Structures and targets in the workbench (issues 11 and 12): drawn, edited, listed, undone and
+"""Structures and targets in the workbench: drawn, edited, listed, undone and
 saved like bodies; shown in the scene and results views; the contact forces in the curves."""
 
 from __future__ import annotations

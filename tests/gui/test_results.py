@@ -139,8 +139,7 @@ def test_a_folder_that_is_not_results_is_refused_readably(window, tmp_path):
 
 def test_the_auto_colour_range_shows_whole_numbers(window, make_results):
     """The colour range fields show the number from its start, whole (a displacement range of
-    0.0002828 m read '828' in a 90-pixel field scrolled to its end). Found by the session-10
-    review under Xvfb."""
+    0.0002828 m read '828' in a 90-pixel field scrolled to its end)."""
     path = make_results(n_frames=2)
     assert window.open_results(path)
     controls = window.results_view.controls
@@ -154,8 +153,7 @@ def test_the_auto_colour_range_shows_whole_numbers(window, make_results):
 def test_results_in_real_world_coordinates_are_drawn_and_picked_where_they_are(window, tmp_path, qtbot):
     """Frames in UTM-like coordinates (y ~ 4e6 m) are drawn relative to the grid's corner: in
     float32, as VTK draws, the 800 particles of the synthetic block fell onto 0.25 m rows (a few
-    squares) and the structure's fill slid off its outline; picking adds the corner back.
-    Found by the session-10 review under Xvfb."""
+    squares) and the structure's fill slid off its outline; picking adds the corner back."""
     from projects.results import ResultsWriter
     from solver.config import Frame
     from tests.conftest import SYNTHETIC_META, synthetic_frames
@@ -185,7 +183,7 @@ def test_results_in_real_world_coordinates_are_drawn_and_picked_where_they_are(w
 def test_curves_of_a_run_before_its_first_frame_show_no_axes_of_the_last_run(qtbot):
     """The run curves and the contact forces, cleared for a run that has no frame yet (or never
     gets one), show a plain 0-1 range, not the axes of the run shown before (a hidden time marker
-    at its last time held them: 0.0075-0.008 s). Found by the session-10 review under Xvfb."""
+    at its last time held them: 0.0075-0.008 s)."""
     from app.gui.curves import ContactCurves, SeriesCurves
 
     series = SeriesCurves()
@@ -206,9 +204,8 @@ def test_curves_of_a_run_before_its_first_frame_show_no_axes_of_the_last_run(qtb
         canvas.redraw_now()
         for ax in canvas.axes:
             assert ax.get_xlim() == (0.0, 1.0) and ax.get_ylim() == (0.0, 1.0)
-    # and the next run's curves get axes that hold them again (the 0-1 range switched matplotlib's
-    # autoscaling off, and every later run showed its curves through a 0-1 window: found by the
-    # session-16 walkthrough of the check-dam example)
+    # and the next run's curves get axes that hold them again (the 0-1 range switches matplotlib's
+    # autoscaling off; left off, every later run would show its curves through a 0-1 window)
     later = np.array([0.0, 2.0, 4.0])
     big = np.array([10.0, 250.0, 90.0])
     series.set_series({"time_s": later, **{k: big for k in

@@ -289,9 +289,9 @@ def test_a_run_stops_when_the_workbench_dies(long_file, tmp_path):
 def test_cancel_during_the_run_process_start_up_is_a_stop_not_an_abnormal_end(window, tiny_file, long_file, qtbot):
     """Run, then Cancel at once, while the child is still starting (its SIGTERM handler not yet
     installed, or before it reported its folder): the run is "stopped", with no error dialog, and
-    the results folder it was to replace is not shown as its frames. Was: "The run process ended
+    the results folder it was to replace is not shown as its frames (not "The run process ended
     abnormally: killed by SIGTERM after the cancel request ... Frames written until then are in
-    ..." over the earlier run's results. Found by the session-10 review under Xvfb."""
+    ..." over the earlier run's results)."""
     window.open_project(tiny_file)
     assert window.start_run()
     wait_for_runs(qtbot, window, 90.0)

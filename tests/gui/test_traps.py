@@ -1,4 +1,4 @@
-"""The workbench's traps of a first hour (issue 15): units, unknown keys, what a preset runs,
+"""The workbench's traps of a first hour: units, unknown keys, what a preset runs,
 profile imports, monitoring points, cross-sections, movie progress and Help."""
 
 from __future__ import annotations

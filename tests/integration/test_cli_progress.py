@@ -60,8 +60,8 @@ def test_jsonl_reports_a_run_that_cannot_start(tiny_project, tmp_path):
 
 def test_jsonl_of_a_resume_numbers_frames_as_the_folder_does(tiny_project, tmp_path):
     """`runout run --resume RESULTS --progress jsonl`: the frame events carry the frames' numbers
-    in the folder (they were counted from 0 again, so a program following the run read frame 0
-    for frame_00003.vtp); `started` says the first. Found by the session-10 review."""
+    in the folder (not counted from 0 again, which would have a program following the run read
+    frame 0 for frame_00003.vtp); `started` says the first."""
     from projects.document import load_project
     from projects.runner import run_project
 

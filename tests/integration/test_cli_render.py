@@ -77,8 +77,8 @@ def test_help_lists_the_commands(tmp_path):
 def test_pictures_and_movies_where_nothing_can_be_written_are_one_line_errors(make_results, tmp_path):
     """A picture or movie whose folder cannot be made or written (a read-only disk; here a
     path through a plain file, which fails for root too) is one line, checked before any rendering
-    (was: a traceback from the screenshot or the report's folder; for a movie pages of ffmpeg
-    output or 'Exception ignored' from the writer; the report: tests/integration/test_report.py). Found by the session-10 review."""
+    (not a traceback from the screenshot or the report's folder; for a movie not pages of ffmpeg
+    output or 'Exception ignored' from the writer; the report: tests/integration/test_report.py)."""
     folder = make_results(n_frames=2)
     blocker = tmp_path / "not-a-folder"
     blocker.write_text("a file\n")

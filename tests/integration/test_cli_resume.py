@@ -178,7 +178,7 @@ def test_start_from_refuses_a_state_with_particles_inside_a_structure_of_the_pro
     """A project that adds a structure where the other run's material has moved to (not where it
     was seeded: the particles are the same) would start with particles inside the structure, which
     the solver then pushes to the nearest face (into a neighbouring structure, out of a thin one):
-    refused with one line naming the structure. Found by the session-10 review."""
+    refused with one line naming the structure."""
     from projects.results import ResultsError
 
     source = tmp_path / "source"

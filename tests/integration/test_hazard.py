@@ -298,10 +298,10 @@ def test_the_hazard_files_of_a_scene_far_from_the_origin_are_those_of_the_same_s
 
 
 def test_the_floor_under_a_structure_is_its_top(tmp_path):
-    """A block sliding on a structure (bedrock, a platform: issue 11's rigid sliding surface) flows
+    """A block sliding on a structure (bedrock, a platform: a rigid sliding surface) flows
     over the structure's top, not over the grid's bottom: its flow height is its own height and
-    it drops nothing (before: flow heights and drop measured from the grid's bottom under the
-    structure, here 0.12 m instead of 0.06 m)."""
+    it drops nothing (flow heights and drop measured from the grid's bottom under the structure
+    would be 0.12 m here instead of 0.06 m)."""
     from projects.schema import validate_project
 
     base = 0.06  # the platform's top: 3 cells, on a node line

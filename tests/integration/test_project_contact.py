@@ -1,4 +1,4 @@
-"""Coulomb friction through the project path (issue 11): a block at rest on a frictional contact,
+"""Coulomb friction through the project path: a block at rest on a frictional contact,
 written as a project file, run by ``projects.runner.run_project``, its slip read from the frames.
 
 The user's way, at a realistic scale (5 cm cells for both stiffnesses): a tilted
@@ -121,10 +121,10 @@ def test_a_block_five_degrees_from_the_friction_limit_holds(tmp_path, contact, s
 
 
 # Classic mpm's stiff one-cell sheets on a wall a few degrees above the limit at high friction: the
-# sheet's thickness vibration (FLIP keeps it) compressed the wall cell, and the mirror image pulled
-# the ghost back, a tension on the wall the friction did not see (docs/solver.md, walls as mirror
-# planes). Before the image stopped pulling (session 17), measured: -39.6 % at 39/35 (bottom),
-# -13.5 % at 40/35, -6.4 % at 35/30 (right); after: -0.01 to -0.08 %.
+# sheet's thickness vibration (FLIP keeps it) compresses the wall cell, and the mirror image does not
+# pull the ghost back (docs/solver.md, walls as mirror planes): measured -0.01 to -0.08 %. A pull
+# would be a tension on the wall the friction does not see: measured with it, -39.6 % at 39/35
+# (bottom), -13.5 % at 40/35, -6.4 % at 35/30 (right).
 STIFF_SHEETS = [
     ("bottom", "mpm", "f32", 1, 1e8, 39, 35),
     ("left", "mpm", "f32", 1, 1e8, 40, 35),
@@ -169,16 +169,16 @@ LIMITS = [
                "removes it (test_the_damping_the_flutter_warning_gives_makes_the_slide_right)")),
     pytest.param("ramp", "apic-affine", "f32", 20, 1e6, 40, 30, "recommended", marks=_limit(
         reason="a soft 20-cell block sliding on the ramp at 40/30 (friction 2.2 times the drive) after "
-               "the recommended 2.9 s gravity stage: +10.2 % (apic +10.8 %; the session-19 matrix's only "
-               "2 of 576 outside). It slides through the long stage and the base's flutter grows there: "
-               "after a 0.2 / 1.0 / 2.0 s stage +0.7 / +0.0 / +10.3 % (apic), stress free +10.9 %; the "
-               "bottom wall +2.0 % (docs/validation.md, session 19). The project warns (ratio >= 2) and "
+               "the recommended 2.9 s gravity stage: +10.2 % (apic +10.8 %; the only 2 of the 576 cases "
+               "of docs/validation.md's matrix outside). It slides through the long stage and the base's "
+               "flutter grows there: after a 0.2 / 1.0 / 2.0 s stage +0.7 / +0.0 / +10.3 % (apic), stress "
+               "free +10.9 %; the bottom wall +2.0 % (docs/validation.md). The project warns (ratio >= 2) and "
                "the damping it gives (a Maxwell arm of 20 % at the block's first shear mode) brings it "
                "within 0.1 % (Rayleigh 10 %: +0.2 %)")),
     pytest.param("right", "mpm", "f32", 5, 1e6, 40, 36, "recommended", marks=_limit(
         reason="sliding 4 deg above the friction limit at high friction (mu = 0.73): +23.9 %, the "
                "frictional flutter of near-limit slides (docs/validation.md, contact; the one "
-               "failure of 30 random cases of the matrix, session 16)")),
+               "failure of 30 random cases of the matrix)")),
 ]
 
 
@@ -326,7 +326,7 @@ _WARNED_DAMPING = re.compile(r"set materials\.block\.damping_ratio = (\S+), damp
 
 
 # Rayleigh only on the 5-cell blocks: on a 20-cell block it takes 10 times the steps (95 s of the
-# suite for two cases); its 20-cell cases are in the matrices of docs/validation.md (session 20).
+# suite for two cases); its 20-cell cases are in the matrices of docs/validation.md.
 _DAMPED_CASES = [pytest.param(*case, model, id=f"{c}-{s}-{p}-{n}cells-E{e:g}-{t}on{d}-{model}")
                  for case in DAMPED_NEAR_LIMIT for c, s, p, n, e, t, d in [case]
                  for model in ("warned", "rayleigh") if model == "warned" or n <= 5]

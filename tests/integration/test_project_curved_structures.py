@@ -1,5 +1,5 @@
-"""A body sliding on a curved structure follows the rigid body's motion (issue 11: "inclined and
-curved surfaces work, not only axis-aligned ones").
+"""A body sliding on a curved structure follows the rigid body's motion: inclined and curved
+surfaces work, not only axis-aligned ones.
 
 A sector of an annulus (3 cells thick, 10 deg wide) lies on a circular surface of radius R drawn as a
 polygon of 1-degree chords: inside a bowl (concave, R = 1 m) or on top of a hump (convex, R = 0.8 m).
@@ -16,10 +16,10 @@ ANGLE_TOL_DEG over the whole run: the bowl's swing from 40 deg to its first turn
 -40 deg frictionless, 13-23 deg held by friction of 25-30 deg), the hump's slide from 20 deg until
 the rigid sector leaves the surface (N = 0, near 50 deg). The hump starts well away from its top:
 there the motion leaves an unstable equilibrium, and a start 0.1 deg off grows 7-fold in 0.8 s.
-Measured (2 cm cells, session 15): in the bowl 0.25-0.57 deg in apic and apic-affine, f32 and
+Measured (2 cm cells): in the bowl 0.25-0.57 deg in apic and apic-affine, f32 and
 f64, E = 1e6 and 1e7 Pa, friction 0-30 deg; on the hump 0.50 deg (apic-affine, 1e7 Pa,
-frictionless). The same curve drawn clockwise or anticlockwise gives the same run (it did not
-before this test: docs/solver.md on convex vertices).
+frictionless). The same curve drawn clockwise or anticlockwise gives the same run (docs/solver.md
+on convex vertices).
 
 Classic mpm is not in this matrix: its particles next to a contact take the contact nodes'
 velocity as PIC does (docs/solver.md), which damps the sector's turn (its velocity varies across
@@ -176,8 +176,9 @@ def test_a_sector_sliding_on_a_curved_structure_moves_as_the_rigid_sector(tmp_pa
 
 def test_a_curved_structure_drawn_either_way_round_gives_the_same_run(tmp_path):
     """The engine orders a convex vertex's two faces as the polygon lists them; the run must not
-    depend on that. Before session 15 the stiff sector on the hump ended 2.3 mm apart after 0.3 s
-    (the face listed first won where the material lay within 0.8 deg of both); now f32 round-off."""
+    depend on that. The stiff sector on the hump after 0.3 s: the two runs agree to f32 round-off
+    (a face chosen by listing order where the material lies within 0.8 deg of both would put them
+    2.3 mm apart)."""
     import tomllib
 
     from projects.schema import validate_project

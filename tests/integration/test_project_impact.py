@@ -1,5 +1,5 @@
 """Granular and elastic blocks thrown, dropped and sliding onto structures, through the project path
-(issue 11; the session-10 stress test of contacts, docs/validation.md "Extremes").
+(the stress test of contacts, docs/validation.md "Extremes").
 
 Each scene is a closed box (slip sides and top, fixed bottom) with `[[structures]]` in the flow
 path: a wall one cell thick with faces a quarter cell off the node lines hit at 6 m/s, a platform

@@ -1,6 +1,5 @@
 """A cohesionless block dropped or thrown onto the floor lands, throws a few grains up and comes to
-rest, in every scheme (found by the session-10 review: the APIC schemes ended with the stability
-guard, 16 of 16 runs of the matrix in docs/validation.md, "Extremes").
+rest, in every scheme (the matrix in docs/validation.md, "Extremes").
 
 The grains thrown up are stress free at the Drucker-Prager cone's apex and, by eq 24, kept
 expanding (53 times their volume); landing again they were that much stiffer per mass than the

@@ -1,4 +1,4 @@
-"""A block released stress free on a frictional incline creeps as the elastic continuum does (issue 11).
+"""A block released stress free on a frictional incline creeps as the elastic continuum does.
 
 The issue's sticking tolerance (0.1 % of the frictionless distance) is for a body at rest under
 gravity, in equilibrium (a ``gravity`` stage first: tests/integration/test_project_contact.py). A

@@ -1,9 +1,9 @@
-"""At-rest thrust on a retaining wall through the project path (issue 11), as an engineer sets it up.
+"""At-rest thrust on a retaining wall through the project path, as an engineer sets it up.
 
 A granular column (Drucker-Prager, c = 0, phi 30 deg; 12 x 12 cells of 2 cm, 2 x 2 particles per
 cell) stands between a slip left side and a vertical slip wall structure on the grid's fixed bottom; a `k0` stage, then 0.075 s undamped. The wall's mean force over each output interval
-in `contacts.csv` is Jaky's at-rest thrust `1/2 K0 rho g H^2`, `K0 = 1 - sin(phi)`, within the
-issue's 5 %. The engine-level thrust tests (tests/unit/test_solver_thrust.py) cover more columns,
+in `contacts.csv` is Jaky's at-rest thrust `1/2 K0 rho g H^2`, `K0 = 1 - sin(phi)`, within
+5 %. The engine-level thrust tests (tests/unit/test_solver_thrust.py) cover more columns,
 friction angles and cell sizes; this file checks what a project file, the runner and the results
 folder give, over the schemes, wall thicknesses and face positions relative to
 the node lines; and that the force's line of action, from its moment in `contacts.csv`, lies at a
@@ -11,19 +11,19 @@ third of the column's height, where the resultant of the triangular at-rest pres
 
 Thin walls (``THIN_WALLS``): walls 1 to 3 cells thick at faces 0 to 0.9 cells off the node line,
 every scheme, within the tolerance (0.957-1.000, line of action 0.333-0.348 H; the sweep of 150
-runs in docs/validation.md, thrust, session 18). Until a node whose stencil reaches past a thin
-part's far face held the material beyond that face (``solver.structures.far_normals``), such a
-node, its normal the other face's, let the push through: a wall one cell thick took 0.92-0.97
+runs in docs/validation.md, thrust). A node whose stencil reaches past a thin part's far face
+holds the material beyond that face (``solver.structures.far_normals``); a node there with the
+other face's normal lets the push through: measured so, a wall one cell thick takes 0.92-0.97
 (the bottom's friction the rest, the line of action 0.36-0.40 H), two cells thick with faces
 0.55-0.75 cells off 0.935-0.956. Walls under a cell thick are warned about and not tested here
-(half a cell: up to 3.7 times with faces 0.6-0.9 off). Until session 13 every wall with a face
-0.6-0.7 cells off came out 0.935-0.952 (and up to 1.054 at 0.8): the particle lattice, a point at
-each sub-cell centre inside the body, stopped 0.1-0.2 cells short of the face or ran past it; the
-lattice clipped at the outline takes the material to the face. The project still warns about
-faces in the band 0.55-0.85 cells off (3-4.3 % low there). Faces half a cell off drifted (mpm
-1.05 -> 1.29 over 0.2 s, apic 1.03 -> 1.07, apic-affine 0.98 -> 0.87) until the structures' image
-reactions were placed opposite the node that takes the image's force and the contact on the
-stress update's velocity held its active nodes both ways (docs/validation.md, thrust).
+(half a cell: up to 3.7 times with faces 0.6-0.9 off). The particle lattice is clipped at the
+outline, which takes the material to the face; a point at each sub-cell centre inside the body
+stops 0.1-0.2 cells short of the face or runs past it (measured: 0.935-0.952 with a face 0.6-0.7
+cells off, up to 1.054 at 0.8). The project still warns about faces in the band 0.55-0.85 cells
+off (3-4.3 % low there). Faces half a cell off hold because the structures' image reactions are
+placed opposite the node that takes the image's force and the contact on the stress update's
+velocity holds its active nodes both ways (without: a drift of mpm 1.05 -> 1.29 over 0.2 s, apic
+1.03 -> 1.07, apic-affine 0.98 -> 0.87; docs/validation.md, thrust).
 """
 
 from __future__ import annotations
@@ -128,11 +128,11 @@ def _thrust(tmp_path, scheme, precision, thick_cells, offset_cells):
 
 
 # A face exactly half a cell from a node line, drawn on round numbers, whose signed distance
-# round-off puts a hair outside the node's cell (0.375 - 0.36 > 0.015 in binary): the node stayed free
-# and under mpm the thrust ratcheted up: here 0.930 -> 1.089 over the 0.5 s (a 0.36 m column found
-# by an independent tester in session 17: 1.071 at 0.5 s, 1.31 at 1.5 s; apic 1.06 at 1.5 s); the
-# suite's own half-cell cases (0.25 - 0.24 < 0.01) had fallen the other way. Ties now count as
-# covered (solver.structures.node_contacts): 1.000-1.001 over the 0.5 s.
+# round-off puts a hair outside the node's cell (0.375 - 0.36 > 0.015 in binary). Ties count as
+# covered (solver.structures.node_contacts): 1.000-1.001 over the 0.5 s. A node left free there lets
+# the thrust ratchet up under mpm: 0.930 -> 1.089 over the 0.5 s here (a 0.36 m column: 1.071 at
+# 0.5 s, 1.31 at 1.5 s; apic 1.06 at 1.5 s); the suite's other half-cell cases (0.25 - 0.24 < 0.01)
+# round the other way.
 def test_a_face_exactly_half_a_cell_off_holds_the_at_rest_thrust_over_half_a_second(tmp_path):
     project = _project("mpm", "f32", 3, 0.5, cell=0.03, width=0.36, duration_s=0.5)
     assert project.structures[0].polygon_m[0][0] == 0.375

@@ -198,8 +198,7 @@ def test_a_scene_in_real_world_coordinates_is_drawn_as_at_the_origin(tmp_path):
     """Frames in UTM-like coordinates (x ~ 5e5 m, y ~ 4e6 m: float64 in the file) draw the same
     particles and structures as the scene at the origin; only the axis labels differ (VTK draws in
     float32, 0.25 m apart at y = 4e6 m: the 200-particle block of a 0.2 m scene was drawn as one
-    row of eight squares and the structures' fills slid off their outlines). Found by the
-    session-10 review."""
+    row of eight squares and the structures' fills slid off their outlines)."""
     shift = np.array([500000.0, 4000000.0])
     structure = [[0.25, 0.0], [0.4, 0.0], [0.4, 0.06], [0.25, 0.06]]
     pictures = {}

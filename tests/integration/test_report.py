@@ -90,7 +90,7 @@ def test_report_lists_the_contact_forces_of_contacts_csv(collapse, tmp_path):
 
     folder = tmp_path / "with_contacts.results"
     shutil.copytree(collapse, folder)
-    # a file as runs wrote it before the moment column (session 16): still read
+    # a file without the moment column (older runs): still read
     rows = [",".join(CONTACT_COLUMNS[:9]),
             "0.0,bottom,0.0,0.0,0.0,0.0,0.0,0.0,0.0", "0.0,wall,0.0,0.0,,,0.0,0.0,0.0",
             "0.1,bottom,1.0,-50.0,50.0,1.0,80.0,2.0,-79.9", "0.1,wall,-35.5,12.0,,,61.25,-60.0,12.3",
@@ -148,7 +148,7 @@ def test_report_without_hazard_files_is_a_one_line_error(collapse, tmp_path):
 def test_report_where_nothing_can_be_written_is_a_one_line_error(collapse, tmp_path):
     """A report whose folder cannot be made or written (a read-only results folder; here a path
     through a plain file, which fails for root too) is one line before any picture is rendered
-    (was: a traceback from the folder's mkdir). Found by the session-10 review."""
+    (not a traceback from the folder's mkdir)."""
     blocker = tmp_path / "not-a-folder"
     blocker.write_text("a file\n")
     proc = runout("report", str(collapse), "-o", str(blocker / "report"), cwd=tmp_path)

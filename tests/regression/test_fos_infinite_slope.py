@@ -1,4 +1,4 @@
-"""Strength reduction of an infinite slope against the closed form (issue 13).
+"""Strength reduction of an infinite slope against the closed form.
 
 A uniform layer 1 m thick on a rough (fixed) base with periodic sides, gravity rotated by beta
 (:func:`studies.fos.infinite_slope`: 4 cells wide, rho = 2000 kg/m3, E = 20 MPa, nu = 0.3,

@@ -1,6 +1,6 @@
 """The speed-accuracy study's design and the shipped presets.
 
-- The full sweep covers what issue 5 asks for every scheme: cell sizes 5, 4, 2.5, 2 and 1.25 mm,
+- The full sweep covers, for every scheme, cell sizes 5, 4, 2.5, 2 and 1.25 mm,
   1, 4 and 9 particles per cell, several time-step fractions.
 - ``projects/presets.json`` (written from the study's ``presets.json``) holds draft, standard and
   fine, each a valid ``[numerics]``/``[particles]`` setting with its measured error within its

@@ -156,7 +156,7 @@ def test_targets_and_reports(bench):
     md = out.with_suffix(".md").read_text()
     assert md == markdown_report(result)
     assert len(result["load_average"]["start"] or [0, 0, 0]) == 3
-    assert "| arch | prec | particles |" in md and "### Targets (issue 6)" in md
+    assert "| arch | prec | particles |" in md and "### Targets" in md
     titles = [title for title, _, _ in report_tables(result)]
     assert any(t.startswith("Profile") for t in titles) and any(t.startswith("Output stall") for t in titles)
 

@@ -212,7 +212,7 @@ def test_a_resumed_folder_takes_its_contact_peaks_from_the_rows_it_keeps(tmp_pat
 @pytest.mark.parametrize("where", ["beside", "above"])
 def test_a_body_within_a_cell_of_a_structure_is_warned_about_as_near_a_wall(gap_cells, warned, where):
     """As for a closed side: a body less than a cell from a structure without touching it drops or
-    slides onto it at the start (issue 11: structures act like walls). Overlapping (the structure
+    slides onto it at the start (structures act like walls). Overlapping (the structure
     takes its part) or touching is fine, to 2 % of a cell (a body laid on an inclined structure with
     rounded coordinates)."""
     from projects.checks import project_warnings

@@ -202,9 +202,9 @@ def test_disk_full_while_writing_frames_ends_failed_without_temp_files(tmp_path,
 
 def test_a_new_run_that_cannot_start_on_a_full_disk_leaves_no_results_folder_behind(tmp_path, monkeypatch):
     """The disk full before the first summary: the writer removes the marker and the folders it
-    made (was: a marker and an empty frames/ were left, so the folder read as an interrupted run
-    and the next run, once space was freed, was refused as 'holds the results of an earlier
-    run'). Found by the session-10 review (a 60 kB tmpfs)."""
+    made (a marker and an empty frames/ left behind would make the folder read as an interrupted
+    run, and the next run, once space was freed, would be refused as 'holds the results of an
+    earlier run')."""
     folder = tmp_path / "r.results"
     _fail_after(monkeypatch, calls=0)  # the first atomic write (project.toml) fails
     with pytest.raises(ResultsError, match="No space left"):

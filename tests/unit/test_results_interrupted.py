@@ -137,8 +137,8 @@ def test_a_damaged_checkpoint_is_a_one_line_results_error(tmp_path, damage):
 
 
 def test_a_missing_checkpoint_names_the_path_given(tmp_path):
-    """``--start-from`` with a mistyped folder names that folder (it said "no checkpoint in" its
-    parent, which the user never typed). Found by the session-10 review."""
+    """``--start-from`` with a mistyped folder names that folder (not "no checkpoint in" its
+    parent, which the user never typed)."""
     from projects.results import ResultsError, read_checkpoint
 
     with pytest.raises(ResultsError) as err:

@@ -30,8 +30,8 @@ in the matrix, whose sliding pairs are 10 deg above it): on a 40 or 38 deg incli
 deg friction blocks of 5 to 20 cells slide too far, +3.4 to +25 % at 40/35 and +42 to +135 % at
 38/36 (friction deficits of 0.8-10 % of mu, which the small net acceleration magnifies). A one-cell
 sheet is within the tolerance there since the mirror walls' normal impulse brings friction with it
-(``MIRROR_ROWS``; before, +2 to +8 %), through the wall column and without pulling the ghost back
-(session 17: apic +2.1 -> +1.3 %, apic-affine -0.6 %, mpm +0.04 % at 38/36). The others are strict xfails: they fail the suite if they ever meet
+(``MIRROR_ROWS``), through the wall column and without pulling the ghost back (apic +1.3 %,
+apic-affine -0.6 %, mpm +0.04 % at 38/36). The others are strict xfails: they fail the suite if they ever meet
 the tolerances, so that this note is updated. Measured per contact node
 (docs/validation.md, contact), neither is friction that changes
 direction under elastic waves (no node slips up the slope; slip steps give exactly mu N): the creep
@@ -151,9 +151,9 @@ def test_on_a_gpu_a_block_at_rest_on_a_frictional_wall_slides_or_sticks_as_coulo
 
 
 # A sheet sliding just above the friction limit, where a small friction deficit is a large error: the
-# mirror walls' normal impulse used to come without friction (0.42 % less than mu N: +7.4 % at 38/36);
-# then its friction stuck at the ghost alone and its pull went unseen by the friction (apic +2.1 %,
-# session 17: +1.3 % with the image's impulse in the wall column and no pull)
+# mirror walls' normal impulse brings its friction, through the wall column and with no pull (apic
+# +1.3 % at 38/36). Measured without that friction (0.42 % less than mu N): +7.4 % at 38/36; with the
+# friction at the ghost alone and a pull the friction does not see: apic +2.1 %
 MIRROR_ROWS = [
     ("apic", "f64", 1, 1e8, "bottom", [(38, 36)]),
     ("mpm", "f32", 1, 1e8, "right", [(38, 36), (40, 35)]),

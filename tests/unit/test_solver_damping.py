@@ -254,8 +254,8 @@ def _column_toe_m(extra: list[str]) -> float:
 def test_damping_acts_on_elastic_deformation_not_on_plastic_flow(model):
     # the damping stress follows the elastic part of the rate of deformation (C:D less the return
     # map's correction): a collapsing sand column runs out as undamped (toe -0.4 % / -0.7 % at 0.3 s);
-    # on the whole C:D it was a viscosity beta C on the flow, and the toe reached half as far
-    # (-52 % / -55 %, session 21 before the fix)
+    # on the whole C:D it would be a viscosity beta C on the flow, and the toe would reach half as far
+    # (measured -52 % / -55 %)
     damping = ["materials.sand.damping_ratio=0.1", "materials.sand.damping_frequency_hz=20",
                f'materials.sand.damping_model="{model}"']
     undamped = _column_toe_m([])

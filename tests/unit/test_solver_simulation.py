@@ -164,7 +164,7 @@ def test_coulomb_friction_decelerates_a_sliding_block_at_mu_g():
     frames = _sliding_block(Boundary("friction", math.radians(20.0)), (0.0, -9.81), 1.0, 0.1)
     d = frames[-1].diagnostics
     v_mean = d.momentum_x / d.total_mass_kg_per_m
-    # 0.643 m/s; measured 0.6415 (session 17: 1.004 mu g; 0.61 before the contact law of issue 11).
+    # 0.643 m/s; measured 0.6415 (1.004 mu g).
     # The margin is for the block's own vertical motion: released from a k0 stress with free ends
     # it bounces, and the wall's normal impulse over 0.1 s exceeds its weight's by what it gains
     # upwards (20 rows: friction exactly mu N, but N 1.028 W and 1.028 mu g)

@@ -1,4 +1,4 @@
-"""Thin rigid structures (issue 11): a block thrown at barriers 0.5 to 2 cells thick never ends
+"""Thin rigid structures: a block thrown at barriers 0.5 to 2 cells thick never ends
 inside one or beyond it, and mass is conserved.
 
 A structure thinner than 2 cells has nodes that material on either face reaches. After its move

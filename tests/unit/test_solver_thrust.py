@@ -1,4 +1,4 @@
-"""At-rest thrust of granular columns on vertical structures after a K0 stage (issue 11).
+"""At-rest thrust of granular columns on vertical structures after a K0 stage.
 
 A Drucker-Prager column (c = 0) between two vertical slip structures gets Jaky's geostatic stress
 from a ``k0`` stage (``sigma_h = (1 - sin phi) sigma_v``) and is then left to itself, undamped:
