@@ -438,7 +438,7 @@ class _Variant:
 
                 scheme = "apic-affine"
                 water = GroundWater(grid.cells[0] + 1 + 2 * PAD, -PAD * grid.cell_size_m, grid.cell_size_m,
-                                    config.materials, config.gravity_m_s2)
+                                    config.materials, config.gravity_m_s2, np_float)
                 level = 0.5 * BLOCK_M[1]
                 water.set_water(Water(((0.0, level), (grid.size_m[0], level))), None, 0.0)
             self.obj = Engine(grid, config.materials, n, scheme, np_float, speed_bound_m_s=bound, damping=False,

@@ -32,10 +32,12 @@ class GroundWater:
     full_gravity_m_s2 : (2,) float, the run's full gravity: the water's unit weight is given for
         its magnitude, and depths are measured along its direction (also while a gravity stage
         ramps gravity up from zero)
+    np_float : numpy float type of the run's precision (what the host writes into the fields)
     """
 
     def __init__(self, columns: int, origin_x_m: float, dx: float, materials: Sequence[Material],
-                 full_gravity_m_s2):
+                 full_gravity_m_s2, np_float=np.float32):
+        self.np_float = np_float  # the fields' float type (the run's precision)
         self.columns = int(columns)
         self.origin_x = float(origin_x_m)
         self.dx = float(dx)
@@ -71,8 +73,8 @@ class GroundWater:
         ru = np.zeros(self.ru.shape[0])
         ratio[:len(materials)] = unit_weight_ratio(materials)
         ru[:len(materials)] = [m.ru for m in materials]
-        self.wet_ratio.from_numpy(ratio)
-        self.ru.from_numpy(ru)
+        self.wet_ratio.from_numpy(ratio.astype(self.np_float))
+        self.ru.from_numpy(ru.astype(self.np_float))
 
     def _sampled(self, water: Water) -> np.ndarray:
         xs = self.column_x()
@@ -84,13 +86,13 @@ class GroundWater:
         end = start if end is None else end
         start = end if start is None else start
         if end is None:
-            self.y_from.from_numpy(np.zeros((2, self.columns)))
-            self.y_to.from_numpy(np.zeros((2, self.columns)))
+            self.y_from.from_numpy(np.zeros((2, self.columns), dtype=self.np_float))
+            self.y_to.from_numpy(np.zeros((2, self.columns), dtype=self.np_float))
             self.rho_w[None] = 0.0
             self.correct[None] = 0
         else:
-            self.y_from.from_numpy(self._sampled(start))
-            self.y_to.from_numpy(self._sampled(end))
+            self.y_from.from_numpy(self._sampled(start).astype(self.np_float))
+            self.y_to.from_numpy(self._sampled(end).astype(self.np_float))
             self.rho_w[None] = end.unit_weight_n_m3 / self.full_g if self.full_g > 0.0 else 0.0
             self.correct[None] = int(end.inclined_correction)
         moving = duration_s > 0.0 and start is not end

@@ -224,7 +224,7 @@ class Simulation:
             from solver.groundwater import GroundWater
 
             groundwater = GroundWater(local_grid.cells[0] + 1 + 2 * PAD, -PAD * local_grid.cell_size_m,
-                                      local_grid.cell_size_m, config.materials, config.gravity_m_s2)
+                                      local_grid.cell_size_m, config.materials, config.gravity_m_s2, np_float)
         self.engine = Engine(
             local_grid, config.materials, len(particles), config.numerics.scheme, np_float,
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
