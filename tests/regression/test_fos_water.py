@@ -15,9 +15,10 @@ Cells: the layer slides on the lowest particles whose stencils reach the base no
 cells above the base (test_fos_infinite_slope.py). Where the factor depends on the depth (a line
 inside the layer, or cohesion) the wetted fraction there differs from ``m`` by about
 ``1.25 dx (1 - m) / T`` and the cohesive part is larger by ``1.25 dx / T``, so the cohesionless
-cases use 32 cells over the thickness (measured +0.7 % to +1.1 %; at 8 cells the line at the
-surface came out +7 %, the surface particles' pressure resolved too coarsely) and the cohesive
-one 64 (+1.9 %; at 32 cells +3.0 %, as the bias above predicts).
+cases use 32 cells over the thickness (measured: half wet +1.6 %, line at the surface -0.7 %, two
+unit weights +1.9 %; at 8 cells the line at the surface came out +7 %, the surface particles'
+pressure resolved too coarsely) and the cohesive one 64 (+1.9 %; at 32 cells +3.0 %, as the bias
+above predicts).
 """
 
 import math
