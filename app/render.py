@@ -747,6 +747,11 @@ def add_water_actors(plotter: Any, shown: WaterShown, shift: Any = (0.0, 0.0), l
         lift = z[1] if key == "water-line" else 0.5 * z[1]  # the phreatic line over the free-water line
         plotter.add_mesh(pv.MultipleLines(np.c_[line - shift, np.full(len(line), lift)]), color=color,
                          line_width=width, name=f"{prefix}{key}", **common)
+    # the camera's near and far planes were set for the particles at z = 0 (reset_camera=False):
+    # widen them to these actors, or the line in front of the particles may be clipped away
+    renderer = getattr(plotter, "renderer", None)
+    if renderer is not None:
+        renderer.ResetCameraClippingRange()
 
 
 def _scene_for(
