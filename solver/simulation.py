@@ -285,11 +285,16 @@ class Simulation:
         return dataclasses.replace(water, phreatic_line_m=shift(water.phreatic_line_m),
                                    free_water_line_m=shift(water.free_water_line_m))
 
+    def _water_before(self, index: int) -> Water | None:
+        """Where the stages before stage ``index`` left the water (project coordinates)."""
+        water = self.config.water
+        for stage in self.config.stages[:index]:
+            water = stage.water if stage.water is not None else water
+        return water
+
     def _start_water_move(self, index: int) -> None:
         """At the start of stage ``index``: the water it moves, from where the stages before left it."""
-        start = self.config.water
-        for stage in self.config.stages[:index]:
-            start = stage.water if stage.water is not None else start
+        start = self._water_before(index)
         stage = self.config.stages[index]
         if stage.water is None:
             self._water_move = (start, start, 0.0)
@@ -309,9 +314,7 @@ class Simulation:
 
     def water_at(self, stage_index: int, stage_time_s: float) -> Water | None:
         """Where the ground water was (or will be) at a time of a stage (project coordinates)."""
-        start = self.config.water
-        for stage in self.config.stages[:stage_index]:
-            start = stage.water if stage.water is not None else start
+        start = self._water_before(stage_index)
         stage = self.config.stages[min(stage_index, len(self.config.stages) - 1)]
         if stage.water is None or stage_index >= len(self.config.stages):
             return start
