@@ -57,6 +57,29 @@ def solver_material(name: str, material: schema.Material) -> sc.Material:
         damping_model=material.damping_model or sc.DEFAULT_DAMPING_MODEL,
         saturated_density_kg_m3=material.saturated_density_kg_m3,
         ru=material.ru or 0.0,
+        softening=solver_softening(material) if plastic else None,
+    )
+
+
+def solver_softening(material: schema.Material) -> sc.Softening | None:
+    """A material's strain softening in the solver's units (None without ``softening_law``); a
+    residual value not given is the peak one (that parameter does not soften)."""
+    if material.softening_law is None:
+        return None
+
+    def residual(value: float | None, peak: float | None) -> float:
+        return value if value is not None else (peak or 0.0)
+
+    return sc.Softening(
+        residual_cohesion_pa=residual(material.residual_cohesion_pa, material.cohesion_pa),
+        residual_friction_angle_rad=math.radians(residual(material.residual_friction_angle_deg,
+                                                          material.friction_angle_deg)),
+        residual_dilatancy_angle_rad=math.radians(residual(material.residual_dilatancy_angle_deg,
+                                                           material.dilatancy_angle_deg)),
+        residual_strain=material.residual_plastic_strain,
+        peak_strain=material.peak_plastic_strain or 0.0,
+        law=material.softening_law,
+        length_m=material.softening_length_m,
     )
 
 

@@ -78,13 +78,25 @@ FIRST_TRIALS: tuple[str, ...] = ("limit-equilibrium",)
 DAMPING_TYPES: tuple[str, ...] = ("local",)
 OUTPUT_FIELDS = sc.OUTPUT_FIELDS
 #: Material keys that only a Drucker-Prager material may have.
+SOFTENING_LAWS = sc.SOFTENING_LAWS
+#: A material's strain-softening keys (solver/materials/softening.py).
+SOFTENING_KEYS: tuple[str, ...] = (
+    "softening_law",
+    "residual_cohesion_pa",
+    "residual_friction_angle_deg",
+    "residual_dilatancy_angle_deg",
+    "peak_plastic_strain",
+    "residual_plastic_strain",
+    "softening_length_m",
+)
+#: Material keys that only a Drucker-Prager material may have.
 PLASTIC_KEYS: tuple[str, ...] = (
     "cohesion_pa",
     "friction_angle_deg",
     "dilatancy_angle_deg",
     "tensile_strength_pa",
     "mohr_coulomb_match",
-)
+) + SOFTENING_KEYS
 #: Numerics keys of the time step: give one of them (none: cfl = DEFAULT_CFL).
 DEFAULT_CFL = sc.DEFAULT_CFL
 #: Damping coefficient of a gravity stage that gives none.
@@ -503,6 +515,13 @@ class Material(_Model):
     damping_model: Annotated[Literal[DAMPING_MODELS], _choice(DAMPING_MODELS)] | None = None
     saturated_density_kg_m3: OptDensity = None
     ru: OptPoreRatio = None
+    softening_law: Annotated[Literal[SOFTENING_LAWS], _choice(SOFTENING_LAWS)] | None = None
+    residual_cohesion_pa: OptNonNegativePa = None
+    residual_friction_angle_deg: OptAngleDeg = None
+    residual_dilatancy_angle_deg: OptAngleDeg = None
+    peak_plastic_strain: OptNonNegative = None
+    residual_plastic_strain: OptPositive = None
+    softening_length_m: OptPositive = None
 
 
 class MaterialChange(_Model):
@@ -521,6 +540,13 @@ class MaterialChange(_Model):
     damping_model: Annotated[Literal[DAMPING_MODELS], _choice(DAMPING_MODELS)] | None = None
     saturated_density_kg_m3: OptDensity = None
     ru: OptPoreRatio = None
+    softening_law: Annotated[Literal[SOFTENING_LAWS], _choice(SOFTENING_LAWS)] | None = None
+    residual_cohesion_pa: OptNonNegativePa = None
+    residual_friction_angle_deg: OptAngleDeg = None
+    residual_dilatancy_angle_deg: OptAngleDeg = None
+    peak_plastic_strain: OptNonNegative = None
+    residual_plastic_strain: OptPositive = None
+    softening_length_m: OptPositive = None
 
 
 class Body(_Model):
@@ -1146,6 +1172,7 @@ def _material_rules(materials: Mapping[str, Any]) -> list[Problem]:
                 if key not in material:
                     problems.append(Problem(f"{path}.{key}", None, 'required for model "drucker-prager"'))
             problems += _dilatancy_rule(path, material, changed=None)
+            problems += _softening_rule(path, material, changed=None)
         elif model == "linear-elastic":
             for key in PLASTIC_KEYS:
                 if key in material:
@@ -1184,6 +1211,50 @@ def _dilatancy_rule(path: str, values: Mapping[str, Any], changed: Mapping[str, 
     if changed is not None and "dilatancy_angle_deg" not in changed:
         return [Problem(f"{path}.friction_angle_deg", phi, f"must not be below dilatancy_angle_deg ({psi:g})")]
     return [Problem(f"{path}.dilatancy_angle_deg", psi, f"must not exceed friction_angle_deg ({phi:g})")]
+
+
+#: a residual key, the peak key it may not exceed, and the peak's default
+_RESIDUALS = (("residual_cohesion_pa", "cohesion_pa"), ("residual_friction_angle_deg", "friction_angle_deg"),
+              ("residual_dilatancy_angle_deg", "dilatancy_angle_deg"))
+
+
+def _softening_rule(path: str, values: Mapping[str, Any], changed: Mapping[str, Any] | None) -> list[Problem]:
+    """Softening needs its law and residual strain; residual values at most the peak ones; the
+    residual strain beyond the peak strain; residual dilatancy at most residual friction. With
+    ``changed`` (a stage's change) only the rules its keys touch."""
+    keys = set(values) if changed is None else set(changed)
+    if changed is not None and not keys & (set(SOFTENING_KEYS) | {peak for _, peak in _RESIDUALS}):
+        return []
+    problems = []
+    law = values.get("softening_law")
+    others = [k for k in SOFTENING_KEYS if k != "softening_law" and k in values]
+    if law is None:
+        for key in others:
+            if key in keys:
+                problems.append(Problem(f"{path}.{key}", values[key], 'needs softening_law ("linear" or '
+                                        '"exponential") to say how the strength falls'))
+        return problems
+    if "residual_plastic_strain" not in values:
+        problems.append(Problem(f"{path}.residual_plastic_strain", None, "required with softening_law: the "
+                                "plastic strain at which the strength reaches its residual values"))
+    if not any(k in values for k, _ in _RESIDUALS):
+        problems.append(Problem(f"{path}.softening_law", law, "needs a residual value to fall to: "
+                                "residual_cohesion_pa, residual_friction_angle_deg or residual_dilatancy_angle_deg"))
+    for residual_key, peak_key in _RESIDUALS:
+        residual, peak = _num(values.get(residual_key)), _num(values.get(peak_key, 0.0))
+        if residual is not None and peak is not None and residual > peak:
+            problems.append(Problem(f"{path}.{residual_key}", residual, f"must be <= {peak_key} ({peak:g}): "
+                                    "softening lowers the strength from peak to residual"))
+    e_peak, e_res = _num(values.get("peak_plastic_strain", 0.0)), _num(values.get("residual_plastic_strain"))
+    if e_peak is not None and e_res is not None and e_res <= e_peak:
+        problems.append(Problem(f"{path}.residual_plastic_strain", e_res,
+                                f"must be > peak_plastic_strain ({e_peak:g})"))
+    psi_r = _num(values.get("residual_dilatancy_angle_deg", values.get("dilatancy_angle_deg", 0.0)))
+    phi_r = _num(values.get("residual_friction_angle_deg", values.get("friction_angle_deg")))
+    if psi_r is not None and phi_r is not None and psi_r > phi_r and not problems:
+        problems.append(Problem(f"{path}.residual_dilatancy_angle_deg", psi_r,
+                                f"must not exceed the residual friction angle ({phi_r:g})"))
+    return problems
 
 
 def _defined(names: Sequence[str]) -> str:
@@ -1441,4 +1512,6 @@ def _change_rules(path: str, changes: Mapping[str, Any], current: dict[str, dict
         touches_angles = "friction_angle_deg" in change or "dilatancy_angle_deg" in change
         if material.get("model") == "drucker-prager" and touches_angles:
             problems += _dilatancy_rule(change_path, material, changed=change)
+        if material.get("model") == "drucker-prager":
+            problems += _softening_rule(change_path, material, changed=change)
     return problems

@@ -79,7 +79,8 @@ def reduced_materials(materials: tuple[sc.Material, ...], indices: tuple[int, ..
                       factor: float) -> tuple[sc.Material, ...]:
     """The material table with the strengths of ``indices`` divided by ``factor``.
 
-    ``c / F``, ``atan(tan(phi) / F)``, tensile strength ``/ F``, dilatancy ``min(psi, phi_F)``.
+    ``c / F``, ``atan(tan(phi) / F)``, tensile strength ``/ F``, dilatancy ``min(psi, phi_F)``;
+    a softening material's residual strengths likewise.
 
     Parameters
     ----------
@@ -103,8 +104,20 @@ def reduced_materials(materials: tuple[sc.Material, ...], indices: tuple[int, ..
             friction_angle_rad=phi,
             dilatancy_angle_rad=min(m.dilatancy_angle_rad, phi),
             tensile_strength_pa=None if m.tensile_strength_pa is None else m.tensile_strength_pa / factor,
+            softening=_reduced_softening(m.softening, factor),
         )
     return tuple(out)
+
+
+def _reduced_softening(softening: sc.Softening | None, factor: float) -> sc.Softening | None:
+    """A softening's residual strengths divided by ``factor`` as the peak ones are (the trial
+    keeps the material's brittleness, peak over residual)."""
+    if softening is None:
+        return None
+    phi = math.atan(math.tan(softening.residual_friction_angle_rad) / factor)
+    return replace(softening, residual_cohesion_pa=softening.residual_cohesion_pa / factor,
+                   residual_friction_angle_rad=phi,
+                   residual_dilatancy_angle_rad=min(softening.residual_dilatancy_angle_rad, phi))
 
 
 @dataclass(frozen=True)

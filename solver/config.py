@@ -31,6 +31,8 @@ DEFAULT_MOHR_COULOMB_MATCH = "plane-strain-associated"
 #: standard linear solid) whose damping peaks at the given frequency and costs the step little.
 DAMPING_MODELS: tuple[str, ...] = ("rayleigh", "maxwell")
 DEFAULT_DAMPING_MODEL = "rayleigh"
+#: Strain-softening laws of a Drucker-Prager material (solver/materials/softening.py).
+SOFTENING_LAWS: tuple[str, ...] = ("linear", "exponential")
 BoundaryKind = Literal["fixed", "slip", "friction", "open", "periodic"]
 Side = Literal["left", "right", "bottom", "top"]
 SIDES: tuple[str, ...] = ("left", "right", "bottom", "top")
@@ -59,6 +61,26 @@ OUTPUT_FIELDS: tuple[str, ...] = ("displacement", "velocity", "stress", "plastic
                                    "pore_pressure")
 #: Fields written only where the run has water (``pore_pressure``: none in a dry run).
 WATER_FIELDS: tuple[str, ...] = ("pore_pressure",)
+
+
+@dataclass(frozen=True)
+class Softening:
+    """Strength falling from a material's peak (its cohesion, friction and dilatancy) to these
+    residual values with the equivalent plastic strain (solver/materials/softening.py).
+
+    ``law``: one of :data:`SOFTENING_LAWS`; ``peak_strain``, ``residual_strain``: where the drop
+    starts and where it ends (linear) or is 95 % done (exponential), as strains of a band of width
+    ``length_m``; ``length_m``: the material length that regularises the softening (None: the
+    strains are the particles' own, and the result depends on the cell size).
+    """
+
+    residual_cohesion_pa: float
+    residual_friction_angle_rad: float
+    residual_dilatancy_angle_rad: float
+    residual_strain: float
+    peak_strain: float = 0.0
+    law: str = "linear"
+    length_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -91,6 +113,8 @@ class Material:
     #: pore-pressure ratio ``r_u = u / sigma_v`` (total vertical stress), the engineers' shortcut
     #: for a pore pressure in proportion to the overburden (0: none; solver/water.py)
     ru: float = 0.0
+    #: strain softening (None: the strength stays at its peak)
+    softening: Softening | None = None
 
     @property
     def wet_density_kg_m3(self) -> float:
@@ -196,6 +220,11 @@ class Material:
         if self.model == "drucker-prager" and self.friction_angle_rad > 0.0:
             return 1.0 - math.sin(self.friction_angle_rad)
         return self.poisson_ratio / (1.0 - self.poisson_ratio)
+
+
+def softens(materials) -> bool:
+    """Whether some of ``materials`` softens (the softening return map is compiled in only then)."""
+    return any(m.model == "drucker-prager" and m.softening is not None for m in materials)
 
 
 @dataclass(frozen=True)

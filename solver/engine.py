@@ -89,6 +89,7 @@ class Engine:
     see solver/scatter.py; ``bands``: the split scatter's band count).
     ``structures``: rigid polygons inside the domain, contacts like the closed sides.
     ``viscous``: some material may carry a damping stress (default: one of ``materials`` does).
+    ``softening``: some material may soften (default: one of ``materials`` does).
 
     Contacts (see docs/solver.md): the closed sides (index 0-3 in :data:`SIDES` order) and the
     structures (index 4 on). Each step adds, per contact, the impulse the material exerts on it
@@ -99,7 +100,8 @@ class Engine:
     def __init__(self, grid: Grid, materials: tuple[Material, ...], n_particles: int, scheme: str,
                  np_float=np.float32, speed_bound_m_s: float = 1e30, remove_unstable: bool = False,
                  damping: bool = True, scatter: str = "auto", bands: int | None = None,
-                 structures: tuple[Structure, ...] = (), viscous: bool | None = None, water=None):
+                 structures: tuple[Structure, ...] = (), viscous: bool | None = None, water=None,
+                 softening: bool | None = None):
         if scheme not in ("mpm", "apic", "apic-affine"):
             raise ValueError(f"unknown scheme {scheme!r}; allowed: mpm, apic, apic-affine")
         self.scheme = scheme
@@ -120,7 +122,8 @@ class Engine:
         problem = grid.periodic_problem()
         if problem:
             raise ValueError(problem)
-        self.materials = MaterialTable(materials, np_float, shared_io=True)  # moved by self._io
+        self.materials = MaterialTable(materials, np_float, shared_io=True, cell_size_m=self.dx,
+                                       softening=softening)  # moved by self._io
         self.six_stage = scheme != "apic-affine"
 
         # particles
@@ -480,7 +483,7 @@ class Engine:
         D = 0.5 * (L + Lt)
         W = 0.5 * (L - Lt)
         before = self.s[p]
-        s, deq, yielded = self.materials.stress_update(self.mat[p], before, D, W, dt)
+        s, deq, yielded = self.materials.stress_update(self.mat[p], before, D, W, dt, self.eps_p[p])
         self.s[p] = s
         self.damping.update(self.materials, p, self.mat[p], D, W, dt, before, s, yielded)
         self.eps_p[p] += deq

@@ -58,6 +58,7 @@ from solver.config import (
     SolverError,
     Stage,
     Water,
+    softens,
 )
 from solver.initial_stress import k0_stress
 from solver.water import blend_water, pore_pressure
@@ -230,6 +231,7 @@ class Simulation:
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
             damping=damping_support or any(st.damping > 0 for st in config.stages), scatter=config.numerics.scatter,
             viscous=any(m.damping_beta_s > 0.0 for m in all_materials(config)),
+            softening=softens(all_materials(config)),
             # the structures in the engine's coordinates too (relative to the grid origin)
             structures=tuple(dataclasses.replace(st, polygon_m=tuple(
                 (float(x - self.origin_m[0]), float(y - self.origin_m[1])) for x, y in st.polygon_m))

@@ -12,19 +12,38 @@ from collections.abc import Sequence
 import numpy as np
 from solver.runtime import mat_mat, ti, transpose
 
-from solver.config import Material
+from solver.config import Material, softens
 from solver.fieldio import FieldIO
-from solver.materials import drucker_prager, linear_elastic
+from solver.materials import drucker_prager, linear_elastic, softening
 
 MODEL_CODES = {"linear-elastic": 0, "drucker-prager": 1}
 #: Columns of the per-material table (one Taichi field each).
 MATERIAL_COLUMNS = ("model", "K", "G", "alpha", "kc", "alpha_psi", "t_cut", "rho0", "beta", "relax")
+#: The softening's columns (solver/materials/softening.py): the law's code (0: none), its
+#: strains, the factor from plastic strain to softening strain, the match's code, peak and
+#: residual (c Pa, phi rad, psi rad) and the tensile strength (Pa, 1e30 for none)
+SOFTENING_COLUMNS = ("soft_law", "soft_e_peak", "soft_e_res", "soft_scale", "soft_match", "soft_peak",
+                     "soft_res", "soft_tension")
+_INT_COLUMNS = ("model", "soft_law", "soft_match")
+softening.check_match_codes(drucker_prager.MATCHES)
 
 
-def material_rows(materials: Sequence[Material]) -> dict[str, np.ndarray]:
-    """The per-material parameter table as numpy columns (SI units)."""
-    rows: dict[str, list[float]] = {k: [] for k in MATERIAL_COLUMNS}
+def material_rows(materials: Sequence[Material], cell_size_m: float | None = None) -> dict[str, np.ndarray]:
+    """The per-material parameter table as numpy columns (SI units); ``cell_size_m`` sets the
+    softening's regularisation scale (None: one, as in a single-point test)."""
+    rows: dict[str, list] = {k: [] for k in MATERIAL_COLUMNS + SOFTENING_COLUMNS}
     for m in materials:
+        soft = m.softening if m.model == "drucker-prager" else None
+        peak = (m.cohesion_pa, m.friction_angle_rad, m.dilatancy_angle_rad)
+        rows["soft_law"].append(0 if soft is None else softening.LAW_CODES[soft.law])
+        rows["soft_e_peak"].append(0.0 if soft is None else soft.peak_strain)
+        rows["soft_e_res"].append(1.0 if soft is None else soft.residual_strain)
+        rows["soft_scale"].append(1.0 if soft is None else softening.regularisation_scale(soft.length_m, cell_size_m))
+        rows["soft_match"].append(softening.MATCH_CODES[m.mohr_coulomb_match])
+        rows["soft_peak"].append(peak)
+        rows["soft_res"].append(peak if soft is None else (soft.residual_cohesion_pa, soft.residual_friction_angle_rad,
+                                                           soft.residual_dilatancy_angle_rad))
+        rows["soft_tension"].append(1e30 if m.tensile_strength_pa is None else min(m.tensile_strength_pa, 1e30))
         alpha, kc, alpha_psi = drucker_prager.dp_constants(
             m.friction_angle_rad, m.dilatancy_angle_rad, m.cohesion_pa, m.mohr_coulomb_match
         )
@@ -43,7 +62,7 @@ def material_rows(materials: Sequence[Material]) -> dict[str, np.ndarray]:
         rows["rho0"].append(m.density_kg_m3)
         rows["beta"].append(m.damping_beta_s)
         rows["relax"].append(m.damping_relaxation_s)
-    return {k: np.asarray(v, dtype=np.int32 if k == "model" else np.float64) for k, v in rows.items()}
+    return {k: np.asarray(v, dtype=np.int32 if k in _INT_COLUMNS else np.float64) for k, v in rows.items()}
 
 
 @ti.data_oriented
@@ -55,10 +74,15 @@ class MaterialTable:
     two, see solver.fieldio); its rows are loaded then.
     """
 
-    def __init__(self, materials: Sequence[Material], np_float=np.float32, shared_io: bool = False):
+    def __init__(self, materials: Sequence[Material], np_float=np.float32, shared_io: bool = False,
+                 cell_size_m: float | None = None, softening: bool | None = None):
         n = max(1, len(materials))
         self.np_float = np_float
         self.count = len(materials)
+        self.cell_size_m = cell_size_m
+        #: some material may soften (compiled in; default: one of ``materials`` does; a run whose
+        #: stages change materials decides it for all of them)
+        self.softening = softens(materials) if softening is None else bool(softening)
         self.model = ti.field(ti.i32, n)
         self.K = ti.field(float, n)
         self.G = ti.field(float, n)
@@ -69,8 +93,17 @@ class MaterialTable:
         self.rho0 = ti.field(float, n)
         self.beta = ti.field(float, n)  # the damping's viscosity per unit stiffness, s
         self.relax = ti.field(float, n)  # the Maxwell arm's relaxation time, s (0: Rayleigh)
+        names = MATERIAL_COLUMNS
+        if self.softening:
+            for name in ("soft_law", "soft_match"):
+                setattr(self, name, ti.field(ti.i32, n))
+            for name in ("soft_e_peak", "soft_e_res", "soft_scale", "soft_tension"):
+                setattr(self, name, ti.field(float, n))
+            self.soft_peak = ti.Vector.field(3, float, n)
+            self.soft_res = ti.Vector.field(3, float, n)
+            names = MATERIAL_COLUMNS + SOFTENING_COLUMNS
         #: the table's fields by column name
-        self.columns = {name: getattr(self, name) for name in MATERIAL_COLUMNS}
+        self.columns = {name: getattr(self, name) for name in names}
         #: the table as loaded, numpy columns in the fields' dtypes
         self.host: dict[str, np.ndarray] = {}
         self._materials = tuple(materials)
@@ -86,16 +119,19 @@ class MaterialTable:
 
     def load(self, materials: Sequence[Material]) -> None:
         """Replace every row (a stage's material changes): one kernel launch for the whole table."""
-        rows = material_rows(materials)
-        self.host = {name: column.astype(np.int32 if name == "model" else self.np_float)
-                     for name, column in rows.items()}
+        if softens(materials) and not self.softening:
+            raise ValueError("a material softens, but the table was built without softening")
+        rows = material_rows(materials, self.cell_size_m)
+        self.host = {name: column.astype(np.int32 if name in _INT_COLUMNS else self.np_float)
+                     for name, column in rows.items() if name in self.columns}
         self._materials = tuple(materials)
         if len(materials) and self._io is not None:
             self._io.write(self.host)
 
     @ti.func
-    def stress_update(self, mat, s, D, W, dt):
-        """Jaumann elastic trial, then the material's plastic correction.
+    def stress_update(self, mat, s, D, W, dt, eps):
+        """Jaumann elastic trial, then the material's plastic correction; ``eps``: the particle's
+        equivalent plastic strain before the step (a softening material's strength follows it).
 
         Returns (stress vec4, equivalent plastic strain increment, yielded 0/1).
         """
@@ -106,9 +142,19 @@ class MaterialTable:
         deq = 0.0 * K
         yielded = 0
         if self.model[mat] == 1:
-            out, deq, yielded = drucker_prager.return_map(
-                trial, K, G, self.alpha[mat], self.kc[mat], self.alpha_psi[mat], self.t_cut[mat]
-            )
+            if ti.static(self.softening):
+                if self.soft_law[mat] > 0:
+                    out, deq, yielded = drucker_prager.return_map_softening(
+                        trial, K, G, eps, self.soft_scale[mat], self.soft_law[mat], self.soft_e_peak[mat],
+                        self.soft_e_res[mat], self.soft_match[mat], self.soft_peak[mat], self.soft_res[mat],
+                        self.soft_tension[mat])
+                else:
+                    out, deq, yielded = drucker_prager.return_map(
+                        trial, K, G, self.alpha[mat], self.kc[mat], self.alpha_psi[mat], self.t_cut[mat])
+            else:
+                out, deq, yielded = drucker_prager.return_map(
+                    trial, K, G, self.alpha[mat], self.kc[mat], self.alpha_psi[mat], self.t_cut[mat]
+                )
         return out, deq, yielded
 
     @ti.func
@@ -149,14 +195,15 @@ class MaterialPointDriver:
     Needs an acquired runtime (:func:`solver.runtime.acquire`).
     """
 
-    def __init__(self, materials: Sequence[Material], n: int, np_float=np.float64):
-        self.table = MaterialTable(materials, np_float)
+    def __init__(self, materials: Sequence[Material], n: int, np_float=np.float64, cell_size_m: float | None = None):
+        self.table = MaterialTable(materials, np_float, cell_size_m=cell_size_m)
         self.np_float = np_float
         self.n = n
         self.s = ti.Vector.field(4, float, n)
         self.L = ti.Matrix.field(2, 2, float, n)
         self.mat = ti.field(ti.i32, n)
         self.deq = ti.field(float, n)
+        self.eps = ti.field(float, n)  # the accumulated equivalent plastic strain
         self.yielded = ti.field(ti.i32, n)
 
     @ti.kernel
@@ -166,14 +213,19 @@ class MaterialPointDriver:
             Lt = transpose(L)
             D = 0.5 * (L + Lt)
             W = 0.5 * (L - Lt)
-            s, deq, y = self.table.stress_update(self.mat[i], self.s[i], D, W, dt)
+            s, deq, y = self.table.stress_update(self.mat[i], self.s[i], D, W, dt, self.eps[i])
             self.s[i] = s
             self.deq[i] += deq
+            self.eps[i] += deq
             self.yielded[i] = y
 
     def run(self, stress: np.ndarray, velocity_gradient: np.ndarray, dt_s: float, steps: int = 1,
-            material_ids: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        """Apply ``steps`` updates with a constant velocity gradient.
+            material_ids: np.ndarray | None = None, plastic_strain: np.ndarray | None = None,
+            history: bool = False) -> dict[str, np.ndarray]:
+        """Apply ``steps`` updates with a constant velocity gradient, from the accumulated
+        equivalent plastic strain ``plastic_strain`` (default zero). With ``history`` the result
+        also holds ``stress_history`` and ``strain_history``, (steps, n, 4) and (steps, n), after
+        each step.
 
         Parameters
         ----------
@@ -184,6 +236,16 @@ class MaterialPointDriver:
         self.L.from_numpy(np.asarray(velocity_gradient, dtype=self.np_float))
         self.mat.from_numpy(np.zeros(self.n, np.int32) if material_ids is None else material_ids.astype(np.int32))
         self.deq.fill(0.0)
+        self.eps.from_numpy(np.zeros(self.n, self.np_float) if plastic_strain is None
+                            else np.asarray(plastic_strain, dtype=self.np_float))
+        stresses, strains = [], []
         for _ in range(steps):
             self._update(dt_s)
-        return {"stress": self.s.to_numpy(), "plastic_strain": self.deq.to_numpy(), "yielded": self.yielded.to_numpy()}
+            if history:
+                stresses.append(self.s.to_numpy())
+                strains.append(self.eps.to_numpy())
+        out = {"stress": self.s.to_numpy(), "plastic_strain": self.deq.to_numpy(), "yielded": self.yielded.to_numpy()}
+        if history:
+            out["stress_history"] = np.asarray(stresses)
+            out["strain_history"] = np.asarray(strains)
+        return out

@@ -46,6 +46,7 @@ plastic strain increment, ``(s_trial - s_new) / (2 G)``.
 import math
 
 import numpy as np
+from solver.materials import softening
 from solver.runtime import ti
 
 
@@ -132,6 +133,94 @@ def return_map(s, K, G, alpha, kc, alpha_psi, t_cut):
         out = ti.Vector([out[0] - shift, out[1] - shift, out[2], out[3] - shift])
         yielded = 1
     return out, deq, yielded
+
+
+@ti.func
+def return_map_softening(s, K, G, eps, scale, law, e_peak, e_residual, match, peak, residual, t_tension):
+    """:func:`return_map` for a softening cone (solver/materials/softening.py): the strength at the
+    end of the step, implicitly. ``eps``: the equivalent plastic strain before the step, ``scale``
+    its factor to the softening strain; ``peak``, ``residual``: (c Pa, phi rad, psi rad);
+    ``t_tension``: the tensile strength (Pa, 1e30 for none).
+
+    The plastic multiplier ``dlam`` adds ``dlam / sqrt(3)`` to the equivalent plastic strain, so
+    the consistency condition ``f(dlam) = sqrt(J2) - G dlam + alpha(e) (I1 - 9 K alpha_psi(e)
+    dlam) - k(e) = 0`` with ``e = (eps + dlam / sqrt(3)) scale`` is solved for ``dlam`` in
+    ``[0, sqrt(J2) / G]`` (the deviator gone: the apex) by the Illinois method, exact in one
+    iteration where the strength does not change. Returns what :func:`return_map` returns.
+    """
+    p = (s[0] + s[1] + s[3]) / 3.0
+    d0 = s[0] - p
+    d1 = s[1] - p
+    dz = s[3] - p
+    d01 = s[2]
+    sq = ti.sqrt(0.5 * (d0 * d0 + d1 * d1 + dz * dz) + d01 * d01)
+    root3 = ti.sqrt(3.0)
+    alpha, kc, apsi = _softened_cone(eps * scale, law, e_peak, e_residual, match, peak, residual)
+    f = sq + alpha * 3.0 * p - kc
+    out = s
+    deq = 0.0 * p
+    yielded = 0
+    tol = 1e-6 * (sq + ti.abs(alpha * 3.0 * p) + kc) + 1e-30
+    if f > tol:
+        yielded = 1
+        # f(dlam) at the ends of the bracket: f(0) > 0; at the apex end the deviator is gone
+        hi = sq / G
+        a_hi, k_hi, _ap = _softened_cone((eps + hi / root3) * scale, law, e_peak, e_residual, match, peak,
+                                       residual)
+        g_hi = a_hi * 3.0 * (p - 3.0 * K * _ap * hi) - k_hi
+        lo = 0.0 * p
+        g_lo = f
+        dlam = hi
+        if g_hi < 0.0:
+            side = 0
+            for _it in range(40):
+                dlam = (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
+                a, k, ap = _softened_cone((eps + dlam / root3) * scale, law, e_peak, e_residual, match, peak,
+                                          residual)
+                g = sq - G * dlam + a * 3.0 * (p - 3.0 * K * ap * dlam) - k
+                if ti.abs(g) <= tol or hi - lo <= 1e-7 * hi:
+                    break
+                if g > 0.0:
+                    lo = dlam
+                    g_lo = g
+                    if side == 1:
+                        g_hi *= 0.5
+                    side = 1
+                else:
+                    hi = dlam
+                    g_hi = g
+                    if side == -1:
+                        g_lo *= 0.5
+                    side = -1
+        a, k, ap = _softened_cone((eps + dlam / root3) * scale, law, e_peak, e_residual, match, peak, residual)
+        scale_dev = ti.max(sq - G * dlam, 0.0) / ti.max(sq, 1e-30)
+        p_new = p - 3.0 * K * ap * dlam
+        if scale_dev <= 0.0 and a > 1e-12:
+            p_new = k / (3.0 * a)  # the apex of the softened cone
+        out = ti.Vector([p_new + scale_dev * d0, p_new + scale_dev * d1, scale_dev * d01, p_new + scale_dev * dz])
+        deq = dlam / root3
+        alpha = a
+        kc = k
+    # tension cut-off on the mean stress: the tensile strength, at most the softened cone's apex
+    t_cut = t_tension
+    if alpha > 0.0:
+        t_cut = ti.min(t_cut, kc / (3.0 * alpha))
+    pm = (out[0] + out[1] + out[3]) / 3.0
+    if pm > t_cut:
+        shift = pm - t_cut
+        out = ti.Vector([out[0] - shift, out[1] - shift, out[2], out[3] - shift])
+        yielded = 1
+    return out, deq, yielded
+
+
+@ti.func
+def _softened_cone(e, law, e_peak, e_residual, match, peak, residual):
+    """(alpha, k, alpha_psi) at softening strain ``e``."""
+    w = softening.weight(law, e, e_peak, e_residual)
+    c = peak[0] + w * (residual[0] - peak[0])
+    phi = peak[1] + w * (residual[1] - peak[1])
+    psi = peak[2] + w * (residual[2] - peak[2])
+    return softening.cone(match, c, phi, psi)
 
 
 def return_map_host(stress, K, G, alpha, kc, alpha_psi, t_cut) -> tuple[np.ndarray, np.ndarray]:
