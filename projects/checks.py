@@ -273,39 +273,38 @@ def _k0_on_slope(project: Project) -> list[str]:
     ]
 
 
-def structure_thickness_m(polygon_m, resolution: int = 100, max_points: int = 250_000) -> float:
+def structure_thickness_m(polygon_m) -> float:
     """Twice the largest distance from a point inside the polygon to its outline (m): the
     thickness of the structure at its thickest (the diameter of its largest inscribed circle).
-    Searched on a lattice across the bounding box (``resolution`` points along its longer side,
-    and at least four across the polygon's mean width ``2 area / perimeter``, so that a long thin
-    slab is not missed; at most ``max_points`` points), then on finer lattices around the best
-    point (each 10 times finer) down to 1e-9 of the box: to round-off for straight walls and slabs
-    (a structure exactly 2 cells thick is 2 cells thick)."""
-    from solver.structures import signed_distance
+
+    GEOS's maximum inscribed circle (``shapely.maximum_inscribed_circle``; the pole of
+    inaccessibility of ``shapely.ops.polylabel`` where shapely is older than 2.1), to 1e-9 of the
+    polygon's extent: to round-off for straight walls and slabs (a structure exactly 2 cells thick
+    is 2 cells thick). Its cost grows with the vertex count about as ``n log n`` (a 100,000-vertex
+    outline in 0.04 s) and its memory with ``n``.
+    """
+    import shapely
+    from shapely.geometry import Polygon
 
     pts = np.asarray(polygon_m, dtype=np.float64)
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     extent = float((hi - lo).max())
     if not extent > 0:
         return 0.0
-    closed = np.vstack([pts, pts[:1]])
-    area = 0.5 * abs(float(np.sum(closed[:-1, 0] * closed[1:, 1] - closed[1:, 0] * closed[:-1, 1])))
-    perimeter = float(np.hypot(*np.diff(closed, axis=0).T).sum())
-    step = min(extent / resolution, 0.5 * area / perimeter)  # (2 area / perimeter) / 4
-    step = max(step, float(np.prod(hi - lo)) ** 0.5 / max_points ** 0.5, extent * 1e-9)
-    centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo) + step
-    best = 0.0
-    while True:
-        xs = np.arange(centre[0] - half[0], centre[0] + half[0] + step, step)
-        ys = np.arange(centre[1] - half[1], centre[1] + half[1] + step, step)
-        X, Y = np.meshgrid(xs, ys)
-        grid = np.stack([X.ravel(), Y.ravel()], axis=-1)
-        d = np.concatenate([signed_distance(chunk, pts) for chunk in np.array_split(grid, 1 + len(grid) // 20_000)])
-        k = int(d.argmin())
-        best = max(best, -float(d[k]))
-        if step < 1e-9 * extent:
-            return 2.0 * best
-        centre, half, step = grid[k], np.array([2 * step, 2 * step]), step / 10
+    shape = Polygon(pts - lo)  # relative to the box: far from the origin keeps its resolution
+    if not shape.is_valid:
+        shape = shape.buffer(0)
+    if shape.is_empty or not shape.area > 0:
+        return 0.0
+    tolerance = 1e-9 * extent
+    if hasattr(shapely, "maximum_inscribed_circle"):
+        radius = float(shapely.maximum_inscribed_circle(shape, tolerance=tolerance).length)
+    else:  # pragma: no cover - shapely 2.0
+        from shapely.ops import polylabel
+
+        pole = polylabel(shape, tolerance=tolerance)
+        radius = float(shape.exterior.distance(pole))
+    return 2.0 * radius
 
 
 def _thin_structures(project: Project) -> list[str]:
