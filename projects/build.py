@@ -231,6 +231,7 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
         guard=numerics.advanced.guard,
         speed_bound_factor=numerics.advanced.speed_bound_factor,
         scatter=numerics.advanced.scatter,
+        volumetric_averaging=numerics.volumetric_averaging,
     )
     output = sc.Output(interval_s=project.output.interval_s, fields=tuple(project.output.fields))
     from projects.hazard import envelope_config

@@ -70,6 +70,7 @@ PRECISIONS = sc.PRECISIONS
 ARCHS = sc.ARCHS
 GUARD_MODES = sc.GUARD_MODES
 SCATTERS = sc.SCATTERS
+VOLUMETRIC_AVERAGING = sc.VOLUMETRIC_AVERAGING
 #: Accuracy/cost presets measured by ``runout study tradeoff`` (projects/presets.json).
 PRESETS: tuple[str, ...] = ("draft", "standard", "fine")
 STAGE_TYPES: tuple[str, ...] = ("k0", "gravity", "dynamic", "strength-reduction")
@@ -632,6 +633,7 @@ class Numerics(_Model):
     precision: Annotated[Literal[PRECISIONS], _choice(PRECISIONS)] = "f32"
     arch: Annotated[Literal[ARCHS], _choice(ARCHS)] = "auto"
     preset: Annotated[Literal[PRESETS], _choice(PRESETS)] | None = None
+    volumetric_averaging: Annotated[Literal[VOLUMETRIC_AVERAGING], _choice(VOLUMETRIC_AVERAGING)] = "auto"
     advanced: Advanced = Advanced()
 
     @model_validator(mode="before")

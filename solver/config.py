@@ -51,6 +51,10 @@ PERIODIC_SIDES: tuple[str, ...] = ("left", "right")
 MIN_PERIODIC_CELLS = 3
 #: How particle contributions reach shared grid nodes (solver/engine.py explains each).
 SCATTERS: tuple[str, ...] = ("auto", "atomic", "serial", "split")
+#: Volumetric averaging (the remedy for volumetric locking, docs/solver.md): ``auto`` turns it on
+#: where a material flows plastically at constant volume without friction (see
+#: :func:`averages_volume`), ``on`` and ``off`` for every run.
+VOLUMETRIC_AVERAGING: tuple[str, ...] = ("auto", "on", "off")
 #: Fraction of the critical time step when a project gives neither ``time_step_s`` nor ``cfl``.
 DEFAULT_CFL = 0.5
 #: The stability guard's speed bound in units of the free-fall speed over the scene (docs/solver.md).
@@ -222,6 +226,22 @@ class Material:
         return self.poisson_ratio / (1.0 - self.poisson_ratio)
 
 
+def locks(material) -> bool:
+    """Whether a material's plastic flow keeps its volume without friction (phi = psi = 0, an
+    undrained clay), the flow that locks quadratic B-spline MPM most (docs/solver.md, volumetric
+    locking)."""
+    return material.model == "drucker-prager" and material.friction_angle_rad == 0.0 \
+        and material.dilatancy_angle_rad == 0.0
+
+
+def averages_volume(setting: str, materials) -> bool:
+    """Whether a run averages the volumetric strain rate: ``on``, ``off``, or ``auto`` where one of
+    ``materials`` (those of every stage) :func:`locks`."""
+    if setting not in VOLUMETRIC_AVERAGING:
+        raise ValueError(f"volumetric_averaging {setting!r}: must be one of {', '.join(VOLUMETRIC_AVERAGING)}")
+    return setting == "on" or (setting == "auto" and any(locks(m) for m in materials))
+
+
 def softens(materials) -> bool:
     """Whether some of ``materials`` softens (the softening return map is compiled in only then)."""
     return any(m.model == "drucker-prager" and m.softening is not None for m in materials)
@@ -391,6 +411,7 @@ class Numerics:
     guard: GuardMode = "stop"
     speed_bound_factor: float = DEFAULT_SPEED_BOUND_FACTOR
     scatter: str = "auto"
+    volumetric_averaging: str = "auto"
 
 
 @dataclass(frozen=True)

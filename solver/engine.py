@@ -90,6 +90,9 @@ class Engine:
     ``structures``: rigid polygons inside the domain, contacts like the closed sides.
     ``viscous``: some material may carry a damping stress (default: one of ``materials`` does).
     ``softening``: some material may soften (default: one of ``materials`` does).
+    ``volumetric_averaging``: each particle's volumetric strain rate is the volume-weighted
+    average of its neighbours' over its stencil (the remedy for volumetric locking, see
+    :meth:`average_dilatation`).
 
     Contacts (see docs/solver.md): the closed sides (index 0-3 in :data:`SIDES` order) and the
     structures (index 4 on). Each step adds, per contact, the impulse the material exerts on it
@@ -101,7 +104,7 @@ class Engine:
                  np_float=np.float32, speed_bound_m_s: float = 1e30, remove_unstable: bool = False,
                  damping: bool = True, scatter: str = "auto", bands: int | None = None,
                  structures: tuple[Structure, ...] = (), viscous: bool | None = None, water=None,
-                 softening: bool | None = None):
+                 softening: bool | None = None, volumetric_averaging: bool = False):
         if scheme not in ("mpm", "apic", "apic-affine"):
             raise ValueError(f"unknown scheme {scheme!r}; allowed: mpm, apic, apic-affine")
         self.scheme = scheme
@@ -139,6 +142,10 @@ class Engine:
         self.mat = ti.field(ti.i32, n)
         self.active = ti.field(ti.i8, n)
         self.yielded = ti.field(ti.i8, n)
+        #: volumetric averaging: each particle's own volumetric strain rate (1/s) and, per node,
+        #: the stencil sums of volume and of volume times that rate (compiled out where off)
+        self.averaging = bool(volumetric_averaging)
+        self.dil = ti.field(float, n if self.averaging else 1)
 
         # the components, chosen once (each compiles to nothing where it is off)
         self.periodic = PeriodicSides(self, grid.periodic)
@@ -162,6 +169,7 @@ class Engine:
         self.g_mom = ti.Vector.field(2, float, self.nodes)
         self.g_f = ti.Vector.field(2, float, self.nodes if self.separate_forces else (1, 1))
         self.g_v_old = ti.Vector.field(2, float, self.nodes if self.six_stage else (1, 1))
+        self.g_dil = ti.Vector.field(2, float, self.nodes if self.averaging else (1, 1))
         # node box [lo, hi) the last scatter wrote (every node outside it holds zeros): built in the
         # scatter, which works out every particle's stencil anyway, and cleared by the next reset
         self.lo = ti.Vector.field(2, ti.i32, ())
@@ -333,6 +341,7 @@ class Engine:
                 ("mirror walls (old)", walls.ghosts_interpolated, True),
                 ("wall columns (old)", walls.columns_interpolated, True),
                 ("periodic copy (velocity)", periodic.copy_interpolated, periodic.on),
+                ("volumetric average", self.average_dilatation, self.averaging),
                 ("stress and force", self.stress_and_force, True),              # 4: eqs 9-10, 22-27
                 ("periodic fold (force)", periodic.fold_force, periodic.on),
                 ("mirror forces", walls.forces, True),
@@ -349,6 +358,7 @@ class Engine:
                 ("ground water", self.water_step, self.wet),
                 ("reset grid", self.reset_grid, True),                           # 1
                 ("corner normals", c.material_normals, c.has_zone),
+                ("volumetric average", self.average_dilatation, self.averaging),
                 ("P2G with stress and force", self.p2g_with_stress, True),      # 2: eqs 14-15, 24-30
                 ("periodic fold", periodic.fold_momentum, periodic.on),
                 ("mirror forces", walls.forces, True),
@@ -404,8 +414,17 @@ class Engine:
                 self.g_f[I] = ti.Vector.zero(float, 2)
             if ti.static(self.contact.has_zone):
                 self.contact.node_pn[I] = ti.Vector.zero(float, 3)
+            if ti.static(self.averaging):
+                self.g_dil[I] = ti.Vector.zero(float, 2)
         self.lo[None] = ti.Vector([BIG, BIG])  # empty: the scatter widens it
         self.hi[None] = ti.Vector([-BIG, -BIG])
+
+    @ti.func
+    def average_dilatation(self, dt, g, damping, damped: ti.template()):
+        """Volumetric averaging, before the stress update: each particle's volumetric strain rate
+        (from its C in apic-affine, from the grid's velocity in mpm and apic) and its volume to
+        its nodes, whose ratio the stress update reads back at the particle (:meth:`_stress_point`)."""
+        self.to_grid.particles(self, "dilatation", dt, g, False)
 
     @ti.func
     def p2g_with_stress(self, dt, g, damping, damped: ti.template()):
@@ -478,10 +497,14 @@ class Engine:
 
     @ti.func
     def _stress_point(self, p, L, dt):
-        """Constitutive update of particle p from its velocity gradient L; returns its volume."""
+        """Constitutive update of particle p from its velocity gradient L; returns its volume.
+        With volumetric averaging the rate of deformation's volumetric part is replaced by the
+        stencil's average (a B-bar on the rate: the deviatoric part stays the particle's own)."""
         Lt = transpose(L)
         D = 0.5 * (L + Lt)
         W = 0.5 * (L - Lt)
+        if ti.static(self.averaging):
+            D += 0.5 * (self._averaged_dilatation(p) - (D[0, 0] + D[1, 1])) * ti.Matrix.identity(float, 2)
         before = self.s[p]
         s, deq, yielded = self.materials.stress_update(self.mat[p], before, D, W, dt, self.eps_p[p])
         self.s[p] = s
@@ -492,6 +515,29 @@ class Engine:
         rho = ti.max(rho, DENSITY_FLOOR * self.materials.rho0[self.mat[p]])
         self.rho[p] = rho
         return self.m[p] / rho
+
+    @ti.func
+    def _averaged_dilatation(self, p):
+        """The volume-weighted average volumetric strain rate over particle p's stencil: the nodes'
+        ``sum V tr(D) / sum V``, interpolated back with p's weights."""
+        base, fx, w, dw = self._stencil(self.x[p])
+        total = 0.0 * self.dx
+        for i, j in ti.static(ti.ndrange(3, 3)):
+            node = self.g_dil[base + ti.Vector([i, j])]
+            if node[0] > 0.0:
+                total += w[i][0] * w[j][1] * node[1] / node[0]
+        return total
+
+    @ti.func
+    def _dilatation_rate(self, p):
+        """Particle p's own volumetric strain rate tr(D) (1/s) in this step's stress update."""
+        rate = 0.0 * self.dx
+        if ti.static(self.six_stage):
+            L = self._grid_velocity_gradient(p)
+            rate = L[0, 0] + L[1, 1]
+        else:
+            rate = self.C[p][0, 0] + self.C[p][1, 1]
+        return rate
 
     @ti.func
     def force_stress(self, p):
@@ -540,6 +586,9 @@ class Engine:
             vol = self._stress_point(p, self.C[p], dt)  # eqs 29-30: D = sym(C), W = skew(C)
         elif ti.static(kind == "force"):
             vol = self._stress_from_grid_point(p, dt)
+        elif ti.static(kind == "dilatation"):
+            self.dil[p] = self._dilatation_rate(p)
+            vol = self.particle_volume(p)
         return vol
 
     @staticmethod
@@ -558,6 +607,11 @@ class Engine:
         internal and body force. ``vol``: the particle's volume after its update (m2 per m)."""
         if ti.static(part == "wall forces"):
             self.walls.ghost_particle(p, g)
+        elif ti.static(kind == "dilatation"):
+            base, fx, w, dw = self._stencil(self.x[p])
+            share = ti.Vector([vol, vol * self.dil[p]])
+            for i, j in ti.static(ti.ndrange(3, 3)):
+                self.to_grid.add(self.g_dil, base + ti.Vector([i, j]), w[i][0] * w[j][1] * share)
         elif ti.static(kind == "affine"):
             self._scatter_particle(p, vol, dt, g, fuse_force)
         elif ti.static(kind == "momentum"):
@@ -659,6 +713,11 @@ class Engine:
     @ti.func
     def _stress_from_grid_point(self, p, dt):
         """Velocity gradient from the grid velocities, then the constitutive update; the volume."""
+        return self._stress_point(p, self._grid_velocity_gradient(p), dt)
+
+    @ti.func
+    def _grid_velocity_gradient(self, p):
+        """mpm, apic: the velocity gradient at particle p from the grid's interpolated velocities."""
         base, fx, w, dw = self._stencil(self.x[p])
         L = ti.Matrix.zero(float, 2, 2)
         for i, j in ti.static(ti.ndrange(3, 3)):
@@ -666,7 +725,7 @@ class Engine:
             J = base + ti.Vector([i, j])
             v = self.contact.with_hold(J, self.g_v_old[J])  # the structures' hold (solver.contact)
             L += outer(v, grad)
-        return self._stress_point(p, L, dt)
+        return L
 
     @ti.func
     def _force_particle(self, p, vol, g):

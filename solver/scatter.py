@@ -39,6 +39,9 @@ SPLIT_MIN_PARTICLES = 10_000
 CPU_GRAIN = 512
 #: Larger than any node index: the bounds of an empty node box.
 BIG = 1 << 30
+#: The particle passes that build the box of written nodes (P2G); the others (the six-stage force
+#: pass, the volumetric averaging's dilatation pass) run on the stencils of one of them.
+BOX_PASSES = ("momentum", "affine")
 #: Every strategy's checkpoint fields (see ``Scatter.STATE``).
 SCATTER_STATE = ("band", "cut", "cut_axis", "band_range", "band_count")
 
@@ -214,8 +217,8 @@ class Split(Scatter):
         """A particle pass in ``n_bands`` threads with plain adds.
 
         The ``momentum`` and ``affine`` passes also build the engine's box of written nodes and
-        count the particles per node line for the next step's bands; the ``force`` pass follows
-        the momentum pass of the same step (same positions, same bands).
+        count the particles per node line for the next step's bands; the ``force`` and
+        ``dilatation`` passes come with one of those in the same step (same positions, same bands).
         """
         T = ti.static(self.n_bands)
         # One band per thread: Taichi 1.7 hands a CPU thread 512 consecutive iterations of a loop at
@@ -231,7 +234,7 @@ class Split(Scatter):
                 b = ti.cast(self.band[p], ti.i32)
                 if engine.active[p] and (b == k or b == k + T):
                     vol = engine._update_particle(kind, p, dt)
-                    if ti.static(kind != "force"):
+                    if ti.static(kind in BOX_PASSES):
                         base, fx, w, dw = engine._stencil(engine.x[p])
                         lo = ti.min(lo, base)
                         hi = ti.max(hi, base)
@@ -240,11 +243,11 @@ class Split(Scatter):
                     if b == k:
                         for part in ti.static(engine.pass_parts(kind, fuse_force)):
                             engine._add_particle(kind, part, p, vol, dt, g, fuse_force)
-            if ti.static(kind != "force"):
+            if ti.static(kind in BOX_PASSES):
                 for d in ti.static(range(2)):
                     self.band_range[k, d] = lo[d]
                     self.band_range[k, 2 + d] = hi[d]
-        if ti.static(kind != "force"):
+        if ti.static(kind in BOX_PASSES):
             ti.loop_config(serialize=True)
             for _ in range(1):  # the box of written nodes, and the bands of the next step
                 lo = ti.Vector([BIG, BIG])

@@ -58,6 +58,7 @@ from solver.config import (
     SolverError,
     Stage,
     Water,
+    averages_volume,
     softens,
 )
 from solver.initial_stress import k0_stress
@@ -232,6 +233,7 @@ class Simulation:
             damping=damping_support or any(st.damping > 0 for st in config.stages), scatter=config.numerics.scatter,
             viscous=any(m.damping_beta_s > 0.0 for m in all_materials(config)),
             softening=softens(all_materials(config)),
+            volumetric_averaging=averages_volume(config.numerics.volumetric_averaging, all_materials(config)),
             # the structures in the engine's coordinates too (relative to the grid origin)
             structures=tuple(dataclasses.replace(st, polygon_m=tuple(
                 (float(x - self.origin_m[0]), float(y - self.origin_m[1])) for x, y in st.polygon_m))

@@ -6,6 +6,7 @@ import math
 import pytest
 
 from benchmarks.bench import (
+    COMPONENT_VARIANTS,
     NOT_MEASURED_NO_GPU,
     WATER_VARIANT,
     YARDSTICK,
@@ -68,10 +69,11 @@ def test_throughput_rows_hold_positive_rates_and_ratios(bench):
     result, _ = bench
     rows = result["throughput"]
     variants = {r["variant"] for r in rows if r["arch"] == "cpu"}
-    assert variants == {YARDSTICK, "apic", "apic-affine", WATER_VARIANT}
-    wet = next(r for r in rows if r["variant"] == WATER_VARIANT)
-    assert _positive(wet["ratio_to_dry"])  # the cost of the ground water, timed beside the dry engine
-    assert all(r["ratio_to_dry"] is None for r in rows if r["variant"] != WATER_VARIANT)
+    assert variants == {YARDSTICK, "apic", "apic-affine", *COMPONENT_VARIANTS}
+    assert WATER_VARIANT in COMPONENT_VARIANTS
+    for variant in COMPONENT_VARIANTS:  # the cost of each component, timed beside the plain engine
+        assert _positive(next(r for r in rows if r["variant"] == variant)["ratio_to_dry"]), variant
+    assert all(r["ratio_to_dry"] is None for r in rows if r["variant"] not in COMPONENT_VARIANTS)
     for row in rows:
         assert row["precision"] == "f32" and row["particles"] == 200
         for key in ("particle_steps_per_s", "ratio_to_yardstick", "ratio_to_apic", "ratio_to_yardstick_best",
