@@ -611,12 +611,13 @@ class Contacts:
             F = -ti.Matrix.identity(float, 2)
             if self.st_kind[st] == SLIP:
                 F = R
-            sig = F @ e.force_stress(p) @ R
-            m = e.particle_mass(p)
+            wet = e.water_state(p)
+            sig = F @ e.force_stress(p, wet) @ R
+            m = e.particle_mass(p, wet)
             vol = e.particle_volume(p)
             body = F @ (m * g)
             if ti.static(e.wet):
-                body += F @ e.water_force(p, vol)
+                body += F @ e.water_force(vol, wet)
             # only where the particle's stencil reaches a contact node of this structure
             base, fx, w, dw = e._stencil(x)
             held = 0.0

@@ -540,27 +540,38 @@ class Engine:
         return rate
 
     @ti.func
-    def force_stress(self, p):
+    def water_state(self, p):
+        """Particle p's ground-water state (solver.groundwater.GroundWater.at: its depths below the
+        lines, looked up once per particle per pass), for :meth:`force_stress`,
+        :meth:`particle_mass` and :meth:`water_force`; zeros, compiled out, in a dry run."""
+        w = ti.Vector.zero(float, 4)
+        if ti.static(self.wet):
+            w = self.water.at(self.x[p])
+        return w
+
+    @ti.func
+    def force_stress(self, p, w):
         """The stress particle p contributes to the grid's internal force (2x2, Pa; eq 9): its
         stress plus its damping stress. Every force pass reads it here (P2G, the six-stage force
-        scatter, the walls' ghost forces, the structures' mirror images)."""
+        scatter, the walls' ghost forces, the structures' mirror images). ``w``: its water state
+        (:meth:`water_state`)."""
         s = self.s[p]
         sig = ti.Matrix([[s[0], s[2]], [s[2], s[1]]])
         if ti.static(self.wet):
             # the pore pressure in excess of the free water's (solver/water.py): total stress
             # sigma' - u I, less the free water's pressure, which acts as buoyancy (body_force)
-            sig -= self.water.excess_pressure(self.x[p], self.mat[p], s) * ti.Matrix.identity(float, 2)
+            sig -= self.water.excess_pressure(w, self.mat[p], s) * ti.Matrix.identity(float, 2)
         return self.damping.add_stress(p, sig)
 
     @ti.func
-    def particle_mass(self, p):
+    def particle_mass(self, p, w):
         """The mass particle p gives the grid (kg/m): in P2G its mass and momentum shares and its
         body force ``weight * m * g`` (eq 10), in every force pass (the six-stage force scatter,
         the walls' ghost forces, the structures' mirror images). Below the phreatic line the
-        saturated soil's."""
+        saturated soil's. ``w``: its water state (:meth:`water_state`)."""
         m = self.m[p]
         if ti.static(self.wet):
-            m *= self.water.mass_ratio(self.x[p], self.mat[p])
+            m *= self.water.mass_ratio(w, self.mat[p])
         return m
 
     @ti.func
@@ -569,10 +580,10 @@ class Engine:
         return self.m[p] / self.rho[p]
 
     @ti.func
-    def water_force(self, p, vol):
-        """The free water's pressure on particle p of volume vol, -vol grad p_w (N/m; buoyancy);
-        call only where ``self.wet``."""
-        return vol * self.water.buoyancy(self.x[p])
+    def water_force(self, vol, w):
+        """The free water's pressure on a particle of volume vol in water state w
+        (:meth:`water_state`), -vol grad p_w (N/m; buoyancy); call only where ``self.wet``."""
+        return vol * self.water.buoyancy(w)
 
     # ------------------------------------------------------------------ particle passes
     # P2G and the force scatter visit every active particle: an update that writes the particle's
@@ -625,8 +636,12 @@ class Engine:
         """Mass, APIC momentum and (fused or apart) internal and body force of particle p."""
         base, fx, w, dw = self._stencil(self.x[p])
         self.to_grid.cover(self, base)
-        sig = self.force_stress(p)
-        m = self.particle_mass(p)
+        wet = self.water_state(p)
+        sig = self.force_stress(p, wet)
+        m = self.particle_mass(p, wet)
+        buoyant = ti.Vector.zero(float, 2)
+        if ti.static(self.wet):
+            buoyant = self.water_force(vol, wet)
         mv = m * self.v[p]
         mC = m * self.C[p]
         for i, j in ti.static(ti.ndrange(3, 3)):
@@ -636,7 +651,7 @@ class Engine:
             grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
             force = -vol * mat_vec(sig, grad) + weight * m * g
             if ti.static(self.wet):
-                force += weight * self.water_force(p, vol)
+                force += weight * buoyant
             I = base + offset
             self.to_grid.add(self.g_mass, I, weight * m)
             if ti.static(fuse_force):
@@ -675,7 +690,7 @@ class Engine:
         """Mass and momentum (FLIP or APIC) of particle p to its nodes."""
         base, fx, w, dw = self._stencil(self.x[p])
         self.to_grid.cover(self, base)
-        m = self.particle_mass(p)
+        m = self.particle_mass(p, self.water_state(p))
         mv = m * self.v[p]
         mC = m * self.C[p]
         for i, j in ti.static(ti.ndrange(3, 3)):
@@ -730,14 +745,18 @@ class Engine:
     @ti.func
     def _force_particle(self, p, vol, g):
         base, fx, w, dw = self._stencil(self.x[p])
-        sig = self.force_stress(p)
-        m = self.particle_mass(p)
+        wet = self.water_state(p)
+        sig = self.force_stress(p, wet)
+        m = self.particle_mass(p, wet)
+        buoyant = ti.Vector.zero(float, 2)
+        if ti.static(self.wet):
+            buoyant = self.water_force(vol, wet)
         for i, j in ti.static(ti.ndrange(3, 3)):
             weight = w[i][0] * w[j][1]
             grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
             force = -vol * mat_vec(sig, grad) + weight * m * g
             if ti.static(self.wet):
-                force += weight * self.water_force(p, vol)
+                force += weight * buoyant
             self.to_grid.add(self.g_f, base + ti.Vector([i, j]), force)
 
     @ti.func
@@ -835,7 +854,7 @@ class Engine:
         ti.loop_config(serialize=self.plain)
         for p in range(self.n):
             if self.active[p]:
-                m = self.particle_mass(p)
+                m = self.particle_mass(p, self.water_state(p))
                 v = self.v[p]
                 self.diag[0] += 0.5 * m * v.dot(v)
                 self.diag[1] += m * v[0]

@@ -115,12 +115,27 @@ class GroundWater:
         self.g_now[None] = g
 
     @ti.func
-    def _depth(self, x, row: ti.template()):
+    def at(self, x):
+        """The water state of a particle at x, looked up once per particle per pass and passed to
+        :meth:`excess_pressure`, :meth:`mass_ratio` and :meth:`buoyancy`: a vec4 of the depth
+        below the phreatic line (m, along the full gravity, negative above), the squared cosine
+        of that line's inclination from level, the depth below the free water's level and that
+        level's slope. Zeros where there is no line (r_u alone needs none of it)."""
+        w = ti.Vector.zero(float, 4)
+        if self.rho_w[None] > 0.0:
+            X = (x[0] - self.origin_x) * self.inv_dx
+            i = ti.max(ti.min(ti.cast(ti.floor(X), ti.i32), self.columns - 2), 0)
+            f = ti.max(ti.min(X - ti.cast(i, float), 1.0), 0.0)
+            h0, _, c2 = self._depth(x, 0, i, f)
+            h1, slope1, _ = self._depth(x, 1, i, f)
+            w = ti.Vector([h0, c2, h1, slope1])
+        return w
+
+    @ti.func
+    def _depth(self, x, row: ti.template(), i, f):
         """Depth of x below line ``row`` (0 phreatic, 1 free water) along the full gravity (m,
-        negative above), the line's slope there and the squared cosine of its inclination from level."""
-        X = (x[0] - self.origin_x) * self.inv_dx
-        i = ti.max(ti.min(ti.cast(ti.floor(X), ti.i32), self.columns - 2), 0)
-        f = ti.max(ti.min(X - ti.cast(i, float), 1.0), 0.0)
+        negative above), the line's slope there and the squared cosine of its inclination from
+        level; x lies at fraction f (0-1) of the way from node column i to i + 1."""
         s = self.fraction[None]
         ya = (1.0 - s) * self.y_from[row, i] + s * self.y_to[row, i]
         yb = (1.0 - s) * self.y_from[row, i + 1] + s * self.y_to[row, i + 1]
@@ -132,18 +147,19 @@ class GroundWater:
         return h, slope, c * c
 
     @ti.func
-    def pressure(self, x, mat, s):
-        """Pore pressure u (Pa, positive) of a particle at x of material mat with effective stress s."""
+    def pressure(self, w, mat, s):
+        """Pore pressure u (Pa, positive) of a particle in water state w (:meth:`at`) of material
+        mat with effective stress s."""
         u = 0.0
         g = self.g_now[None]
         gn = g.norm()
         if gn > 0.0:
             if self.rho_w[None] > 0.0:
-                h, _, c2 = self._depth(x, 0)
+                h = w[0]
                 if h > 0.0:
                     u = self.rho_w[None] * gn * h
                     if self.correct[None] != 0:
-                        u *= c2
+                        u *= w[1]
             ru = self.ru[mat]
             if ru > 0.0:  # the larger of the line's and the overburden's (solver/water.py)
                 d = g / gn
@@ -152,27 +168,29 @@ class GroundWater:
         return u
 
     @ti.func
-    def excess_pressure(self, x, mat, s):
-        """The pore pressure in excess of the free water's hydrostatic pressure at x, u - p_w (Pa):
-        what the particle's stress carries in the force passes (solver/water.py)."""
-        return self.pressure(x, mat, s) - self.free_pressure(x)
+    def excess_pressure(self, w, mat, s):
+        """The pore pressure in excess of the free water's hydrostatic pressure, u - p_w (Pa), of a
+        particle in water state w (:meth:`at`): what its stress carries in the force passes
+        (solver/water.py)."""
+        return self.pressure(w, mat, s) - self.free_pressure(w)
 
     @ti.func
-    def free_pressure(self, x):
-        """The free water's hydrostatic pressure p_w at x (Pa; 0 above its level)."""
+    def free_pressure(self, w):
+        """The free water's hydrostatic pressure p_w (Pa; 0 above its level) in water state w."""
         p = 0.0
         if self.rho_w[None] > 0.0:
-            h, _, _ = self._depth(x, 1)
-            p = self.rho_w[None] * self.g_now[None].norm() * ti.max(h, 0.0)
+            p = self.rho_w[None] * self.g_now[None].norm() * ti.max(w[2], 0.0)
         return p
 
     @ti.func
-    def buoyancy(self, x):
-        """The body force of the free water's pressure on the skeleton, -grad p_w (N/m3)."""
+    def buoyancy(self, w):
+        """The body force of the free water's pressure on the skeleton, -grad p_w (N/m3), in water
+        state w (:meth:`at`)."""
         g = self.g_now[None]
         f = ti.Vector([0.0, 0.0])
         if self.rho_w[None] > 0.0:
-            h, slope, _ = self._depth(x, 1)
+            h = w[2]
+            slope = w[3]
             if h > 0.0:
                 d = ti.Vector(self.down)
                 across = ti.max(-d[1] + slope * d[0], 1e-9)
@@ -182,11 +200,10 @@ class GroundWater:
         return f
 
     @ti.func
-    def mass_ratio(self, x, mat):
-        """Saturated over dry density below the phreatic line, 1 above it."""
+    def mass_ratio(self, w, mat):
+        """Saturated over dry density below the phreatic line, 1 above it (water state w, :meth:`at`)."""
         r = 1.0
         if self.rho_w[None] > 0.0:
-            h, _, _ = self._depth(x, 0)
-            if h > 0.0:
+            if w[0] > 0.0:
                 r = self.wet_ratio[mat]
         return r

@@ -102,8 +102,9 @@ class MirrorWalls:
             ghost_lo[d] = base[d] == PAD - 1 and c.closed(c.bc_kind[2 * d])
             ghost_hi[d] = base[d] == PAD + e.cells[d] - 1 and c.closed(c.bc_kind[2 * d + 1])
         if ghost_lo[0] or ghost_lo[1] or ghost_hi[0] or ghost_hi[1]:
-            sig = e.force_stress(p)
-            m = e.particle_mass(p)
+            wet = e.water_state(p)
+            sig = e.force_stress(p, wet)
+            m = e.particle_mass(p, wet)
             vol = e.particle_volume(p)
             for k in range(9):  # a runtime loop: this rare path compiles once, not nine times
                 i = k // 3
@@ -125,7 +126,7 @@ class MirrorWalls:
                                       wx * bspline_slope(fx[1], j)]) * e.inv_dx
                     force = -vol * mat_vec(sig, grad) + wx * wy * m * g
                     if ti.static(e.wet):
-                        force += wx * wy * e.water_force(p, vol)
+                        force += wx * wy * e.water_force(vol, wet)
                     I = base + ti.Vector([i, j])
                     # atomic where threads share the pass: few particles get here. In the split
                     # scatter a ghost node, like any node, belongs to one band.
