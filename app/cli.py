@@ -297,10 +297,22 @@ class _JsonProgress:
         self.frames += 1
 
 
+def _state(result: RunResult) -> str:
+    """The run's status with whether its answer is final: ``completed, still moving (kinetic
+    energy 0.46 of its peak, fastest particle 3.2 m/s at t = 2 s)`` or ``completed, at rest (...)``."""
+    from projects.motion import motion_numbers
+
+    m = result.summary.get("motion_at_end")
+    if not isinstance(m, dict):
+        return result.status
+    state = "still moving" if m.get("still_moving") else "at rest"
+    return f"{result.status}, {state} ({motion_numbers(m)} at t = {m.get('time_s') or 0.0:.4g} s)"
+
+
 def _summary_line(result: RunResult) -> str:
     s = result.summary
     return (
-        f"{result.status}: {s.get('particles', 0):,} particles, {s.get('steps', 0):,} steps, "
+        f"{_state(result)}: {s.get('particles', 0):,} particles, {s.get('steps', 0):,} steps, "
         f"t = {s.get('simulated_time_s') or 0.0:.4g} s in {s.get('wall_time_s') or 0.0:.1f} s "
         f"({_rate(s.get('particle_steps_per_s') or 0.0)} particle-steps/s, "
         f"{s.get('arch', '?')} {s.get('precision', '')}) -> {result.out_dir}"
@@ -382,6 +394,7 @@ def run(
     An earlier run's results in the folder are replaced only with --overwrite; any other
     non-empty folder is refused; a folder another run is writing into is refused.
     """
+    from projects.motion import provisional
     from projects.results import ResultsError
     from projects.runner import StopRequest, default_results_dir, resumable, resume_run, run_project
     from projects.schema import ProjectError
@@ -462,6 +475,11 @@ def run(
     if result.status == "completed":
         if not quiet and not jsonl:
             out.print(_summary_line(result), markup=False)
+            if provisional(result.summary):
+                from projects.motion import REMEDY
+
+                err.print(f"warning: the run ended with the mass still moving: its measures are provisional; {REMEDY}",
+                          markup=False)
             fos = _factor_line(result)
             if fos:
                 out.print(fos, markup=False)

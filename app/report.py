@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from projects.hazard import HAZARD_JSON, read_hazard
+from projects.motion import hazard_provisional
 from projects.results import Results, ResultsError
 
 logger = logging.getLogger(__name__)
@@ -517,6 +518,8 @@ th, td { border: 1px solid #ccc; padding: 3px 8px; text-align: left; }
 th { background: #f2f2f2; } img { max-width: 100%; } figure { margin: 0.6em 0; }
 figcaption { font-size: 0.8em; color: #666; } .note { font-size: 0.85em; color: #555; }
 .scene { display: flex; gap: 1%; } .scene figure { width: 49.5%; }
+.provisional { border: 2px solid #e37400; background: #fff4e5; padding: 0.5em 0.8em; }
+.final { border-left: 4px solid #188038; padding: 0.2em 0.8em; }
 """
 
 MEASURES = [
@@ -620,6 +623,28 @@ def water_sentences(project: Any, summary: Mapping[str, Any]) -> list[str]:
     return out
 
 
+def headline(doc: Mapping[str, Any], summary: Mapping[str, Any]) -> str:
+    """The report's headline, whether its answer is final (HTML): provisional where the mass was
+    still moving at the end of the run or the run did not complete (projects.motion), with the
+    kinetic energy at the end as a fraction of its peak and the fastest particle; final where it
+    came to rest."""
+    from projects.motion import REMEDY, motion_text
+
+    motion = doc.get("motion_at_end") or summary.get("motion_at_end")
+    words = motion_text(motion) if isinstance(motion, Mapping) else ""
+    if hazard_provisional(doc):
+        if doc.get("status") != "completed":
+            why = f"the run did not complete (status {doc.get('status')})"
+        else:
+            why = words or "the mass was still moving at the end of the run"
+        return (f"<p class='provisional'><b>Provisional answer:</b> {html.escape(why)}. Every measure below is "
+                "where the slide had got to when the run ended, not its run-out; "
+                f"{html.escape(REMEDY)}.</p>")
+    if words:
+        return f"<p class='final'><b>Final answer:</b> the mass came to rest; {html.escape(words)}.</p>"
+    return ""
+
+
 def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str] | None = None,
                  *, scene_size: tuple[int, int] = (1200, 560)) -> Path:
     """Write the hazard report of a results folder.
@@ -690,10 +715,14 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
              f"<p>Results folder <code>{html.escape(str(res.path))}</code>; run status "
              f"<b>{html.escape(res.status)}</b>: {html.escape(res.message or '')}</p>"]
 
+    parts.append(headline(doc, summary))
+
     parts.append("<h2>Measures</h2>")
     rows = []
+    mark = " (provisional)" if hazard_provisional(doc) else ""
     for key, label, unit, thr in MEASURES:
-        rows.append([label, _fmt(measure_value(doc, key, unit), unit), f"{thr} = {_fmt(th[thr])}" if thr else ""])
+        value = _fmt(measure_value(doc, key, unit), unit)
+        rows.append([label, value + (mark if value != "-" else ""), f"{thr} = {_fmt(th[thr])}" if thr else ""])
     direction = doc.get("direction")
     rows.append(["run-out direction", {1: "+x", -1: "-x"}.get(direction, "-"), doc.get("direction_rule", "")])
     rows.append(["source top (crown)", _fmt(doc.get("source_top_m"), "m"), ""])

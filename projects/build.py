@@ -212,6 +212,7 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
                 k0=stage.k0,
                 materials=stage_materials,
                 stop_when_kinetic_energy_below=stage.stop_when_kinetic_energy_below,
+                stop_when_max_speed_below_m_s=stage.stop_when_max_speed_below_m_s,
                 min_duration_s=stage.min_duration_s or 0.0,
                 water=stage_water if stage.water is not None else None,
             )

@@ -448,10 +448,18 @@ def _version() -> str:
 
 
 def hazard_document(snap: Mapping[str, Any], hs: HazardSettings, gravity_m_s2: tuple[float, float],
-                    targets: tuple[sc.Target, ...], status: str) -> dict[str, Any]:
-    """The content of ``hazard.json``."""
+                    targets: tuple[sc.Target, ...], status: str,
+                    motion: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The content of ``hazard.json``. ``motion`` is the verdict at the end of the run
+    (:func:`projects.motion.verdict`): it decides ``still_moving`` (a slide still moving has no
+    end time) and is written as ``motion_at_end``."""
     doc = {"status": status, "runout_version": _version()}
     doc.update(measures(snap, hs, gravity_m_s2, targets))
+    if motion is not None:
+        doc["still_moving"] = bool(motion["still_moving"])
+        if motion["still_moving"]:
+            doc["slide_end_time_s"] = doc["slide_duration_s"] = None
+        doc["motion_at_end"] = dict(motion)
     nx, ny = snap["shape"]
     doc["raster"] = {"origin_m": list(snap["origin_m"]), "cell_size_m": snap["cell_size_m"], "shape": [nx, ny]}
     doc["settings"] = asdict(hs)
@@ -465,13 +473,13 @@ def hazard_document(snap: Mapping[str, Any], hs: HazardSettings, gravity_m_s2: t
 
 
 def write_files(out_dir: Path, snap: Mapping[str, Any], hs: HazardSettings, gravity_m_s2: tuple[float, float],
-                targets: tuple[sc.Target, ...], status: str) -> None:
+                targets: tuple[sc.Target, ...], status: str, motion: Mapping[str, Any] | None = None) -> None:
     """Write the four hazard files into ``out_dir``, each atomically (hazard.json last)."""
     out_dir = Path(out_dir)
     write_atomic(out_dir / HAZARD_VTI, vti_bytes(snap))
     write_atomic(out_dir / PROFILE_CSV, profile_csv(snap))
     write_atomic(out_dir / TARGETS_CSV, targets_csv(snap))
-    doc = hazard_document(snap, hs, gravity_m_s2, targets, status)
+    doc = hazard_document(snap, hs, gravity_m_s2, targets, status, motion)
     doc["structures"] = structure_forces(out_dir)
     write_atomic(out_dir / HAZARD_JSON, json.dumps(doc, indent=2) + "\n")
 
@@ -521,14 +529,16 @@ class HazardOutput:
     def active(self) -> bool:
         return self.sim.envelopes is not None and self.sim.envelopes.started
 
-    def write(self, status: str = "running") -> None:
+    def write(self, status: str = "running", motion: Mapping[str, Any] | None = None) -> None:
+        """Write the files now; at the end with the run's ``status`` and the verdict on its
+        motion (:func:`projects.motion.verdict`)."""
         if not self.active:
             return
         snap = self.sim.envelopes.snapshot()
 
         def job() -> None:
             with self._lock:
-                write_files(self.out_dir, snap, self.hs, self.gravity, self.targets, status)
+                write_files(self.out_dir, snap, self.hs, self.gravity, self.targets, status, motion)
 
         self.submit(job)
 

@@ -619,9 +619,10 @@ def _run(
         status, message = "failed", f"ended by {type(err).__name__}"
         raise
     finally:
+        motion = _motion(sim, resolved, status)
         if hazard is not None and status in ("completed", "stopped"):
             try:
-                hazard.write(status)
+                hazard.write(status, motion)
             except Exception as err:  # noqa: BLE001 - the run's own outcome stands; say what is missing
                 logger.error("writing the hazard files failed: %s", err)
         loop_s = time.perf_counter() - loop_start
@@ -634,6 +635,8 @@ def _run(
             "particle_steps_per_s": particles * steps / loop_s if loop_s > 0 else 0.0,
         }
         extra = {"setup_time_s": setup_s, **_equilibrium(sim), **watch.summary(),
+                 # whether the answer is final: the mass at rest at the end (projects.motion)
+                 "still_moving": None if motion is None else motion["still_moving"], "motion_at_end": motion,
                  # the stability limit at rest (material damping shortens it: docs/solver.md)
                  "critical_time_step_s": float(sim.critical_time_step()),
                  "time_step_shrink_by_damping": float(resolved.estimate["time_step_shrink_by_damping"])}
@@ -721,6 +724,24 @@ class _FailureWatch:
             "phreatic_line_m": None if water is None else [list(p) for p in water.phreatic_line_m],
             "free_water_line_m": None if water is None else [list(p) for p in water.free_water],
         }}
+
+
+def _motion(sim: Any, resolved: ResolvedRun, status: str) -> dict[str, Any] | None:
+    """The verdict on the motion at the end of the run (projects.motion); None when no dynamic
+    stage ran or the run failed before it could say."""
+    from projects.hazard import settings
+    from projects.motion import default_rest_speed, verdict
+
+    if status not in ("completed", "stopped"):
+        return None
+    try:
+        domain = resolved.project.domain
+        return verdict(sim.motion_at_end(), kinetic_energy_fraction=settings(resolved.project).kinetic_energy_fraction,
+                       rest_speed_m_s=default_rest_speed(tuple(domain.gravity_m_s2), domain.cell_size_m),
+                       status=status)
+    except Exception as err:  # noqa: BLE001 - the run's outcome stands without the verdict
+        logger.error("the motion at the end is not known: %s", err)
+        return None
 
 
 def _equilibrium(sim: Any) -> dict[str, Any]:

@@ -98,6 +98,8 @@ PLASTIC_KEYS: tuple[str, ...] = (
     "tensile_strength_pa",
     "mohr_coulomb_match",
 ) + SOFTENING_KEYS
+#: The keys of a dynamic stage that end it when the mass has come to rest (solver.config.Stage).
+REST_KEYS: tuple[str, ...] = ("stop_when_kinetic_energy_below", "stop_when_max_speed_below_m_s")
 #: Numerics keys of the time step: give one of them (none: cfl = DEFAULT_CFL).
 DEFAULT_CFL = sc.DEFAULT_CFL
 #: Damping coefficient of a gravity stage that gives none.
@@ -690,6 +692,7 @@ class Stage(_Model):
     k0: OptPositive = None
     damping: Damping | None = None
     stop_when_kinetic_energy_below: OptFraction = None
+    stop_when_max_speed_below_m_s: OptPositive = None
     min_duration_s: OptNonNegative = None
     material_changes: dict[MaterialName, MaterialChange] = {}
     # strength-reduction stages (and strength_factor on the dynamic stage after one)
@@ -1434,8 +1437,7 @@ def _strength_rules(stages: list[Any], materials: Mapping[str, Any]) -> list[Pro
         problems.append(Problem(f"stages.{after[1]}.type", kinds[after[1]],
                                 "at most one stage (the dynamic run-out) may follow a strength-reduction stage"))
     stage = stages[first] if isinstance(stages[first], Mapping) else {}
-    for key in ("duration_s", "ramp_fraction", "k0", "stop_when_kinetic_energy_below", "min_duration_s",
-                "material_changes"):
+    for key in ("duration_s", "ramp_fraction", "k0", *REST_KEYS, "min_duration_s", "material_changes"):
         if key in stage:
             problems.append(Problem(f"{path}.{key}", stage[key], "not allowed on a strength-reduction stage"))
     names = stage.get("materials")
@@ -1475,15 +1477,16 @@ def _stage_keys(path: str, kind: str, stage: Mapping[str, Any]) -> list[Problem]
     if kind != "gravity" and "ramp_fraction" in stage:
         problems.append(Problem(f"{path}.ramp_fraction", stage["ramp_fraction"], "only allowed on a gravity stage"))
     if kind != "dynamic":
-        for key in ("stop_when_kinetic_energy_below", "min_duration_s"):
+        for key in (*REST_KEYS, "min_duration_s"):
             if key in stage:
                 problems.append(Problem(f"{path}.{key}", stage[key], "only allowed on a dynamic stage"))
     elif "min_duration_s" in stage:
         minimum = _num(stage["min_duration_s"])
         duration = _num(stage.get("duration_s"))
-        if "stop_when_kinetic_energy_below" not in stage:
+        if not any(key in stage for key in REST_KEYS):
             problems.append(
-                Problem(f"{path}.min_duration_s", stage["min_duration_s"], "only allowed with stop_when_kinetic_energy_below")
+                Problem(f"{path}.min_duration_s", stage["min_duration_s"],
+                        "only allowed with stop_when_kinetic_energy_below or stop_when_max_speed_below_m_s")
             )
         elif minimum is not None and duration is not None and minimum > duration:
             problems.append(Problem(f"{path}.min_duration_s", minimum, f"must not exceed duration_s ({duration:g})"))

@@ -364,8 +364,10 @@ class Stage:
       stage's end, all with local damping (``damping``; the project layer fills in 0.7 when the
       file gives none); then all velocities are set to zero. The hold lets the model settle
       under the full load: at the end of a ramp the deformation still lags the load.
-    - ``dynamic``: free motion for ``duration_s``; may stop early once the kinetic energy falls
-      below ``stop_when_kinetic_energy_below`` times the stage's peak, after ``min_duration_s``.
+    - ``dynamic``: free motion for ``duration_s``; may end early once the mass has come to rest,
+      after ``min_duration_s``: when the kinetic energy is below ``stop_when_kinetic_energy_below``
+      times the stage's peak and the fastest particle slower than ``stop_when_max_speed_below_m_s``
+      (each where given; a speed alone counts once some particle was faster than it in the stage).
 
     ``materials`` replaces the material table at the start of the stage (``None``: unchanged);
     this is how a trigger such as "cohesion to zero" is expressed.
@@ -380,6 +382,7 @@ class Stage:
     materials: tuple[Material, ...] | None = None
     stop_when_kinetic_energy_below: float | None = None
     min_duration_s: float = 0.0
+    stop_when_max_speed_below_m_s: float | None = None
     ramp_fraction: float | None = None
     #: where the stage moves the ground water: linearly from its position at the stage's start to
     #: this one over ``duration_s`` (None: unchanged; at once in a k0 stage)
@@ -391,6 +394,12 @@ class Stage:
         :data:`GRAVITY_RAMP_FRACTION`) of ``duration_s``."""
         fraction = GRAVITY_RAMP_FRACTION if self.ramp_fraction is None else self.ramp_fraction
         return fraction * self.duration_s
+
+    @property
+    def ends_at_rest(self) -> bool:
+        """Whether the stage may end when the mass has come to rest (a dynamic stage with a criterion)."""
+        return self.kind == "dynamic" and (self.stop_when_kinetic_energy_below is not None
+                                           or self.stop_when_max_speed_below_m_s is not None)
 
 
 @dataclass(frozen=True)

@@ -110,6 +110,13 @@ class _Cursor:
     dt_s: float = 0.0
     reason: str = ""
     frames: int = 0
+    #: the fastest particle's largest speed in the current stage (m/s)
+    peak_speed: float = 0.0
+    #: the largest kinetic energy of the dynamic stages so far (J/m)
+    run_peak_ke: float = 0.0
+    #: the last dynamic stage that ran (-1: none) and whether it ended at rest by its criterion
+    last_dynamic: int = -1
+    ended_at_rest: bool = False
 
 
 def fingerprint(config: SimulationConfig, particles: Particles) -> str:
@@ -653,6 +660,9 @@ class Simulation:
                 if stage.kind == "dynamic" and self.envelopes is not None and not self.envelopes.started:
                     self.envelopes.start(self.time_s)  # the release: ground surface and initial state
                 c.phase, c.stage_start_s, c.stage_steps, c.peak_ke, c.reason = "loop", self.time_s, 0, 0.0, ""
+                c.peak_speed = 0.0
+                if stage.kind == "dynamic":
+                    c.last_dynamic, c.ended_at_rest = index, False
                 if c.next_output_s <= self.time_s + 1e-12 and c.last_output_step != self.steps:
                     frame = self._frame(stage, index, 0.0, c.dt_s, e.diagnostics())
                     c.last_output_step = self.steps
@@ -686,12 +696,13 @@ class Simulation:
                         if cfg.numerics.time_step_s is None:
                             c.dt_s = self._time_step(d["max_speed"])
                         c.peak_ke = max(c.peak_ke, d["kinetic_energy"])
-                        stop_frac = stage.stop_when_kinetic_energy_below
+                        c.peak_speed = max(c.peak_speed, d["max_speed"])
+                        if stage.kind == "dynamic":
+                            c.run_peak_ke = max(c.run_peak_ke, d["kinetic_energy"])
                         stage_time = self.time_s - c.stage_start_s
-                        if (stage.kind == "dynamic" and stop_frac is not None and stage_time >= stage.min_duration_s
-                                and c.peak_ke > 0 and d["kinetic_energy"] < stop_frac * c.peak_ke):
-                            c.reason = (f"stage {stage.name!r} ended at t = {self.time_s:.4g} s: kinetic energy "
-                                        f"{d['kinetic_energy']:.3g} J/m below {stop_frac:g} of its peak {c.peak_ke:.3g} J/m")
+                        if stage.ends_at_rest and stage_time >= stage.min_duration_s and self._at_rest(stage, d):
+                            c.reason = self._rest_reason(stage, d)
+                            c.ended_at_rest = True
                             log.info(c.reason)
                         if on_progress is not None:
                             wall = time.perf_counter() - wall0
@@ -740,6 +751,54 @@ class Simulation:
             self.message = f"cancelled at t = {self.time_s:.4g} s"
         elif not self.message:
             self.message = f"completed {self.steps} steps, t = {self.time_s:.4g} s"
+
+    # ------------------------------------------------------------------ coming to rest
+    def _at_rest(self, stage: Stage, d: dict) -> bool:
+        """Whether the mass has come to rest by ``stage``'s criterion: the kinetic energy below its
+        fraction of the stage's peak and the fastest particle below its speed, each where given; a
+        speed alone counts once some particle was faster than it in the stage (not at the release)."""
+        c = self.cursor
+        frac, speed = stage.stop_when_kinetic_energy_below, stage.stop_when_max_speed_below_m_s
+        if frac is not None and not (c.peak_ke > 0 and d["kinetic_energy"] < frac * c.peak_ke):
+            return False
+        if speed is not None:
+            if d["max_speed"] >= speed:
+                return False
+            if frac is None and c.peak_speed < speed:
+                return False  # nothing has moved yet
+        return True
+
+    def _rest_reason(self, stage: Stage, d: dict) -> str:
+        c = self.cursor
+        parts = [f"kinetic energy {d['kinetic_energy']:.3g} J/m"]
+        if stage.stop_when_kinetic_energy_below is not None:
+            parts[0] += (f", {d['kinetic_energy'] / c.peak_ke:.2g} of its peak {c.peak_ke:.3g} J/m "
+                         f"(below {stage.stop_when_kinetic_energy_below:g})")
+        parts.append(f"fastest particle {d['max_speed']:.3g} m/s")
+        if stage.stop_when_max_speed_below_m_s is not None:
+            parts[1] += f" (below {stage.stop_when_max_speed_below_m_s:g} m/s)"
+        return f"stage {stage.name!r} ended by its rest criterion at t = {self.time_s:.4g} s: " + ", ".join(parts)
+
+    def motion_at_end(self) -> dict[str, Any] | None:
+        """How the mass moves at the end of the run (now), for the verdict whether its answer is
+        final: the last dynamic stage that ran (``stage``, its index ``stage_index``, its rest
+        criterion ``stop_when_kinetic_energy_below`` and ``stop_when_max_speed_below_m_s``, None
+        where not given), ``ended_at_rest`` (it ended by that criterion), the kinetic energy now
+        and the largest of the dynamic stages (J/m), the fastest particle now (m/s) and the time
+        (s). None when no dynamic stage ran."""
+        c = self.cursor
+        if c.last_dynamic < 0:
+            return None
+        stage = self.config.stages[c.last_dynamic]
+        d = self.engine.diagnostics()
+        return {
+            "stage": stage.name, "stage_index": c.last_dynamic, "ended_at_rest": bool(c.ended_at_rest),
+            "stop_when_kinetic_energy_below": stage.stop_when_kinetic_energy_below,
+            "stop_when_max_speed_below_m_s": stage.stop_when_max_speed_below_m_s,
+            "time_s": float(self.time_s), "kinetic_energy_J_per_m": float(d["kinetic_energy"]),
+            "peak_kinetic_energy_J_per_m": float(max(c.run_peak_ke, d["kinetic_energy"])),
+            "max_speed_m_s": float(d["max_speed"]),
+        }
 
     # ------------------------------------------------------------------ driving from outside
     def advance(self, duration_s: float, *, damping: float = 0.0,

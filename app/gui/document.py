@@ -89,6 +89,7 @@ FIELD_INFO: dict[str, tuple[str, str]] = {
     "interval_s": ("Output interval", "s"),
     "min_duration_s": ("Minimum duration", "s"),
     "stop_when_kinetic_energy_below": ("Stop when kinetic energy below", "× peak"),
+    "stop_when_max_speed_below_m_s": ("Stop when the fastest particle is below", "m/s"),
     "coefficient": ("Damping coefficient", "–"),
     "per_cell": ("Particles per cell (per direction)", "–"),
     "saturated_density_kg_m3": ("Saturated density", "kg/m³"),
@@ -121,7 +122,8 @@ OPTIONAL_MATERIAL_KEYS: dict[str, str] = {
 
 
 def new_project_data() -> dict[str, Any]:
-    """A new project: a 20 m x 10 m domain, one soil, no bodies yet, K0 then a dynamic stage."""
+    """A new project: a 20 m x 10 m domain, one soil, no bodies yet, K0 then a dynamic stage that
+    runs to rest (at most 20 s)."""
     return {
         "runout": {"schema_version": SCHEMA_VERSION, "title": "Untitled"},
         "domain": {
@@ -147,7 +149,10 @@ def new_project_data() -> dict[str, Any]:
         "numerics": {"scheme": "apic-affine", "cfl": 0.5, "precision": "f32", "arch": "auto"},
         "stages": [
             {"name": "initial stress", "type": "k0"},
-            {"name": "run-out", "type": "dynamic", "duration_s": 2.0},
+            # to rest: the stage ends once the mass has come to rest, its fastest particle included;
+            # the duration is a safety limit (a run that reaches it ends still moving and says so)
+            {"name": "run-out", "type": "dynamic", "duration_s": 20.0, "stop_when_kinetic_energy_below": 0.01,
+             "stop_when_max_speed_below_m_s": 0.1, "min_duration_s": 1.0},
         ],
         "output": {"interval_s": 0.05, "fields": list(OUTPUT_FIELDS)},
     }

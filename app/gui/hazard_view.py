@@ -42,6 +42,8 @@ TARGET_COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("max_pressure_pa", "max pressure", "kPa"),
 )
 
+#: The colour of the header of a run whose measures are provisional (app.gui.run_panel's too).
+PROVISIONAL_COLOR = "#e37400"
 #: Characters of a measure's name before it wraps (the value column stays in view in the pane).
 NAME_CHARS = 26
 
@@ -68,16 +70,21 @@ def has_hazard(path: str | os.PathLike[str]) -> bool:
 
 
 def measure_rows(doc: dict[str, Any]) -> list[tuple[str, str, str]]:
-    """(label, value with unit, threshold) of each measure of :data:`app.report.MEASURES` in ``doc``."""
+    """(label, value with unit, threshold) of each measure of :data:`app.report.MEASURES` in ``doc``;
+    every value of a run that is not final (:func:`projects.motion.hazard_provisional`: the mass
+    still moving at its end, or the run not completed) is marked "(provisional)"."""
     from app.report import MEASURES, measure_value
+    from projects.motion import hazard_provisional
 
     thresholds = doc.get("thresholds") or {}
+    mark = " (provisional)" if hazard_provisional(doc) else ""
     rows = []
     for key, label, unit, threshold in MEASURES:
         if key not in doc:
             continue
         th = f"{threshold} = {thresholds[threshold]:g}" if threshold and threshold in thresholds else ""
-        rows.append((label, format_value(measure_value(doc, key, unit), unit), th))
+        value = format_value(measure_value(doc, key, unit), unit)
+        rows.append((label, value + (mark if value != "–" else ""), th))
     return rows
 
 
@@ -236,10 +243,18 @@ class HazardView(QWidget):
                 logger.debug("no scene under the envelopes", exc_info=True)
         self._draw(doc, scene, structures)
         self._fill_tables(doc)
+        from projects.motion import hazard_provisional, motion_text
+
         status = doc.get("status", "?")
-        self.header.setText(f"Hazard of {p}   [{status}]   released at t = "
-                            f"{format_value(doc.get('release_time_s'), 's')}, envelopes to t = "
-                            f"{format_value(doc.get('time_s'), 's')}")
+        text = (f"Hazard of {p}   [{status}]   released at t = {format_value(doc.get('release_time_s'), 's')}, "
+                f"envelopes to t = {format_value(doc.get('time_s'), 's')}")
+        if hazard_provisional(doc) and status in ("completed", "stopped"):
+            why = motion_text(doc.get("motion_at_end")) or "the mass was still moving at the end"
+            text += f"\nPROVISIONAL: {why}. Every measure below is provisional, not the run-out."
+            self.header.setStyleSheet(f"padding: 3px; color: {PROVISIONAL_COLOR}; font-weight: bold;")
+        else:
+            self.header.setStyleSheet("padding: 3px; color: #3c4043;")
+        self.header.setText(text)
         self.export_button.setEnabled(True)
         return True
 

@@ -947,7 +947,11 @@ class MainWindow(QMainWindow):
         return True
 
     def _run_text(self, run: RunProcess) -> str:
+        from app.gui.run_panel import outcome_state
+
         status = run.status
+        if run.outcome is not None:
+            status = outcome_state(status, run.outcome.summary)
         if status == "running" and run.last_progress:
             total = run.last_progress.get("total_time_s") or 0.0
             fraction = (run.last_progress.get("time_s") or 0.0) / total if total > 0 else 0.0
@@ -957,7 +961,12 @@ class MainWindow(QMainWindow):
 
     def _update_run_item(self, run: RunProcess) -> None:
         if run in self.runs:
-            self.run_panel.set_run_text(self.runs.index(run), self._run_text(run), run.status)
+            from projects.motion import provisional
+
+            status = run.status
+            if status == "completed" and run.outcome is not None and provisional(run.outcome.summary or {}):
+                status = "provisional"
+            self.run_panel.set_run_text(self.runs.index(run), self._run_text(run), status)
 
     def follow(self, run: RunProcess) -> None:
         """Show ``run`` in the Results tab and the run panel (live while it goes on)."""
@@ -1050,8 +1059,11 @@ class MainWindow(QMainWindow):
         """Show how a run ended, and its folder (whatever it holds: frames up to a crash too)."""
         from projects.results import ResultsError
 
+        from app.gui.run_panel import outcome_state
+
         self.actions_["cancel"].setEnabled(False)
-        self.results_view.end_live(f"{outcome.status}: {outcome.message}")
+        state = outcome_state(outcome.status, outcome.summary)
+        self.results_view.end_live(f"{state}: {outcome.message}")
         self.run_panel.show_result(outcome.status, outcome.message, outcome.summary)
         shown = False
         # a run that never reported its folder wrote no frame: what the folder holds (an earlier
@@ -1063,7 +1075,7 @@ class MainWindow(QMainWindow):
                 shown = True
             except (ResultsError, OSError, ValueError) as err:
                 logger.warning("cannot show the results: %s", err)
-        self.statusBar().showMessage(f"Run {outcome.status}: {outcome.message}", 10000)
+        self.statusBar().showMessage(f"Run {state}: {outcome.message}", 10000)
         if not ask:
             return
         if outcome.status == "error":

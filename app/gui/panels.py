@@ -1012,6 +1012,8 @@ class StagesPanel(Panel):
         self.damping.commit = self._commit_damping  # type: ignore[method-assign]
         self.stop_ke = NumberField(doc, None, "Stop when kinetic energy below", "× peak", optional=True,
                                    placeholder="run the full duration")
+        self.stop_speed = NumberField(doc, None, "Stop when the fastest particle is below", "m/s", optional=True,
+                                      placeholder="any speed")
         self.min_duration = NumberField(doc, None, "Minimum duration", "s", optional=True)
         self.ramp = NumberField(doc, None, "Gravity ramp", "× duration", optional=True,
                                 placeholder=f"{DEFAULT_GRAVITY_RAMP_FRACTION:g} (then held at full value)")
@@ -1022,6 +1024,7 @@ class StagesPanel(Panel):
         form.addRow("K0", self.k0)
         form.addRow("Damping", self.damping)
         form.addRow("Stop at KE below", self.stop_ke)
+        form.addRow("and speed below", self.stop_speed)
         form.addRow("Min. duration", self.min_duration)
         self.layout_.addWidget(box)
 
@@ -1058,7 +1061,7 @@ class StagesPanel(Panel):
             row.addWidget(w)
         vbox.addLayout(row)
         self.layout_.addWidget(box)
-        self.watch(self.name, self.duration, self.k0, self.damping, self.stop_ke, self.min_duration)
+        self.watch(self.name, self.duration, self.k0, self.damping, self.stop_ke, self.stop_speed, self.min_duration)
         self.finish()
         self._current: int | None = None
         self._on_changed(frozenset({"stages"}))
@@ -1095,8 +1098,9 @@ class StagesPanel(Panel):
             self.damping.edit.setPlaceholderText("none")
         dynamic = base is not None and kind == "dynamic"
         self.stop_ke.set_path(f"{base}.stop_when_kinetic_energy_below" if dynamic else None)
+        self.stop_speed.set_path(f"{base}.stop_when_max_speed_below_m_s" if dynamic else None)
         self.min_duration.set_path(f"{base}.min_duration_s" if dynamic else None)
-        for f in (self.duration, self.ramp, self.k0, self.damping, self.stop_ke, self.min_duration):
+        for f in (self.duration, self.ramp, self.k0, self.damping, self.stop_ke, self.stop_speed, self.min_duration):
             if f.path is None:
                 f.edit.setText("")
         self.change_material.clear()

@@ -32,6 +32,18 @@ logger = logging.getLogger(__name__)
 SETUP_S = 3.0
 
 
+#: The colour of a run that completed with the mass still moving (its answer is provisional).
+PROVISIONAL_COLOR = "#e37400"
+
+
+def outcome_state(status: str, summary: dict[str, Any] | None) -> str:
+    """``completed, still moving`` for a completed run whose mass was still moving at its end
+    (projects.motion), else the status."""
+    from projects.motion import provisional
+
+    return f"{status}, still moving" if status == "completed" and provisional(summary or {}) else status
+
+
 def format_duration(seconds: float) -> str:
     """``42 s``, ``3 min 20 s``, ``2 h 05 min``."""
     if not math.isfinite(seconds):
@@ -347,7 +359,7 @@ class RunPanel(QWidget):
             return
         item.setText(text)
         color = {"completed": "#188038", "stopped": "#e37400", "running": "#1a73e8",
-                 "starting": "#1a73e8", "stopping": "#e37400"}.get(status, "#b3261e")
+                 "starting": "#1a73e8", "stopping": "#e37400", "provisional": PROVISIONAL_COLOR}.get(status, "#b3261e")
         from PySide6.QtGui import QColor
 
         item.setForeground(QColor(color))
@@ -388,19 +400,30 @@ class RunPanel(QWidget):
             self.eta.setText(f"Remaining: about {format_duration((total - progress.time_s) * dt_wall / dt_sim)}")
 
     def show_result(self, status: str, message: str, summary: dict[str, Any] | None = None) -> None:
+        """Show how a run ended; a completed run that ended with the mass still moving is shown
+        provisional (orange, with its kinetic energy as a fraction of the peak and its fastest
+        particle at the end: projects.motion)."""
+        from projects.motion import motion_text, provisional
+
         self.set_running(False)
         summary = summary or {}
+        still = status == "completed" and provisional(summary)
         if summary.get("simulated_time_s") is not None:
             self.clock.setText(f"Simulated: {summary['simulated_time_s']:.4g} s in {summary.get('steps', 0):,} steps, "
                                f"{format_duration(summary.get('wall_time_s') or 0.0)} of wall time")
             rate = summary.get("particle_steps_per_s") or 0.0
             self.rate.setText(f"Speed: {rate / 1e6:.3g} M particle-steps/s on {summary.get('arch', '?')}")
         color = {"completed": "#188038", "stopped": "#e37400", "running": "#1a73e8"}.get(status, "#b3261e")
+        text = f"{status}: {message}"
+        if still:
+            color = PROVISIONAL_COLOR
+            text = (f"{outcome_state(status, summary)}: {message}\n{motion_text(summary.get('motion_at_end'))}. "
+                    "Not a final answer: every hazard measure of this run is provisional.")
         self.status.setStyleSheet(f"color: {color};")
-        self.status.setText(f"{status}: {message}")
+        self.status.setText(text)
         if status == "completed":
             self.progress.setValue(1000)
-            self.progress.setFormat("completed")
+            self.progress.setFormat(outcome_state(status, summary))
         else:
             self.progress.setFormat(status)
         self.eta.setText("")

@@ -61,7 +61,8 @@ def test_run_writes_a_complete_results_folder(project, tmp_path):
     proc = runout("run", str(project), "--arch", "cpu", "--set", "numerics.scheme=mpm", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("completed: "), proc.stdout
+    # the tiny column is still collapsing at its end: the status says so (tests/integration/test_run_to_rest.py)
+    assert len(lines) == 1 and lines[0].startswith("completed, still moving (kinetic energy "), proc.stdout
     assert "Traceback" not in proc.stderr
 
     out = tmp_path / "tiny.results"  # default: next to the project

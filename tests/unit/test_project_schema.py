@@ -188,7 +188,8 @@ GOLDEN = [
     (
         "stages.1.min_duration_s",
         0.5,
-        "stages.1.min_duration_s = 0.5: only allowed with stop_when_kinetic_energy_below",
+        "stages.1.min_duration_s = 0.5: only allowed with stop_when_kinetic_energy_below or "
+        "stop_when_max_speed_below_m_s",
     ),
     (
         "stages",
