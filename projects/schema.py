@@ -76,6 +76,16 @@ PRESETS: tuple[str, ...] = ("draft", "standard", "fine")
 STAGE_TYPES: tuple[str, ...] = ("k0", "gravity", "dynamic", "strength-reduction")
 #: ``first_trial`` of a strength-reduction stage may be a number or this word.
 FIRST_TRIALS: tuple[str, ...] = ("limit-equilibrium",)
+#: The strength factors a strength-reduction search tries (projects.strength.F_MIN, F_MAX).
+STRENGTH_FACTOR_RANGE: tuple[float, float] = (0.05, 50.0)
+#: Size limits checked as the file is read, before its entries are (docs/project-format.md, size
+#: limits): points of one outline or water line, points of all of them, entries of a list or table.
+#: A 100,000-vertex body or structure kept ``validate`` and ``run`` busy for minutes (the geometry
+#: of seeding, the warnings and the solver's structure setup grow with the vertices); a project
+#: at these limits validates in seconds.
+MAX_POLYGON_POINTS = 20_000
+MAX_TOTAL_POINTS = 100_000
+MAX_ENTRIES: dict[str, int] = {"materials": 256, "bodies": 1000, "structures": 1000, "stages": 1000, "targets": 1000}
 DAMPING_TYPES: tuple[str, ...] = ("local",)
 OUTPUT_FIELDS = sc.OUTPUT_FIELDS
 #: Material keys that only a Drucker-Prager material may have.
@@ -153,6 +163,8 @@ def _toml_text(value: Any) -> str:
     if isinstance(value, Mapping):
         return "{" + ", ".join(f"{k} = {_toml_text(v)}" for k, v in value.items()) + "}"
     if isinstance(value, (list, tuple)):
+        if len(value) > _VALUE_WIDTH:  # shown cut to _VALUE_WIDTH characters: no need to write all of it
+            return "[" + ", ".join(_toml_text(v) for v in value[:_VALUE_WIDTH]) + ", ...]"
         return "[" + ", ".join(_toml_text(v) for v in value) + "]"
     if isinstance(value, BaseModel):
         return _toml_text(value.model_dump(exclude_none=True))
@@ -342,7 +354,21 @@ def _positive_pair(value: tuple[float, float]) -> tuple[float, float]:
 def _points(value: Any) -> Any:
     if not isinstance(value, (list, tuple)):
         raise _fail("must be an array of points [[x, y], ...]")
+    if len(value) > MAX_POLYGON_POINTS:  # before each point is read: 4.5 million took minutes
+        raise _fail(f"has {len(value):,} points, more than the limit of {MAX_POLYGON_POINTS:,} per outline "
+                    "(docs/project-format.md, size limits); simplify it")
     return value
+
+
+def _at_most(limit: int, what: str):
+    """A list or table of at most ``limit`` entries, checked before the entries are read."""
+    def check(value: Any) -> Any:
+        if isinstance(value, (list, tuple, Mapping)) and len(value) > limit:
+            raise _fail(f"has {len(value):,} {what}, more than the limit of {limit:,} "
+                        "(docs/project-format.md, size limits)")
+        return value
+
+    return BeforeValidator(check)
 
 
 def _simple_polygon(points: tuple[tuple[float, float], ...]) -> tuple[tuple[float, float], ...]:
@@ -660,7 +686,11 @@ def _first_trial(value: Any) -> Any:
         raise _fail('must be a number > 0 or "limit-equilibrium"')
     if not value > 0:
         raise _fail('must be a number > 0 or "limit-equilibrium"')
-    return float(value)
+    lo, hi = STRENGTH_FACTOR_RANGE
+    number = _num(value)
+    if number is None or not lo <= number <= hi:  # inf, 1e400, 10**400; the search's own range
+        raise _fail(f'must be a number from {lo:g} to {hi:g} (the range the search tries) or "limit-equilibrium"')
+    return number
 
 
 FAILURE_CRITERIA: tuple[str, ...] = ("displacement", "kinetic-energy")
@@ -703,7 +733,7 @@ class Stage(_Model):
     trial_duration_s: OptPositive = None
     max_trials: Annotated[int | None, BeforeValidator(lambda v: v if v is None else _to_int(v)),
                           AfterValidator(lambda v: v if v is None else _in_int_range(v, 2, 200))] = None
-    limit_equilibrium: bool | None = None
+    limit_equilibrium: Annotated[bool | None, BeforeValidator(lambda v: v if v is None else _to_bool(v))] = None
     failure: Failure | None = None
     strength_factor: OptPositive = None
     water: StageWater | None = None
@@ -790,16 +820,17 @@ class Project(_Model):
 
     runout: Header
     domain: Domain
-    materials: Annotated[dict[MaterialName, Material], _nonempty_list("material ([materials.NAME])")]
-    bodies: Annotated[list[Body], _nonempty_list("body ([[bodies]])")]
-    structures: list[Structure] = []
+    materials: Annotated[dict[MaterialName, Material], _at_most(MAX_ENTRIES["materials"], "materials"),
+                         _nonempty_list("material ([materials.NAME])")]
+    bodies: Annotated[list[Body], _at_most(MAX_ENTRIES["bodies"], "bodies"), _nonempty_list("body ([[bodies]])")]
+    structures: Annotated[list[Structure], _at_most(MAX_ENTRIES["structures"], "structures")] = []
     water: Water | None = None
     particles: Particles = Particles()
     numerics: Numerics = Numerics()
-    stages: Annotated[list[Stage], _nonempty_list("stage ([[stages]])")]
+    stages: Annotated[list[Stage], _at_most(MAX_ENTRIES["stages"], "stages"), _nonempty_list("stage ([[stages]])")]
     output: Output = Output()
     hazard: Hazard = Hazard()
-    targets: list[Target] = []
+    targets: Annotated[list[Target], _at_most(MAX_ENTRIES["targets"], "targets")] = []
 
     @model_validator(mode="after")
     def _rules(self, info: ValidationInfo) -> Project:
@@ -1053,6 +1084,8 @@ def _rule_problems(data: Mapping[str, Any]) -> list[Problem]:
     problems += _stage_rules(_array(data.get("stages")), materials)
     problems += _hazard_rules(_table(data.get("hazard")), _array(data.get("targets")), domain)
     problems += _water_rules(data.get("water"), _array(data.get("stages")))
+    problems += _monitor_rules(_array(data.get("stages")), domain)
+    problems += _total_points_rule(data)
     return problems
 
 
@@ -1186,7 +1219,30 @@ def _material_rules(materials: Mapping[str, Any]) -> list[Problem]:
                     )
         problems += _damping_rule(path, material)
         problems += _saturated_rule(path, material)
+        problems += _wave_speed_rule(path, material, None)
     return problems
+
+
+def _wave_speed_rule(path: str, values: Mapping[str, Any], changed: Mapping[str, Any] | None) -> list[Problem]:
+    """The P-wave speed ``sqrt(E (1 - nu) / ((1 + nu)(1 - 2 nu) rho))`` is a positive number: a
+    modulus of 5e-324 Pa underflows to a speed of 0 (the time step's limit dx / c_p divides by it)
+    and 1e308 Pa over 1e-300 kg/m3 overflows. With ``changed`` (a stage's change), only when it
+    changes one of the three."""
+    keys = ("youngs_modulus_pa", "poisson_ratio", "density_kg_m3")
+    if changed is not None and not any(k in changed for k in keys):
+        return []
+    e, nu, rho = (_num(values.get(k)) for k in keys)
+    if e is None or nu is None or rho is None or not (e > 0 and rho > 0 and 0 <= nu < 0.5):
+        return []  # judged on their own
+    try:
+        speed = math.sqrt(e * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu)) / rho)
+    except (OverflowError, ZeroDivisionError, ValueError):
+        speed = math.inf
+    if 0.0 < speed < math.inf:
+        return []
+    key = next((k for k in ("youngs_modulus_pa", "density_kg_m3") if changed is None or k in changed), keys[0])
+    return [Problem(f"{path}.{key}", values.get(key), f"gives a P-wave speed of {speed:g} m/s with youngs_modulus_pa "
+                    f"{e:g} and density_kg_m3 {rho:g} (the time step's limit is cell_size_m / speed): not a material")]
 
 
 def _damping_rule(path: str, values: Mapping[str, Any]) -> list[Problem]:
@@ -1331,7 +1387,48 @@ def _structure_rules(structures: list[Any], domain: Mapping[str, Any]) -> list[P
     return problems
 
 
+def _monitor_rules(stages: list[Any], domain: Mapping[str, Any]) -> list[Problem]:
+    """A strength-reduction stage's monitor point lies in the domain (the search watches the
+    particle nearest to it: one outside would silently watch a particle at the domain's edge)."""
+    origin = _pair(domain.get("origin_m", (0.0, 0.0)))
+    size = _pair(domain.get("size_m"))
+    problems = []
+    for index, stage in enumerate(stages):
+        failure = stage.get("failure") if isinstance(stage, Mapping) else None
+        point = _pair(failure.get("monitor_point_m")) if isinstance(failure, Mapping) else None
+        if point is None or not (origin and size):
+            continue
+        if not (origin[0] <= point[0] <= origin[0] + size[0] and origin[1] <= point[1] <= origin[1] + size[1]):
+            problems.append(Problem(f"stages.{index}.failure.monitor_point_m", list(point), "must lie in the domain "
+                                    f"[{origin[0]:g}, {origin[0] + size[0]:g}] x [{origin[1]:g}, {origin[1] + size[1]:g}] m"))
+    return problems
+
+
+def _total_points_rule(data: Mapping[str, Any]) -> list[Problem]:
+    """At most MAX_TOTAL_POINTS points in all the outlines and water lines together."""
+    counts: dict[str, int] = {}
+    for section in ("bodies", "structures"):
+        for item in _array(data.get(section))[: MAX_ENTRIES[section] + 1]:
+            if isinstance(item, Mapping) and isinstance(item.get("polygon_m"), (list, tuple)):
+                if len(item["polygon_m"]) > MAX_POLYGON_POINTS:
+                    return []  # that outline's own problem says it
+                counts[section] = counts.get(section, 0) + len(item["polygon_m"])
+    lines = [_table(data.get("water"))] + [_table(_table(st).get("water")) for st in _array(data.get("stages"))]
+    for table in lines:
+        for key in ("phreatic_line_m", "free_water_line_m"):
+            if isinstance(table.get(key), (list, tuple)):
+                counts["water"] = counts.get("water", 0) + len(table[key])
+    total = sum(counts.values())
+    if total <= MAX_TOTAL_POINTS:
+        return []
+    most = max(counts, key=counts.get)
+    return [Problem(most, None, f"the outlines and water lines have {total:,} points in all, more than the limit of "
+                    f"{MAX_TOTAL_POINTS:,} (docs/project-format.md, size limits); simplify them")]
+
+
 def _outside_points(path: str, points: list[Any], box: tuple[float, ...], origin: Any, size: Any) -> list[Problem]:
+    if len(points) > MAX_POLYGON_POINTS:
+        return []  # its own problem, before any point is looked at
     outside = []
     for k, point in enumerate(points):
         xy = _pair(point)
@@ -1504,6 +1601,7 @@ def _change_rules(path: str, changes: Mapping[str, Any], current: dict[str, dict
             continue
         material = current[name]
         problems += _damping_rule(change_path, {**material, **change})
+        problems += _wave_speed_rule(change_path, {**material, **change}, change)
         if "saturated_density_kg_m3" in change or "density_kg_m3" in change:
             problems += _saturated_rule(change_path, {**material, **change})
         if material.get("model") == "linear-elastic":
