@@ -174,17 +174,15 @@ def load_project(path: str | os.PathLike[str], overrides: Sequence[str] = ()) ->
     Raises
     ------
     ProjectError
-        When the file cannot be read or is not a valid project; the message starts with
-        the file name.
+        When the file cannot be read (not a regular file, larger than
+        :data:`projects.inputs.MAX_PROJECT_FILE_BYTES`, not UTF-8) or is not a valid project; the
+        message starts with the file name.
     """
+    from projects.inputs import MAX_PROJECT_FILE_BYTES, read_text
+
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        reason = exc.strerror or str(exc)
-        raise ProjectError([Problem("", None, f"cannot read the file: {reason}")], str(path)) from None
-    except UnicodeDecodeError as exc:
-        raise ProjectError([Problem("", None, f"not UTF-8 text: {exc.reason}")], str(path)) from None
+    # a regular file of at most MAX_PROJECT_FILE_BYTES: /dev/zero, a FIFO or a huge file would hang
+    text = read_text(path, what="the file", max_bytes=MAX_PROJECT_FILE_BYTES)
     return loads_project(text, overrides, source=str(path))
 
 

@@ -152,22 +152,33 @@ def rms_deviation(heights: np.ndarray, reference: np.ndarray) -> float:
 def read_xy_csv(path: str | os.PathLike[str]) -> np.ndarray:
     """An observed profile: the first two numeric columns of a CSV file, shape (K, 2).
 
-    Lines starting with ``#`` and rows that are not two numbers (a header line) are skipped.
+    Lines starting with ``#`` and rows that are not two numbers (a header line) are skipped. The
+    file is read as :func:`projects.inputs.read_text` reads it: a regular file of at most
+    :data:`projects.inputs.MAX_OBSERVATION_FILE_BYTES` (a FIFO or ``/dev/zero`` would hang).
 
     Raises
     ------
-    OSError
-        The file cannot be read.
     ValueError
-        It holds no ``x, y`` rows.
+        The file cannot be read, is not a regular file or too large, holds no ``x, y`` rows, or a
+        row with a value that is not a finite number (nan, inf).
     """
+    from projects.inputs import MAX_OBSERVATION_FILE_BYTES, read_text
+    from projects.schema import ProjectError
+
+    try:
+        text = read_text(path, what="the file", max_bytes=MAX_OBSERVATION_FILE_BYTES)
+    except ProjectError as exc:
+        raise ValueError(exc.problems[0].message) from None
     points = []
-    with open(path, encoding="utf-8") as fh:
-        for row in csv.reader(line for line in fh if line.strip() and not line.lstrip().startswith("#")):
-            try:
-                points.append((float(row[0]), float(row[1])))
-            except (ValueError, IndexError):
-                continue  # the header line
+    lines = (line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#"))
+    for number, row in enumerate(csv.reader(lines), start=1):
+        try:
+            x, y = float(row[0]), float(row[1])
+        except (ValueError, IndexError):
+            continue  # the header line
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise ValueError(f"{path}: data row {number} ({', '.join(row[:2])}) is not two finite numbers")
+        points.append((x, y))
     if not points:
         raise ValueError(f"{path} holds no x, y rows")
     return np.asarray(points, dtype=float)
