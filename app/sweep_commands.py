@@ -62,12 +62,20 @@ def _load_spec(path: Path, kind: str):  # noqa: ANN202 - SweepSpec | Calibration
 
 
 def _check_engine(workers: int | None, threads: int | None, gpus: float | None, address: str | None = None) -> None:
+    from sweeps.spec import MAX_GPUS_PER_RUN, MAX_RUNS, MAX_THREADS_PER_RUN
+
     if workers is not None and workers < 1:
         console.fail(f"--workers must be >= 1, not {workers}")
+    if workers is not None and workers > MAX_RUNS:
+        console.fail(f"--workers must be at most {MAX_RUNS:,} (a sweep's most runs), not {workers:,}")
     if threads is not None and threads < 1:
         console.fail(f"--threads must be >= 1, not {threads}")
+    if threads is not None and threads > MAX_THREADS_PER_RUN:
+        console.fail(f"--threads must be at most {MAX_THREADS_PER_RUN}, not {threads:,}")
     if gpus is not None and not gpus >= 0:
         console.fail(f"--gpus-per-run must be >= 0, not {gpus:g}")
+    if gpus is not None and not gpus <= MAX_GPUS_PER_RUN:
+        console.fail(f"--gpus-per-run must be at most {MAX_GPUS_PER_RUN}, not {gpus:g}")
     if address is not None:
         from sweeps.engine import check_address
 

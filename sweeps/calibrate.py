@@ -251,6 +251,15 @@ def run_calibration(
     table = spec.calibration
     keys = list(spec.parameters)
     observed = check_calibration(spec)
+    # the sizes first, as `runout run` checks one run's: every trial about the size of the centre's
+    from projects.schema import ProjectError
+    from sweeps.sweep import disk_problem
+
+    centre = resolve_runs(spec.project_path, table.set, [{k: _centre(p) for k, p in spec.parameters.items()}],
+                          spec.linked)[0]
+    problems = disk_problem(centre.disk_bytes * table.trials, table.trials, out, "calibration.trials", "trials")
+    if problems:
+        raise ProjectError(problems)
     unit = "m" if spec.observation.type == "deposit-profile" else ("(scaled)" if spec.observation.scales else "")
     n_obs = observation_count(spec, observed)
     measures = list((spec.observation.values or {}).keys())
@@ -356,9 +365,17 @@ def check_calibration(spec: CalibrationSpec) -> np.ndarray | None:
     ------
     ProjectError
     """
+    from projects.document import load_project
+    from projects.schema import ProjectError
+    from sweeps.measures import measure_problems
+
     observed = read_observation(spec) if spec.observation.type == "deposit-profile" else None
     resolve_runs(spec.project_path, spec.calibration.set, [{k: _centre(p) for k, p in spec.parameters.items()}],
                  spec.linked)
+    problems = measure_problems(list(spec.observation.values or {}),
+                                load_project(spec.project_path, list(spec.calibration.set)), "observation.values")
+    if problems:
+        raise ProjectError(problems)
     return observed
 
 

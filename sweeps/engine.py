@@ -59,6 +59,8 @@ class RunPlan:
         The resolved project (TOML), or "" when invalid.
     problem : str
         Why the project is invalid ("" when valid).
+    disk_bytes : int
+        The run's results folder as :func:`projects.build.estimate` sizes it (0 when invalid).
     """
 
     index: int
@@ -67,6 +69,7 @@ class RunPlan:
     run_id: str
     project_text: str
     problem: str = ""
+    disk_bytes: int = 0
 
 
 @dataclass
@@ -171,11 +174,22 @@ def resolve_runs(project_path: Path, fixed: Sequence[str], samples: Sequence[dic
             continue
         text = dumps_project(project)
         run_id = hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
-        plans.append(RunPlan(i, dict(values), (*fixed, *sets), run_id, text))
+        plans.append(RunPlan(i, dict(values), (*fixed, *sets), run_id, text, disk_bytes=_disk_bytes(project)))
     if plans and all(p.problem for p in plans):
         assert first_error is not None
         raise first_error
     return plans
+
+
+def _disk_bytes(project: Any) -> int:
+    """The results folder of one run, estimated (:func:`projects.build.estimate`, preset applied)."""
+    from projects.build import resolve
+    from projects.schema import ProjectError
+
+    try:
+        return int(resolve(project, seed=False).estimate["disk_bytes"])
+    except (ProjectError, ValueError, ArithmeticError):
+        return 0
 
 
 # --------------------------------------------------------------------------------------------
@@ -304,6 +318,29 @@ class EngineSettings:
     address: str | None
 
 
+def infeasible(nodes: Sequence[dict[str, float]], threads: int, gpus: float) -> Any:
+    """Why no run could ever start on these Ray nodes (their ``Resources``), or None.
+
+    A run asks one node for ``threads`` CPUs (``gpus`` == 0) or for ``gpus`` GPUs and a CPU; Ray
+    waits for ever for a request no node can meet (``gpus_per_run = 2`` where nodes have one GPU).
+    """
+    from projects.schema import Problem
+
+    if not nodes:
+        return None
+    if gpus > 0:
+        most = max(float(n.get("GPU", 0.0)) for n in nodes)
+        if gpus > most:
+            return Problem("gpus_per_run", gpus, f"more GPUs than any Ray node has ({most:g}): no run could start; "
+                           "give at most that, or 0 for CPU runs")
+        return None
+    most = max(float(n.get("CPU", 0.0)) for n in nodes)
+    if threads > most:
+        return Problem("threads_per_run", threads, f"more CPUs than any Ray node has ({most:g}): no run could start; "
+                       "give at most that")
+    return None
+
+
 class RayEngine:
     """Runs tasks (:func:`execute_run`) on Ray: an embedded local Ray or a cluster at ``address``.
 
@@ -361,6 +398,13 @@ class RayEngine:
         resources = ray.cluster_resources()
         if gpus is None:
             gpus = 1.0 if resources.get("GPU", 0) > 0 else 0.0
+        problem = infeasible([node.get("Resources", {}) for node in ray.nodes() if node.get("Alive", True)],
+                             threads, gpus)
+        if problem:
+            self.__exit__(None, None, None)
+            from projects.schema import Problem, ProjectError
+
+            raise ProjectError([problem if isinstance(problem, Problem) else Problem("", None, problem)])
         if address is not None and workers is None:
             workers = max(1, int(resources.get("CPU", 1) // threads)) if gpus == 0 else \
                 max(1, int(resources.get("GPU", 1) / gpus))

@@ -11,7 +11,10 @@ Measure keys are dotted paths (list items by index):
   5 mm), ``crest_m`` (highest particle top within 10 mm of x = 0), ``height_m`` (highest particle
   top anywhere), ``max_displacement_m`` (largest particle displacement).
 
-A key that the run did not produce reads as NaN.
+A key that the run did not produce reads as NaN. Keys are checked before any run
+(:func:`measure_problems`): a source other than these three, a deposit measure not listed, a
+summary or hazard key no run writes, a target or structure the project does not have, each is one
+line naming the key.
 
 Profiles along the section: ``deposit_height_m`` (the final free surface ``h(x)`` of
 :func:`projects.measures.surface_heights`, on a grid of one particle spacing over the domain) or any
@@ -31,9 +34,19 @@ from typing import Any
 import numpy as np
 
 from projects import measures
-from sweeps.spec import DEPOSIT_PROFILE_FIELD
+from sweeps.spec import DEPOSIT_KEYS, DEPOSIT_PROFILE_FIELD
 
-DEPOSIT_KEYS = ("front_m", "toe_m", "reach_m", "crest_m", "height_m", "max_displacement_m")
+#: The top-level keys of a run's ``summary.json`` (docs/results.md): the writer's, the resolved run's
+#: (projects.build.ResolvedRun.meta), the runner's and a strength-reduction run's.
+SUMMARY_KEYS = frozenset({
+    "status", "message", "title", "scheme", "arch", "precision", "particles", "steps", "simulated_time_s",
+    "wall_time_s", "particle_steps_per_s", "frames", "runout_version", "results_format_version", "started_at",
+    "finished_at", "resumed_at_frame", "contacts", "total_time_s", "stages", "materials", "bodies", "structures",
+    "domain", "particle_spacing_m", "output_interval_s", "preset", "checkpoint_interval_s", "project_file",
+    "project_unsaved", "started_from", "setup_time_s", "initial_equilibrium", "water_at_failure",
+    "critical_time_step_s", "time_step_shrink_by_damping", "startup_s", "startup_cpu_s", "warnings",
+    "still_moving", "motion_at_end", "factor_of_safety", "limit_equilibrium",
+})
 
 
 def lookup(data: Any, path: Sequence[str]) -> Any:
@@ -103,6 +116,103 @@ class _LastFrame:
     def surface(self, x_m: np.ndarray) -> np.ndarray:
         a = self.arrays()
         return measures.surface_heights(a["positions"], a.get("active"), self.spacing_m, x_m)
+
+
+def _hazard_skeleton(project: Any) -> dict[str, Any] | None:
+    """The keys ``hazard.json`` of a run of ``project`` has: the document of a run that released
+    nothing (projects.hazard.hazard_document), with the project's targets and structures; None
+    where it cannot be made (then hazard keys are not checked)."""
+    from projects import hazard
+    from solver import config as sc
+
+    snap = {"release_time_s": 0.0, "time_s": 0.0, "started": False, "shape": (1, 1), "origin_m": (0.0, 0.0),
+            "cell_size_m": 1.0, "series": np.zeros((0, 1)), "every_steps": 1}
+    try:
+        targets = tuple(sc.Target(t.name, *t.xy) for t in project.targets)
+        doc = hazard.hazard_document(snap, hazard.settings(project), tuple(project.domain.gravity_m_s2), targets,
+                                     "completed")
+    except Exception:  # noqa: BLE001 - a check that cannot be made is not a problem of the sweep file
+        return None
+    doc.setdefault("still_moving", None)
+    doc.setdefault("motion_at_end", None)
+    doc["structures"] = {st.name: None for st in project.structures}
+    return doc
+
+
+def measure_problems(keys: Sequence[str], project: Any, where: str) -> list[Any]:
+    """The measure keys no run of ``project`` can produce, one :class:`~projects.schema.Problem` each.
+
+    Parameters
+    ----------
+    keys : sequence of str
+        ``summary.*``, ``hazard.*``, ``deposit.*`` (their syntax checked by sweeps.spec).
+    project : projects.schema.Project
+        The base project (targets, structures, whether it writes hazard.json).
+    where : str
+        The key path of the list (``sweep.measures``, ``observation.values``).
+
+    Returns
+    -------
+    list of Problem
+    """
+    from projects.schema import Problem
+
+    problems: list[Any] = []
+    skeleton: dict[str, Any] | None | bool = False  # made at the first hazard key
+    for index, key in enumerate(keys):
+        path = f"{where}.{index}" if where.endswith("measures") else f'{where}."{key}"'
+        head, _, rest = key.partition(".")
+        parts = rest.split(".")
+        if head == "summary" and parts[0] not in SUMMARY_KEYS:
+            problems.append(Problem(path, key, f"summary.json has no key {parts[0]!r}{_guess(parts[0], SUMMARY_KEYS)} "
+                                    "(docs/results.md lists its keys)"))
+        elif head == "hazard":
+            if not project.hazard.enabled:
+                problems.append(Problem(path, key, "hazard.enabled is false in the project: its runs write no "
+                                        "hazard.json"))
+                continue
+            if skeleton is False:
+                skeleton = _hazard_skeleton(project)
+            if skeleton is None:
+                continue
+            problem = _hazard_key_problem(parts, skeleton)
+            if problem:
+                problems.append(Problem(path, key, problem))
+    return problems
+
+
+def _guess(word: str, choices: Iterable[str]) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(word, list(choices), n=1)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def _hazard_key_problem(parts: list[str], doc: Mapping[str, Any]) -> str:
+    """Why ``hazard.PARTS`` names nothing hazard.json holds ("" when it may)."""
+    def listed(names: Iterable[str]) -> str:
+        names = list(names)
+        return ", ".join(names) if names else "none"
+
+    top = parts[0]
+    if top not in doc:
+        return f"hazard.json has no key {top!r}{_guess(top, doc)}; its measures: " + listed(
+            k for k, v in doc.items() if not isinstance(v, Mapping) and k not in ("note", "direction_rule"))
+    value = doc[top]
+    if len(parts) == 1 or not isinstance(value, Mapping):
+        return ""
+    name = parts[1]
+    if top in ("targets", "structures"):
+        if name not in value:
+            what = "target" if top == "targets" else "structure"
+            return f"the project has no {what} {name!r}; its {top}: {listed(value)}"
+        inner = value[name]
+        if len(parts) > 2 and isinstance(inner, Mapping) and inner and parts[2] not in inner:
+            return f"a target has no key {parts[2]!r}; its keys: {listed(inner)}"
+        return ""
+    if value and name not in value:
+        return f"hazard.json's {top} has no key {name!r}; its keys: {listed(value)}"
+    return ""
 
 
 def read_measures(results_dir: str | Path, keys: Iterable[str]) -> dict[str, float]:

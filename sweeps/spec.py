@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, ValidationError, model_validator
+from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
 
 from projects.schema import Problem, ProjectError
@@ -27,6 +27,26 @@ SAMPLINGS = ("grid", "random", "latin-hypercube")
 OBSERVATIONS = ("deposit-profile", "measures")
 #: Built-in profile field computed from each run's last frame (else a column of hazard_profile.csv).
 DEPOSIT_PROFILE_FIELD = "deposit_height_m"
+#: Where a measure key comes from (sweeps.measures): summary.json, hazard.json or the last frame.
+MEASURE_SOURCES = ("summary", "hazard", "deposit")
+#: Measures of the last frame's deposit (sweeps.measures).
+DEPOSIT_KEYS = ("front_m", "toe_m", "reach_m", "crest_m", "height_m", "max_displacement_m")
+
+# Limits of a sweep or calibration file (docs/project-format.md, "Sweep files"), checked when the
+# file is read, before anything is sampled, resolved or started: a sweep of a billion runs, a grid
+# of 100,000 levels by 2 parameters or a range of a billion points hung while its runs were made.
+#: Runs of a sweep (its runs, or the product of a grid's levels) and trials of a calibration.
+MAX_RUNS = 10_000
+#: Seeds: numpy's and optuna's generators take 0 to 2**32 - 1 (2**70 hung the command in Ray's logging).
+MAX_SEED = 2**32 - 1
+#: Parameters of one file, and the entries of any other list in it (set, measures, also, thresholds,
+#: observed values).
+MAX_PARAMETERS = 64
+MAX_ENTRIES = 1000
+#: Taichi CPU threads and GPUs one run may ask for, and the longest time limit of a run (s).
+MAX_THREADS_PER_RUN = 1024
+MAX_GPUS_PER_RUN = 8
+MAX_TIMEOUT_S = 1e7
 
 
 def _fail(message: str) -> PydanticCustomError:
@@ -36,7 +56,11 @@ def _fail(message: str) -> PydanticCustomError:
 def _number(value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise _fail("must be a number")
-    if not math.isfinite(float(value)):
+    try:
+        finite = math.isfinite(float(value))
+    except OverflowError:  # an integer beyond any float (10**400)
+        finite = False
+    if not finite:
         raise _fail("must be a finite number")
     return value  # ints stay ints (integer parameters such as particles.per_cell)
 
@@ -61,9 +85,13 @@ def _choice(choices: tuple[str, ...]):
 def _scalar_list(value: Any) -> Any:
     if not isinstance(value, (list, tuple)) or not value:
         raise _fail("must be a non-empty array of values")
+    if len(value) > MAX_RUNS:
+        raise _fail(f"has {len(value):,} values, more than the limit of {MAX_RUNS:,} (a sweep's most runs)")
     for v in value:
         if not isinstance(v, (bool, int, float, str)):
             raise _fail("must be an array of numbers, strings or booleans")
+        if isinstance(v, int) and not isinstance(v, bool) and abs(v) > 2**63 - 1:
+            raise _fail("must hold integers of at most 64 bits (TOML's)")
         if isinstance(v, float) and not math.isfinite(v):
             raise _fail("must hold finite numbers")
     return list(value)
@@ -72,7 +100,39 @@ def _scalar_list(value: Any) -> Any:
 def _str_list(value: Any) -> Any:
     if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
         raise _fail("must be an array of strings")
+    if len(value) > MAX_ENTRIES:
+        raise _fail(f"has {len(value):,} entries, more than the limit of {MAX_ENTRIES:,}")
     return list(value)
+
+
+def _measure_key(value: str) -> str:
+    """A measure key: ``summary.KEY``, ``hazard.KEY`` or ``deposit.KEY`` (sweeps.measures)."""
+    _key_path(value)
+    head, _, rest = value.partition(".")
+    if head not in MEASURE_SOURCES:
+        raise _fail("not a measure: a measure starts with " + ", ".join(f'"{s}."' for s in MEASURE_SOURCES)
+                    + ' (summary.json, hazard.json, the last frame), e.g. "hazard.runout_distance_m"')
+    if not rest:
+        raise _fail(f'name the key after "{head}.", e.g. "hazard.runout_distance_m"')
+    if head == "deposit" and rest not in DEPOSIT_KEYS:
+        raise _fail("not a deposit measure; deposit measures: " + ", ".join(f"deposit.{k}" for k in DEPOSIT_KEYS))
+    return value
+
+
+def _run_count(value: Any, name: str, what: str) -> int:
+    value = _int(value)
+    if value < 1:
+        raise _fail(f"{name} must be >= 1")
+    if value > MAX_RUNS:
+        raise _fail(f"more than the limit of {MAX_RUNS:,} {what}")
+    return value
+
+
+def _seed(value: Any) -> Any:
+    value = _int(value)
+    if not 0 <= value <= MAX_SEED:
+        raise _fail(f"must be an integer from 0 to {MAX_SEED} (2**32 - 1)")
+    return value
 
 
 def _key_path(value: Any) -> Any:
@@ -83,6 +143,7 @@ def _key_path(value: Any) -> Any:
 
 Number = Annotated[int | float, BeforeValidator(_number)]  # ints stay ints
 Int = Annotated[int, BeforeValidator(_int)]
+Seed = Annotated[int, BeforeValidator(_seed)]
 StrList = Annotated[list[str], BeforeValidator(_str_list)]
 
 
@@ -150,6 +211,10 @@ class Parameter(_Model):
             raise _fail("count must be >= 1")
         if self.levels is not None and self.levels < 1:
             raise _fail("levels must be >= 1")
+        for name in ("count", "levels"):
+            v = getattr(self, name)
+            if v is not None and v > MAX_RUNS:
+                raise _fail(f"{name} = {v:,} is more than the limit of {MAX_RUNS:,} (a sweep's most runs)")
         for name in ("std", "std_log"):
             v = getattr(self, name)
             if v is not None and not v > 0:
@@ -161,16 +226,27 @@ class Parameter(_Model):
         return self
 
 
+def _profile_field(value: Any) -> Any:
+    from projects.hazard import PROFILE_COLUMNS
+
+    if not isinstance(value, str) or (value != DEPOSIT_PROFILE_FIELD and value not in PROFILE_COLUMNS):
+        raise _fail(f'must be "{DEPOSIT_PROFILE_FIELD}" or a column of hazard_profile.csv: '
+                    + ", ".join(f'"{c}"' for c in PROFILE_COLUMNS if c != "x_m"))
+    return value
+
+
 class Profile(_Model):
     """The probability profile: P(field > threshold) along the section, per threshold."""
 
-    field: Annotated[str, BeforeValidator(_key_path)] = DEPOSIT_PROFILE_FIELD
+    field: Annotated[str, BeforeValidator(_profile_field)] = DEPOSIT_PROFILE_FIELD
     thresholds: Annotated[list[float], BeforeValidator(lambda v: _positive_list(v))] = [0.01]
 
 
 def _positive_list(value: Any) -> Any:
     if not isinstance(value, (list, tuple)) or not value:
         raise _fail("must be a non-empty array of numbers")
+    if len(value) > MAX_ENTRIES:
+        raise _fail(f"has {len(value):,} entries, more than the limit of {MAX_ENTRIES:,}")
     for v in value:
         _number(v)
     return [float(v) for v in value]
@@ -187,12 +263,12 @@ class Execution(_Model):
 
     @model_validator(mode="after")
     def _ranges(self) -> Execution:
-        if self.threads_per_run is not None and self.threads_per_run < 1:
-            raise _fail("threads_per_run must be >= 1")
-        if self.gpus_per_run is not None and not 0 <= self.gpus_per_run:
-            raise _fail("gpus_per_run must be >= 0 (a fraction shares a GPU)")
-        if self.timeout_s is not None and not self.timeout_s > 0:
-            raise _fail("timeout_s must be > 0")
+        if self.threads_per_run is not None and not 1 <= self.threads_per_run <= MAX_THREADS_PER_RUN:
+            raise _fail(f"threads_per_run must be from 1 to {MAX_THREADS_PER_RUN}")
+        if self.gpus_per_run is not None and not 0 <= self.gpus_per_run <= MAX_GPUS_PER_RUN:
+            raise _fail(f"gpus_per_run must be from 0 to {MAX_GPUS_PER_RUN} (a fraction shares a GPU)")
+        if self.timeout_s is not None and not 0 < self.timeout_s <= MAX_TIMEOUT_S:
+            raise _fail(f"timeout_s must be > 0 and at most {MAX_TIMEOUT_S:g} s")
         return self
 
 
@@ -204,18 +280,15 @@ def _nonempty_str(value: Any) -> Any:
 
 class SweepTable(Execution):
     sampling: Annotated[str, _choice(SAMPLINGS)] = "latin-hypercube"
-    runs: Int | None = None
-    seed: Int = 0
-    measures: Annotated[list[str], BeforeValidator(_str_list)] = ["summary.wall_time_s"]
+    runs: Annotated[int | None, BeforeValidator(lambda v: v if v is None else _run_count(v, "runs", "runs of a sweep"))] = None
+    seed: Seed = 0
+    measures: Annotated[list[Annotated[str, AfterValidator(_measure_key)]], BeforeValidator(_str_list)] = [
+        "summary.wall_time_s"]
 
     @model_validator(mode="after")
     def _runs(self) -> SweepTable:
         if self.sampling != "grid" and self.runs is None:
             raise _fail(f'runs is required with sampling "{self.sampling}"')
-        if self.runs is not None and self.runs < 1:
-            raise _fail("runs must be >= 1")
-        for m in self.measures:
-            _key_path(m)
         return self
 
 
@@ -246,8 +319,13 @@ class Observation(_Model):
                 raise _fail('a "measures" observation needs values = { "hazard.runout_distance_m" = ... }')
             if self.file is not None or self.x_range_m is not None:
                 raise _fail('a "measures" observation takes values and scales, not file or x_range_m')
+            if len(self.values) > MAX_ENTRIES:
+                raise _fail(f"values has {len(self.values):,} entries, more than the limit of {MAX_ENTRIES:,}")
             for k in self.values:
-                _key_path(k)
+                try:
+                    _measure_key(k)
+                except PydanticCustomError as err:
+                    raise _fail(f'values."{k}": {err.message()}') from None
             for k, v in (self.scales or {}).items():
                 if k not in self.values:
                     raise _fail(f"scales.{k}: not one of the observed values")
@@ -266,17 +344,15 @@ def _pair(value: Any) -> Any:
 
 
 class CalibrationTable(Execution):
-    trials: Int = 16
-    seed: Int = 0
+    trials: Annotated[int, BeforeValidator(lambda v: _run_count(v, "trials", "runs of a calibration"))] = 16
+    seed: Seed = 0
     batch: Int | None = None
     optimizer: Annotated[str, _choice(("tpe", "random"))] = "tpe"
 
     @model_validator(mode="after")
     def _trials(self) -> CalibrationTable:
-        if self.trials < 1:
-            raise _fail("trials must be >= 1")
-        if self.batch is not None and self.batch < 1:
-            raise _fail("batch must be >= 1")
+        if self.batch is not None and not 1 <= self.batch <= self.trials:
+            raise _fail(f"batch must be from 1 to trials ({self.trials})")
         return self
 
 
@@ -284,7 +360,7 @@ class SweepSpec(_Model):
     """A validated sweep file; ``base`` is the folder relative paths are read from."""
 
     sweep: SweepTable
-    parameters: dict[str, Parameter]
+    parameters: Annotated[dict[str, Parameter], BeforeValidator(lambda v: _few_parameters(v))]
     profile: Profile | None = None
     base: Path = Path(".")
 
@@ -294,6 +370,12 @@ class SweepSpec(_Model):
             raise _fail("parameters: needs at least one parameter")
         for key in self.parameters:
             _key_path(key)
+        if self.sweep.sampling == "grid":
+            runs = grid_runs(self.parameters)
+            if runs > MAX_RUNS:
+                sizes = " x ".join(f"{n:,}" for n in (_level_count(p) for p in self.parameters.values()))
+                raise _fail(f"parameters: the grid has {runs:,} runs (the product of the levels: {sizes}), more than the limit "
+                            f"of {MAX_RUNS:,} runs of a sweep")
         return self
 
     @property
@@ -306,11 +388,32 @@ class SweepSpec(_Model):
         return {k: list(p.also or []) for k, p in self.parameters.items() if p.also}
 
 
+def _few_parameters(value: Any) -> Any:
+    if isinstance(value, Mapping) and len(value) > MAX_PARAMETERS:
+        raise _fail(f"has {len(value):,} parameters, more than the limit of {MAX_PARAMETERS}")
+    return value
+
+
+def _level_count(p: Parameter) -> int:
+    """How many levels a grid takes of a parameter (1 for a continuous one without ``levels``,
+    which sampling names as a problem of its own)."""
+    if p.distribution == "list":
+        return len(p.values or [])
+    if p.distribution == "range":
+        return int(p.count or 1)
+    return int(p.levels or 1)
+
+
+def grid_runs(parameters: Mapping[str, Parameter]) -> int:
+    """The runs of a grid over ``parameters``: the product of their level counts (exact, no float)."""
+    return math.prod(_level_count(p) for p in parameters.values())
+
+
 class CalibrationSpec(_Model):
     """A validated calibration file (see :class:`Observation`); ``base`` as for SweepSpec."""
 
     calibration: CalibrationTable
-    parameters: dict[str, Parameter]
+    parameters: Annotated[dict[str, Parameter], BeforeValidator(lambda v: _few_parameters(v))]
     observation: Observation
     base: Path = Path(".")
 
@@ -424,11 +527,13 @@ def load_spec(path: str | os.PathLike[str]) -> SweepSpec | CalibrationSpec:
     """
     from projects.document import parse_toml
 
+    from projects.inputs import MAX_SPEC_FILE_BYTES, read_text
+
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ProjectError([Problem("", None, f"cannot read the sweep file: {exc.strerror or exc}")], str(p)) from None
+    # a regular file of at most MAX_SPEC_FILE_BYTES (a FIFO or /dev/zero would hang)
+    text = read_text(p, what="the sweep file", max_bytes=MAX_SPEC_FILE_BYTES)
+    if text.startswith("\ufeff"):
+        text = text[1:]
     data = parse_toml(text, source=str(p))
     return parse_spec(data, p.resolve().parent, source=str(p))
 

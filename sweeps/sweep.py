@@ -44,8 +44,61 @@ class SweepResult:
 
 
 def plan_sweep(spec: SweepSpec) -> list[RunPlan]:
-    """Sample the parameters and resolve every run (see :func:`sweeps.engine.resolve_runs`)."""
+    """Sample the parameters and resolve every run (see :func:`sweeps.engine.resolve_runs`); the
+    measures are checked against the base project first (:func:`sweeps.measures.measure_problems`).
+
+    Raises
+    ------
+    ProjectError
+        The base project, the fixed overrides, a parameter key or a measure key is wrong.
+    """
+    from projects.document import load_project
+    from projects.schema import ProjectError
+    from sweeps.measures import measure_problems
+
+    base = load_project(spec.project_path, list(spec.sweep.set))
+    problems = measure_problems(spec.sweep.measures, base, "sweep.measures")
+    if problems:
+        raise ProjectError(problems)
     return resolve_runs(spec.project_path, spec.sweep.set, sample(spec), spec.linked)
+
+
+def disk_problems(plans: Sequence[RunPlan], out_dir: str | os.PathLike[str]) -> list[Any]:
+    """Whether the runs to make fit on the disk of the sweep folder: the sum of each run's disk
+    estimate (:func:`projects.build.estimate`, as ``runout run`` checks one run) against the free
+    disk there. Runs of the same resolved project count once.
+
+    Returns
+    -------
+    list of Problem
+        One, naming the total and the free space, when they do not fit.
+    """
+    seen: set[str] = set()
+    need = 0
+    for plan in plans:
+        if plan.run_id and plan.run_id not in seen:
+            seen.add(plan.run_id)
+            need += plan.disk_bytes
+    return disk_problem(need, len(seen), out_dir, "sweep.runs", "runs")
+
+
+def disk_problem(need: int, count: int, out_dir: str | os.PathLike[str], key: str, what: str) -> list[Any]:
+    """One Problem when ``need`` bytes of results (``count`` runs) exceed the free disk at ``out_dir``."""
+    from projects.limits import free_disk_bytes
+    from projects.schema import Problem
+
+    free = free_disk_bytes(out_dir)
+    if free is None or need <= free:
+        return []
+    return [Problem(key, count, f"the {count:,} {what} would write about {_bytes(need)} of results, more than "
+                    f"the {_bytes(free)} free in {Path(out_dir).expanduser().absolute()}")]
+
+
+def _bytes(value: float) -> str:
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if value >= size:
+            return f"{value / size:.3g} {unit}"
+    return f"{value:.0f} B"
 
 
 def _cell(value: Any) -> Any:
@@ -131,12 +184,12 @@ def run_sweep(
     ProjectError
         Invalid base project, fixed overrides or parameter keys (before anything runs).
     """
+    from projects.schema import ProjectError
+
     t0 = time.perf_counter()
     out = Path(out_dir).expanduser().absolute()
     plans = plan_sweep(spec)
-    out.mkdir(parents=True, exist_ok=True)
     runs_dir = out / RUNS_DIR
-    runs_dir.mkdir(exist_ok=True)
     measures = list(spec.sweep.measures)
     profile_field = spec.profile.field if spec.profile else None
     records: list[RunRecord | None] = [None] * len(plans)
@@ -149,13 +202,19 @@ def run_sweep(
     reused = 0
     todo: list[RunPlan] = []
     for run_id, idx in by_id.items():
-        rec = _load_record(runs_dir, plans[idx[0]], measures, profile_field)
+        rec = _load_record(runs_dir, plans[idx[0]], measures, profile_field) if runs_dir.is_dir() else None
         if rec is None:
             todo.append(plans[idx[0]])
         else:
             reused += len(idx)
             for i in idx:
                 records[i] = rec
+    # the sizes first, as `runout run` checks one run's: before the folder is made or Ray started
+    problems = disk_problems(todo, out)
+    if problems:
+        raise ProjectError(problems)
+    out.mkdir(parents=True, exist_ok=True)
+    runs_dir.mkdir(exist_ok=True)
 
     def progress(last: RunRecord | None) -> None:
         done = sum(r is not None for r in records)
