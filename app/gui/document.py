@@ -28,6 +28,7 @@ from PySide6.QtGui import QUndoCommand, QUndoStack
 
 from projects.document import dumps_project, loads_project, parse_toml, save_project
 from projects.schema import PLASTIC_KEYS as FILE_PLASTIC_KEYS
+from projects.schema import SOFTENING_KEYS as FILE_SOFTENING_KEYS
 from projects.schema import (
     OUTPUT_FIELDS,
     SCHEMA_VERSION,
@@ -95,6 +96,13 @@ FIELD_INFO: dict[str, tuple[str, str]] = {
     "saturated_density_kg_m3": ("Saturated density", "kg/m³"),
     "ru": ("Pore-pressure ratio r_u", "–"),
     "unit_weight_n_m3": ("Unit weight of water", "N/m³"),
+    "softening_law": ("Softening law", ""),
+    "residual_cohesion_pa": ("Residual cohesion", "Pa"),
+    "residual_friction_angle_deg": ("Residual friction angle", "°"),
+    "residual_dilatancy_angle_deg": ("Residual dilatancy angle", "°"),
+    "peak_plastic_strain": ("Peak plastic strain", "–"),
+    "residual_plastic_strain": ("Residual plastic strain", "–"),
+    "softening_length_m": ("Softening length", "m"),
 }
 MATERIAL_KEYS: tuple[str, ...] = (
     "density_kg_m3",
@@ -109,8 +117,11 @@ MATERIAL_KEYS: tuple[str, ...] = (
     "damping_frequency_hz",
     "ru",
 )
+#: the numbers of a material's strain softening (projects.schema.SOFTENING_KEYS without the law,
+#: which is a word), in the form below the softening law
+SOFTENING_NUMBER_KEYS: tuple[str, ...] = tuple(k for k in FILE_SOFTENING_KEYS if k != "softening_law")
 #: the keys only a Drucker-Prager material has (the file's rule: projects.schema.PLASTIC_KEYS)
-PLASTIC_KEYS: tuple[str, ...] = tuple(k for k in MATERIAL_KEYS if k in FILE_PLASTIC_KEYS)
+PLASTIC_KEYS: tuple[str, ...] = tuple(k for k in (*MATERIAL_KEYS, *SOFTENING_NUMBER_KEYS) if k in FILE_PLASTIC_KEYS)
 #: keys a material may leave out, with what an empty field means
 OPTIONAL_MATERIAL_KEYS: dict[str, str] = {
     "tensile_strength_pa": "no cut-off",
@@ -118,6 +129,12 @@ OPTIONAL_MATERIAL_KEYS: dict[str, str] = {
     "damping_frequency_hz": "none",
     "saturated_density_kg_m3": "= density (no water in the pores)",
     "ru": "none (pore pressure from the water lines)",
+    "residual_cohesion_pa": "= cohesion (does not soften)",
+    "residual_friction_angle_deg": "= friction angle (does not soften)",
+    "residual_dilatancy_angle_deg": "= dilatancy angle (does not soften)",
+    "peak_plastic_strain": "0 (softens from first yield)",
+    "residual_plastic_strain": "required with a law",
+    "softening_length_m": "none: depends on the cell size",
 }
 
 

@@ -324,6 +324,29 @@ class ChoiceField(_Bound):
         self.combo.blockSignals(False)
 
 
+class OptionalChoiceField(ChoiceField):
+    """One of a fixed set of strings, or none: the first entry, ``none_text``, leaves the key out
+    (``on_none`` is called instead where leaving it out takes more, the keys that go with it)."""
+
+    def __init__(self, doc: ProjectDocument, path: str | None, label: str, choices: Sequence[str],
+                 none_text: str = "none", on_none: Callable[[], Any] | None = None,
+                 parent: QWidget | None = None) -> None:
+        self.none_text = none_text
+        self.on_none = on_none
+        super().__init__(doc, path, label, (none_text, *choices), default=none_text, parent=parent)
+
+    def _chosen(self, index: int) -> None:
+        if self.path is None:
+            return
+        if self.combo.currentText() != self.none_text:
+            super()._chosen(index)
+        elif self.value() is not None:
+            if self.on_none is not None:
+                self.on_none()
+            else:
+                self.doc.set_value(self.path, None, f"remove {self.label.lower()}")
+
+
 class IntField(_Bound):
     """A bounded integer (particles per cell)."""
 

@@ -44,12 +44,21 @@ from app.gui.document import (
     MATERIAL_KEYS,
     OPTIONAL_MATERIAL_KEYS,
     PLASTIC_KEYS,
+    SOFTENING_NUMBER_KEYS,
     ProjectDocument,
     check_value,
     format_number,
     parse_number,
 )
-from app.gui.fields import ChoiceField, IntField, NumberField, PairField, TextField, forget_typing
+from app.gui.fields import (
+    ChoiceField,
+    IntField,
+    NumberField,
+    OptionalChoiceField,
+    PairField,
+    TextField,
+    forget_typing,
+)
 from app.gui.settings import MaterialLibrary
 from app.gui.units import parse_quantity
 from projects.schema import (
@@ -67,10 +76,14 @@ from projects.schema import (
     SCHEMES,
     SEEDINGS,
     SIDES,
+    SOFTENING_LAWS,
     STAGE_TYPES,
 )
 
 logger = logging.getLogger(__name__)
+
+#: The material changes of a stage that are words, not numbers, and the words allowed.
+WORD_CHANGES: dict[str, tuple[str, ...]] = {"damping_model": DAMPING_MODELS, "softening_law": SOFTENING_LAWS}
 
 #: Material colours by material id; the same palette (matplotlib's tab10) as the results' "material" field.
 MATERIAL_COLORS: tuple[str, ...] = (
@@ -302,6 +315,29 @@ class MaterialsPanel(Panel):
                               "plane-strain strength under the material's own flow rule; simple-shear: the "
                               "strength on a shear plane (infinite slopes, psi = 0)")
         form.addRow("Mohr-Coulomb match", self.match)
+        # strain softening (Drucker-Prager): the law, then its residual values, strains and length
+        self.softening_law = OptionalChoiceField(doc, None, "Softening law", SOFTENING_LAWS,
+                                                 on_none=self._remove_softening)
+        self.softening_law.setToolTip(
+            "Strain softening: cohesion, friction and dilatancy fall from their peak values above to the "
+            "residual ones as the plastic strain grows (a sensitive or stiff clay). linear: from the peak "
+            "plastic strain to the residual one; exponential: 95 % of the drop at the residual strain. "
+            "none removes the softening keys (docs/project-format.md, strain softening)")
+        form.addRow("Softening law", self.softening_law)
+        for key in SOFTENING_NUMBER_KEYS:
+            label, unit = FIELD_INFO[key]
+            field = NumberField(doc, None, label, unit, optional=True, placeholder=OPTIONAL_MATERIAL_KEYS.get(key, ""))
+            self.fields[key] = field
+            form.addRow(label, field)
+            self.watch(field)
+        self.fields["residual_cohesion_pa"].setToolTip(
+            "The remoulded (residual) cohesion; empty: the cohesion does not soften. At most the cohesion")
+        self.fields["residual_plastic_strain"].setToolTip(
+            "The plastic strain at which the strength has fallen to its residual values (required with a law)")
+        self.fields["softening_length_m"].setToolTip(
+            "The thickness of the shear band the strains are measured over: the strength is then lost over "
+            "the same slip at every cell size. Empty: the particles' own strains, and the failure and run-out "
+            "depend on the cell size (runout validate warns). Give at least the cell size")
         self.layout_.addWidget(box)
         self.used_by = QLabel("")
         self.used_by.setWordWrap(True)
@@ -334,13 +370,16 @@ class MaterialsPanel(Panel):
         self.name.setEnabled(name is not None)
         self.model.set_path(f"{base}.model" if base else None)
         plastic = base is not None and self.doc.get(f"{base}.model") == "drucker-prager"
+        softens = plastic and self.doc.get(f"{base}.softening_law") is not None
         for key, field in self.fields.items():
-            enabled = base is not None and (plastic or key not in PLASTIC_KEYS)
+            enabled = base is not None and (plastic or key not in PLASTIC_KEYS) and (
+                softens or key not in SOFTENING_NUMBER_KEYS)
             field.set_path(f"{base}.{key}" if enabled else None)
             if not enabled:
                 field.edit.setText("")
                 field.edit.setPlaceholderText("—" if base else "")
         self.match.set_path(f"{base}.mohr_coulomb_match" if plastic else None)
+        self.softening_law.set_path(f"{base}.softening_law" if plastic else None)
         self.damping_model.set_path(f"{base}.damping_model" if base else None)
         if name is not None:
             users = [b.get("name", "?") for b in self.doc.get("bodies", []) if b.get("material") == name]
@@ -446,12 +485,12 @@ class MaterialsPanel(Panel):
             table = d["materials"][name]
             table["model"] = model
             if model == "linear-elastic":
-                for key in (*PLASTIC_KEYS, "mohr_coulomb_match"):
+                for key in (*PLASTIC_KEYS, "mohr_coulomb_match", "softening_law"):
                     table.pop(key, None)
                 for stage in d.get("stages", []):
                     change = stage.get("material_changes", {}).get(name)
                     if isinstance(change, dict):
-                        for key in PLASTIC_KEYS:
+                        for key in (*PLASTIC_KEYS, "softening_law"):
                             change.pop(key, None)
             else:
                 table.setdefault("cohesion_pa", 0.0)
@@ -459,6 +498,23 @@ class MaterialsPanel(Panel):
                 table.setdefault("dilatancy_angle_deg", 0.0)
 
         self.doc.edit(f"make {name} {model}", mutate)
+
+    def set_softening_law(self, law: str) -> None:
+        """Choose the selected material's softening law as a user would (``"none"`` removes it)."""
+        self.softening_law.choose(law)
+
+    def _remove_softening(self) -> None:
+        """No softening: the law and the keys that go with it leave the material, one undo step."""
+        name = self._current
+        if name is None:
+            return
+
+        def mutate(d: dict[str, Any]) -> None:
+            table = d["materials"][name]
+            for key in ("softening_law", *SOFTENING_NUMBER_KEYS):
+                table.pop(key, None)
+
+        self.doc.edit(f"remove the softening of {name}", mutate)
 
     # -- library ------------------------------------------------------------------------------
 
@@ -1044,14 +1100,16 @@ class StagesPanel(Panel):
         self.change_material.setSizeAdjustPolicy(QComboBox.SizeAdjustPolicy.AdjustToContents)
         self.change_key = QComboBox()
         self.change_key.setAccessibleName("Changed property")
-        for key in MATERIAL_KEYS:
+        for key in (*MATERIAL_KEYS, *SOFTENING_NUMBER_KEYS):
             self.change_key.addItem(f"{FIELD_INFO[key][0]} ({FIELD_INFO[key][1]})", key)
-        # the one change that is a word, not a number (the warning on near-limit slides asks for it)
-        self.change_key.addItem(FIELD_INFO["damping_model"][0], "damping_model")  # the placeholder names the words
+        # the changes that are words, not numbers (the warning on near-limit slides asks for the damping
+        # model); the placeholder names the words
+        for key in WORD_CHANGES:
+            self.change_key.addItem(FIELD_INFO[key][0], key)
         self.change_value = QLineEdit()
         self.change_value.setPlaceholderText("value")
         self.change_key.currentIndexChanged.connect(lambda _i: self.change_value.setPlaceholderText(
-            " or ".join(DAMPING_MODELS) if self.change_key.currentData() == "damping_model" else "value"))
+            " or ".join(WORD_CHANGES.get(self.change_key.currentData(), ("value",)))))
         self.change_value.setAccessibleName("New value")
         self.change_set = QPushButton("Set")
         self.change_set.clicked.connect(self._set_change)
@@ -1207,7 +1265,7 @@ class StagesPanel(Panel):
     def _set_change(self) -> None:
         key = self.change_key.currentData()
         text = self.change_value.text().strip()
-        if key == "damping_model":
+        if key in WORD_CHANGES:
             value: Any = text  # the schema checks the word
         else:  # a unit may follow the number, as in the material's own fields ("21 kN/m3", "5 kPa")
             value, error = parse_quantity(text, FIELD_INFO.get(key, ("", ""))[1])
