@@ -497,6 +497,13 @@ FILE_BYTES_ALWAYS = 12 + 1 + 4 + 16
 #: Bytes of one row of series.csv and of the fixed files (pvd entry per frame, summary, project).
 SERIES_BYTES_PER_FRAME = 400
 FIXED_FILE_BYTES = 1 << 20
+#: Bytes per cell of the hazard raster (solver.envelopes, projects.hazard): four fields on the device
+#: (largest speed, energy and pressure, first arrival), the host's float64 copies of them in a
+#: snapshot, and the seven float32 arrays of hazard.vti with their compressed copies (memory); the
+#: seven arrays uncompressed (disk).
+HAZARD_FLOATS_PER_CELL = 4
+HAZARD_HOST_BYTES_PER_CELL = 4 * 8 + 2 * 7 * 4
+HAZARD_FILE_BYTES_PER_CELL = 7 * 4
 #: Bytes per seeding candidate: lattice seeding tests sub-cell centres of the bodies' bounding
 #: box in blocks (positions, owners and masks of one block).
 SEEDING_BLOCK_BYTES = 2_000_000 * 48
@@ -545,7 +552,10 @@ def estimate(project: Project) -> dict[str, object]:
         ``steps`` (int, all stages), ``frames`` (int, about one per ``output.interval_s``),
         ``bytes_per_particle`` and ``bytes_per_node`` (int, memory), ``memory_bytes`` (int),
         ``frame_bytes`` (int, one frame file), ``disk_bytes`` (int, the results folder),
-        ``cell_size_m``, ``output_interval_s`` (float, the inputs the limits name).
+        ``hazard_cells`` (int, cells of the hazard raster; 0 without hazard output, counted in
+        memory and disk), ``hazard_memory_bytes`` and ``hazard_disk_bytes`` (int, the raster's part
+        of ``memory_bytes`` and ``disk_bytes``), ``cell_size_m``, ``output_interval_s``, ``hazard_cell_size_m`` (float,
+        the inputs the limits name).
     """
     dx = project.domain.cell_size_m
     per_cell = project.particles.per_cell
@@ -591,12 +601,21 @@ def estimate(project: Project) -> dict[str, object]:
     per_node = FLOATS_PER_NODE * float_bytes
     memory = _count(float(particles) * per_particle + float(nodes) * per_node
                     + min(float(candidates) * 48.0, SEEDING_BLOCK_BYTES))
+    # the hazard raster over the grid's cells (solver.envelopes), at hazard.cell_size_m (default dx)
+    hazard_dx = project.hazard.cell_size_m if project.hazard.cell_size_m is not None else dx
+    if project.hazard.enabled:
+        hazard_cells = _count(float(_count(_ratio(nx * dx, hazard_dx))) * float(_count(_ratio(ny * dx, hazard_dx))))
+    else:
+        hazard_cells = 0
+    hazard_bytes = _count(float(hazard_cells) * (HAZARD_FLOATS_PER_CELL * float_bytes + HAZARD_HOST_BYTES_PER_CELL))
+    memory = _count(float(memory) + float(hazard_bytes))
     file_per_particle = FILE_BYTES_ALWAYS + sum(
         FILE_BYTES_PER_FIELD.get(name, 0) for name in project.output.fields
         if name not in sc.WATER_FIELDS or has_water(project)
     )
     frame_bytes = _count(float(particles) * file_per_particle + 2048.0)
-    disk = _count(float(frames) * (frame_bytes + SERIES_BYTES_PER_FRAME) + FIXED_FILE_BYTES)
+    hazard_disk = _count(float(hazard_cells) * HAZARD_FILE_BYTES_PER_CELL)
+    disk = _count(float(frames) * (frame_bytes + SERIES_BYTES_PER_FRAME) + FIXED_FILE_BYTES + float(hazard_disk))
     return {
         "particles": particles,
         "grid_cells": cells,
@@ -618,6 +637,10 @@ def estimate(project: Project) -> dict[str, object]:
         "disk_bytes": disk,
         "cell_size_m": dx,
         "output_interval_s": project.output.interval_s,
+        "hazard_cells": hazard_cells,
+        "hazard_memory_bytes": hazard_bytes,
+        "hazard_disk_bytes": hazard_disk,
+        "hazard_cell_size_m": hazard_dx,
     }
 
 

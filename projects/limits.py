@@ -5,7 +5,7 @@ with two kinds of limit and raises :class:`~projects.schema.ProjectError`, one l
 exceeded, naming the project key that drives the size, the estimate and the limit:
 
 - stated limits (:data:`LIMITS`): what Runout is meant to run (particles, grid cells, seeding
-  candidates, time steps, frames);
+  candidates, time steps, frames, hazard raster cells);
 - what the machine has: the memory available now (``MemAvailable`` of ``/proc/meminfo``) and
   the free disk where the results go.
 
@@ -42,6 +42,7 @@ LIMITS: tuple[Limit, ...] = (
     Limit("seeding_candidates", 1e9, "domain.cell_size_m", "seeding points tested (the bodies' bounding box)"),
     Limit("steps", 1e8, "numerics.time_step_s", "time steps (simulated time / time step)"),
     Limit("frames", 1e5, "output.interval_s", "frames (simulated time / output.interval_s)"),
+    Limit("hazard_cells", 2e8, "hazard.cell_size_m", "hazard raster cells (domain.size_m / hazard.cell_size_m)"),
 )
 
 
@@ -102,7 +103,8 @@ def _key_value(estimate: Mapping[str, Any], limit: Limit) -> tuple[str, Any]:
         return "numerics.cfl", None
     value = {"domain.cell_size_m": estimate.get("cell_size_m"),
              "numerics.time_step_s": estimate.get("time_step_s"),
-             "output.interval_s": estimate.get("output_interval_s")}.get(limit.project_key)
+             "output.interval_s": estimate.get("output_interval_s"),
+             "hazard.cell_size_m": estimate.get("hazard_cell_size_m")}.get(limit.project_key)
     return limit.project_key, value
 
 
@@ -146,20 +148,29 @@ def limit_problems(
         memory_bytes = available_memory_bytes()
     need = float(estimate.get("memory_bytes", 0) or 0)
     if memory_bytes is not None and need > memory_bytes:
+        raster = float(estimate.get("hazard_memory_bytes", 0) or 0)
+        key, shown = (("hazard.cell_size_m", estimate.get("hazard_cell_size_m")) if raster > 0.5 * need
+                      else ("domain.cell_size_m", estimate.get("cell_size_m")))
+        cells = f", {_fmt(float(estimate.get('hazard_cells', 0)))} hazard raster cells" if raster else ""
         problems.append(Problem(
-            "domain.cell_size_m", estimate.get("cell_size_m"),
+            key, shown,
             f"the run would need about {_bytes(need)} of memory, more than the {_bytes(memory_bytes)} "
             f"available ({_fmt(float(estimate.get('particles', 0)))} particles, "
-            f"{_fmt(float(estimate.get('grid_nodes', 0)))} grid nodes); --force runs it anyway"))
+            f"{_fmt(float(estimate.get('grid_nodes', 0)))} grid nodes{cells}); --force runs it anyway"))
     if disk_bytes is None and out_dir is not None:
         disk_bytes = free_disk_bytes(out_dir)
     need = float(estimate.get("disk_bytes", 0) or 0)
     if disk_bytes is not None and need > disk_bytes:
         where = f" in {Path(out_dir).expanduser().absolute()}" if out_dir is not None else ""
+        raster = float(estimate.get("hazard_disk_bytes", 0) or 0)
+        key, shown = (("hazard.cell_size_m", estimate.get("hazard_cell_size_m")) if raster > 0.5 * need
+                      else ("output.interval_s", estimate.get("output_interval_s")))
+        parts = f"{_fmt(float(estimate.get('frames', 0)))} frames of {_bytes(float(estimate.get('frame_bytes', 0)))}"
+        if raster:
+            parts += f", a hazard raster of {_bytes(raster)}"
         problems.append(Problem(
-            "output.interval_s", estimate.get("output_interval_s"),
-            f"the results would take about {_bytes(need)} of disk ({_fmt(float(estimate.get('frames', 0)))} "
-            f"frames of {_bytes(float(estimate.get('frame_bytes', 0)))}), more than the {_bytes(disk_bytes)} "
+            key, shown,
+            f"the results would take about {_bytes(need)} of disk ({parts}), more than the {_bytes(disk_bytes)} "
             f"free{where}; --force runs it anyway"))
     return problems
 
