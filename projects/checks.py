@@ -39,7 +39,12 @@ workbench shows them):
   the warning gives the keys to set (a Maxwell arm of NEAR_LIMIT_SUGGESTED at the first mode);
 - a Rayleigh damping that overdamps a body's first shear mode (more than OVERDAMPED_RATIO times
   critical there: a damping frequency given far below the body's), which turns its vibration into
-  creep and costs time steps in proportion (a Maxwell arm damps no mode by more than its ratio).
+  creep and costs time steps in proportion (a Maxwell arm damps no mode by more than its ratio);
+- a softening material without ``softening_length_m``: its shear bands are about a cell wide and
+  soften with the particles' own strain, so the failure and the run-out depend on the cell size
+  (docs/validation.md, strain softening); and one whose length is shorter than the cell size:
+  the particles of a band one cell wide then reach the residual strength at a plastic strain
+  ``h / l`` times below the law's.
 
 :func:`recommended_initial_stage` is the default initial-stress stage for a new project (the
 slope template): gravity loading where the ground slopes, k0 where it is level.
@@ -583,6 +588,49 @@ def _overdamped_bodies(project: Project) -> list[str]:
     return found
 
 
+def _softening_without_length(project: Project) -> list[str]:
+    """A softening material (in any stage) of a body without a softening length, or with one shorter
+    than the cell size; one warning per material, at the table that set the law (or the length)."""
+    from projects.build import material_tables
+
+    used = {body.material for body in project.bodies}
+    h = project.domain.cell_size_m
+    found: dict[str, str] = {}
+    for stage_index, table in enumerate(material_tables(project)):
+        for name, material in table.items():
+            if name in found or name not in used or material.model != "drucker-prager" or material.softening_law is None:
+                continue
+            length = material.softening_length_m
+            if length is None:
+                path = _softening_table(project, name, stage_index, "softening_law")
+                found[name] = (
+                    f"{path}.softening_law = {material.softening_law!r} without softening_length_m: the softening "
+                    f"strain is the particles' own plastic strain and a shear band is about one cell wide, so the "
+                    f"failure and the run-out depend on the cell size ({h:g} m here; a finer grid softens sooner "
+                    f"and runs out further); give softening_length_m, the thickness of the shear band the "
+                    f"residual strain was measured over, at least the cell size (docs/project-format.md, strain "
+                    f"softening)")
+            elif length < h:
+                path = _softening_table(project, name, stage_index, "softening_length_m")
+                found[name] = (
+                    f"{path}.softening_length_m = {length:g} is shorter than the cell size ({h:g} m): a shear band "
+                    f"one cell wide is wider than the material's, and its particles reach the residual strength at "
+                    f"a plastic strain {h / length:.3g} times below residual_plastic_strain; give a length of at "
+                    f"least the cell size, or cells of at most {length:g} m (docs/solver.md, strain softening)")
+    return list(found.values())
+
+
+def _softening_table(project: Project, name: str, stage_index: int, key: str) -> str:
+    """Where material ``name``'s ``key`` in force in stage ``stage_index`` is set: the last stage
+    change up to it that sets it, else the material itself."""
+    path = f"materials.{name}"
+    for index, stage in enumerate(project.stages[:stage_index + 1]):
+        change = stage.material_changes.get(name)
+        if change is not None and getattr(change, key) is not None:
+            path = f"stages.{index}.material_changes.{name}"
+    return path
+
+
 def project_warnings(project: Project) -> list[str]:
     """Everything about a valid project that probably is not what the engineer meant.
 
@@ -599,7 +647,8 @@ def project_warnings(project: Project) -> list[str]:
         return [*_wall_gaps(project), *_structure_gaps(project), *_bodies_in_structures(project),
                 *_k0_on_slope(project),
                 *_thin_structures(project), *_off_node_faces(project), *_stress_free_on_friction(project),
-                *_short_gravity_stage(project), *_near_limit_slides(project), *_overdamped_bodies(project)]
+                *_short_gravity_stage(project), *_near_limit_slides(project), *_overdamped_bodies(project),
+                *_softening_without_length(project)]
 
 
 def recommended_initial_stage(project: Project) -> dict[str, Any]:
