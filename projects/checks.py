@@ -48,6 +48,10 @@ workbench shows them):
 
 :func:`recommended_initial_stage` is the default initial-stress stage for a new project (the
 slope template): gravity loading where the ground slopes, k0 where it is level.
+
+:mod:`projects.plausibility` adds the warnings about inputs that run but cannot give an answer to
+trust (a time step past the stability limit, a body too fast for the domain, a hazard raster finer
+than the particles); they come first.
 """
 
 from __future__ import annotations
@@ -643,8 +647,10 @@ def project_warnings(project: Project) -> list[str]:
     list of str
         One line each, naming the key and what to do.
     """
+    from projects.plausibility import plausibility_warnings
+
     with np.errstate(all="ignore"):  # absurd coordinates (1e300 m) are the size limits' business
-        return [*_wall_gaps(project), *_structure_gaps(project), *_bodies_in_structures(project),
+        return [*plausibility_warnings(project), *_wall_gaps(project), *_structure_gaps(project), *_bodies_in_structures(project),
                 *_k0_on_slope(project),
                 *_thin_structures(project), *_off_node_faces(project), *_stress_free_on_friction(project),
                 *_short_gravity_stage(project), *_near_limit_slides(project), *_overdamped_bodies(project),
