@@ -47,7 +47,9 @@ def time_step_above_limit(project: Project) -> list[str]:
     if worst is None or not dt > worst[0] * (1.0 + 1e-9):
         return []
     limit, name, index = worst
-    return [f"numerics.time_step_s = {dt:g}: {dt / limit:.3g} times the stability limit {limit:.3g} s of "
+    ratio = dt / limit
+    times = f"{ratio:,.0f}" if ratio >= 100 else f"{ratio:.3g}"
+    return [f"numerics.time_step_s = {dt:g}: {times} times the stability limit {limit:.3g} s of "
             f"{damping_table(project, name, index)} (cell_size_m / P-wave speed, shorter with damping): the run goes "
             f"unstable within its first steps; use time_step_s <= {limit:.3g}, or remove it for cfl = {DEFAULT_CFL:g} "
             "(docs/solver.md, the time step)"]
