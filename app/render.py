@@ -661,7 +661,12 @@ class _Scene:
         shown = water_shown(water, ground, box)
         if shown is None:
             return
-        add_water_actors(self.plotter, shown, self._shift, line_width=max(2.5, self.size[1] / 200.0))
+        # the lines as filled bands of a fixed width in pixels (see add_water_actors), lifted in
+        # proportion to the view so that depth resolution never merges them with the particles
+        x0, x1, y0, y1 = self._view.bounds
+        lift = max(0.02, 1e-3 * max(x1 - x0, y1 - y0))
+        add_water_actors(self.plotter, shown, self._shift, z=(-lift, lift),
+                         band_m=max(3.0, self.size[1] / 150.0) / self._view.pixels_per_m)
 
     def _add_points(self) -> None:
         info = self.info
@@ -718,37 +723,62 @@ class _Scene:
         return self.plotter.screenshot(return_img=True)
 
 
+def line_band(line: Any, width: float) -> np.ndarray:
+    """The outline (K, 2) of polyline ``line`` (N, 2) thickened to ``width`` (flat ends, mitred
+    corners): a filled band to draw in place of a wide line."""
+    from shapely.geometry import LineString
+
+    pts = np.asarray(line, dtype=np.float64).reshape(-1, 2)
+    band = LineString(pts).buffer(0.5 * float(width), cap_style="flat", join_style="mitre", mitre_limit=3.0)
+    parts = [g for g in getattr(band, "geoms", [band]) if not g.is_empty]
+    if not parts:
+        return np.zeros((0, 2))
+    return np.asarray(max(parts, key=lambda g: g.area).exterior.coords, dtype=np.float64)[:-1]
+
+
 def add_water_actors(plotter: Any, shown: WaterShown, shift: Any = (0.0, 0.0), line_width: float = 3.0,
-                     z: tuple[float, float] = (-0.02, 0.02), prefix: str = "") -> None:
+                     z: tuple[float, float] = (-0.02, 0.02), prefix: str = "", band_m: float | None = None) -> None:
     """Add the water of ``shown`` to a pyvista plotter (drawn less ``shift``): the free water filled
     at ``z[0]`` (behind the particles), the lines at ``z[1]`` (over them). Actors are named
-    ``PREFIXwater-fill``, ``PREFIXwater-line`` and ``PREFIXfree-water-line``."""
+    ``PREFIXwater-fill``, ``PREFIXwater-line`` and ``PREFIXfree-water-line``.
+
+    ``band_m``: the phreatic line's width in metres, drawn as a filled band (the free-water line
+    0.7 as wide): what pictures use, since a band is polygons, whose look does not depend on the
+    OpenGL context. An offscreen (EGL) window of a process that has created the workbench's Qt
+    window reports wide lines but draws them one pixel wide. ``None``: lines ``line_width``
+    pixels wide (the interactive views, whose zoom changes the scale)."""
     import pyvista as pv
 
     shift = np.asarray(shift, dtype=np.float64)
-    faces = []
-    for ring in shown.free_water:
-        pts = np.c_[ring - shift, np.full(len(ring), z[0])]
+
+    def polygon(ring: np.ndarray, height: float) -> pyvista.PolyData:
+        pts = np.c_[ring - shift, np.full(len(ring), height)]
         face = pv.PolyData(pts, faces=np.r_[len(pts), np.arange(len(pts))])
         try:
             face = face.triangulate()
         except (RuntimeError, ValueError):
-            logger.debug("could not triangulate the free water")
-        faces.append(face)
+            logger.debug("could not triangulate a water polygon")
+        return face
+
+    faces = [polygon(ring, z[0]) for ring in shown.free_water]
     common = dict(render=False, reset_camera=False, pickable=False, lighting=False)
     if faces:
         merged = faces[0].merge(faces[1:]) if len(faces) > 1 else faces[0]
         plotter.add_mesh(merged, color=FREE_WATER_COLOR, opacity=0.75, name=f"{prefix}water-fill", **common)
-    for key, line, color, width in (("water-line", shown.phreatic_line_m, WATER_LINE_COLOR, line_width),
-                                    ("free-water-line", shown.free_water_line_m, FREE_WATER_LINE_COLOR,
-                                     0.7 * line_width)):
+    for key, line, color, scale in (("water-line", shown.phreatic_line_m, WATER_LINE_COLOR, 1.0),
+                                    ("free-water-line", shown.free_water_line_m, FREE_WATER_LINE_COLOR, 0.7)):
         if line is None or len(line) < 2:
             continue
         lift = z[1] if key == "water-line" else 0.5 * z[1]  # the phreatic line over the free-water line
+        if band_m is not None:
+            ring = line_band(line, scale * band_m)
+            if len(ring) >= 3:
+                plotter.add_mesh(polygon(ring, lift), color=color, name=f"{prefix}{key}", **common)
+                continue
         plotter.add_mesh(pv.MultipleLines(np.c_[line - shift, np.full(len(line), lift)]), color=color,
-                         line_width=width, name=f"{prefix}{key}", **common)
+                         line_width=scale * line_width, name=f"{prefix}{key}", **common)
     # the camera's near and far planes were set for the particles at z = 0 (reset_camera=False):
-    # widen them to these actors, or the line in front of the particles may be clipped away
+    # widen them to these actors
     renderer = getattr(plotter, "renderer", None)
     if renderer is not None:
         renderer.ResetCameraClippingRange()

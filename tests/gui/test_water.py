@@ -211,3 +211,26 @@ def test_the_results_view_offers_pore_pressure_where_the_frames_have_it(window, 
     assert "water-line" not in view.scene.plotter.actors
     assert combo.model().item(combo.findData("total_stress_yy")).isEnabled()
     assert FIELDS["pore_pressure"].source == "pore_pressure"
+
+
+def test_a_picture_made_beside_the_results_view_draws_the_phreatic_line_at_full_width(window, tmp_path):
+    """Once the results view has drawn, an offscreen (EGL) window of the same process draws wide
+    lines one pixel wide, which blend into the rows beside them: a picture made from the workbench
+    (a report, an export) draws the phreatic line as a band, at least two full pixel rows of its
+    blue, the line's row within 3 pixels of the level's."""
+    import imageio.v2 as imageio
+
+    from app import render
+    from tests.unit.test_render_water import _blue_line_rows, wet_results
+
+    wet = wet_results(tmp_path / "wet.results")
+    assert window.open_results(wet)
+    window.results_view.scene.plotter.render()
+    results = render.Results(wet)
+    size = (800, 450)
+    rows = _blue_line_rows(imageio.imread(render.render_frame(results, 0, "displacement", tmp_path / "f0.png",
+                                                              size=size)))
+    assert len(rows) >= 2, rows
+    view = render._view(render._domain_box(results), size)
+    expected = size[1] / 2.0 - (0.12 - 0.5 * (view.bounds[2] + view.bounds[3])) * view.pixels_per_m
+    assert abs(float(np.median(rows)) - expected) <= 3.0, (rows, expected)

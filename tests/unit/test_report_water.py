@@ -46,9 +46,6 @@ def test_the_report_says_where_the_water_was_at_the_failure(tmp_path, failure, s
     assert sentence in html
 
 
-@pytest.mark.xfail(strict=False, reason="known defect: in some runs of the full suite the phreatic line's actor "
-                   "is missing from the picture while the free water is drawn (a clipping or draw-order fault of the "
-                   "line in front of the particles, not yet found); the test passes when run alone")
 def test_the_report_pictures_draw_the_water(tmp_path, monkeypatch):
     import imageio.v2 as imageio
 
