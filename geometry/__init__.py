@@ -13,11 +13,13 @@ the list owns the overlap.
 from geometry.importers import outline_from_csv, outline_from_dxf, outline_from_mesh, read_outline
 from geometry.polygons import is_simple, owner_of_points, points_in_polygon, polygon_area, self_intersections
 from geometry.seeding import Seeds, seed_gauss, seed_lattice
-from geometry.templates import SlopeLayer, slope_domain, slope_profile
+from geometry.templates import DomainFit, SlopeLayer, fit_domain, slope_domain, slope_profile
 
 __all__ = [
+    "DomainFit",
     "Seeds",
     "SlopeLayer",
+    "fit_domain",
     "is_simple",
     "outline_from_csv",
     "outline_from_dxf",

@@ -18,6 +18,19 @@ without polylines, the LINE entities chained end to end; its points then follow 
 (a closed polyline is an outline, an open one a surface profile). Read with ezdxf, imported when
 first used.
 
+Layers
+------
+A section of several layers (:func:`read_layers`): a CSV with a third column ``layer`` (the
+header ``x_m,y_m,layer``; each layer's points in their rows' order), or a DXF drawing whose
+polylines lie on several layers (each layer's longest polyline, or its LINE entities chained;
+layers without a polyline are left out where others have one). Either every layer is a closed
+outline, each a body of its own, or every layer is an open profile, x monotonic: the first line
+(the highest) is the ground surface, each line below it the top of the next layer down, and the
+bodies are the bands between the lines, the lowest closed down to the base (``base_y_m``, default
+the lowest point of any line). Each band is named after the line on its top; where a lower line
+rises above an upper one the upper layer pinches out, and a band that the lines cut in two gives
+two bodies (the second named ``NAME-2``).
+
 Mesh format
 -----------
 Any 2D mesh meshio reads (Gmsh ``.msh``, VTK/VTU, XDMF, ...), with triangles and/or
@@ -33,11 +46,13 @@ import logging
 import math
 import os
 from collections import defaultdict
+from typing import NamedTuple
 
 import numpy as np
 
 from geometry.polygons import (
     counter_clockwise,
+    drop_repeated_vertices,
     edge_text,
     is_simple,
     remove_spikes,
@@ -46,6 +61,15 @@ from geometry.polygons import (
 )
 
 logger = logging.getLogger(__name__)
+
+
+class LayerBody(NamedTuple):
+    """A body of an imported section (:func:`read_layers`): its name, outline and layer."""
+
+    name: str
+    polygon_m: np.ndarray
+    #: the layer it belongs to (its name, or ``NAME`` of a part ``NAME-2``)
+    layer: str
 
 _HEADERS = {("x_m", "y_m"), ("x", "y")}
 # Corner-node count of the 2D meshio cell types we read.
@@ -57,6 +81,49 @@ _CELL_CORNERS = {
     "quad8": 4,
     "quad9": 4,
 }
+
+
+def _csv_rows(path: str | os.PathLike) -> tuple[str, list[tuple[float, float]], list[str] | None]:
+    """The points of a CSV of points and, with a ``layer`` column, each point's layer."""
+    name = os.fspath(path)
+    points: list[tuple[float, float]] = []
+    layers: list[str] | None = None
+    header_seen = False
+    with open(name, newline="", encoding="utf-8-sig") as handle:
+        for line_no, row in enumerate(csv.reader(handle), start=1):
+            cells = [c.strip() for c in row]
+            if not cells or all(c == "" for c in cells) or cells[0].startswith("#"):
+                continue
+            if not header_seen:
+                header = tuple(c.lower() for c in cells)
+                if header[:2] not in _HEADERS or header[2:] not in ((), ("layer",)):
+                    raise ValueError(
+                        f"{name}: line {line_no}: expected the header 'x_m,y_m' (or 'x,y'), optionally with a "
+                        f"third column 'layer', got {','.join(cells)!r}"
+                    )
+                layers = [] if len(header) == 3 else None
+                header_seen = True
+                continue
+            width = 2 if layers is None else 3
+            if len(cells) != width:
+                what = "x, y" if layers is None else "x, y, layer"
+                raise ValueError(f"{name}: line {line_no}: expected {width} values ({what}), got {len(cells)}")
+            try:
+                x, y = float(cells[0]), float(cells[1])
+            except ValueError:
+                raise ValueError(
+                    f"{name}: line {line_no}: non-numeric value in {','.join(cells)!r}"
+                ) from None
+            if not (math.isfinite(x) and math.isfinite(y)):
+                raise ValueError(f"{name}: line {line_no}: non-finite value in {','.join(cells)!r}")
+            if layers is not None:
+                if not cells[2]:
+                    raise ValueError(f"{name}: line {line_no}: the layer name is empty")
+                layers.append(cells[2])
+            points.append((x, y))
+    if not header_seen:
+        raise ValueError(f"{name}: no header row 'x_m,y_m' (or 'x,y') found")
+    return name, points, layers
 
 
 def outline_from_csv(path: str | os.PathLike, base_y_m: float | None = None) -> np.ndarray:
@@ -83,36 +150,10 @@ def outline_from_csv(path: str | os.PathLike, base_y_m: float | None = None) -> 
         lowest profile point, an open profile whose x is not monotonic, or an outline that
         is not simple.
     """
-    name = os.fspath(path)
-    points: list[tuple[float, float]] = []
-    header_seen = False
-    with open(name, newline="", encoding="utf-8-sig") as handle:
-        for line_no, row in enumerate(csv.reader(handle), start=1):
-            cells = [c.strip() for c in row]
-            if not cells or all(c == "" for c in cells) or cells[0].startswith("#"):
-                continue
-            if not header_seen:
-                header = tuple(c.lower() for c in cells)
-                if header not in _HEADERS:
-                    raise ValueError(
-                        f"{name}: line {line_no}: expected the header 'x_m,y_m' (or 'x,y'), "
-                        f"got {','.join(cells)!r}"
-                    )
-                header_seen = True
-                continue
-            if len(cells) != 2:
-                raise ValueError(f"{name}: line {line_no}: expected 2 values (x, y), got {len(cells)}")
-            try:
-                x, y = float(cells[0]), float(cells[1])
-            except ValueError:
-                raise ValueError(
-                    f"{name}: line {line_no}: non-numeric value in {','.join(cells)!r}"
-                ) from None
-            if not (math.isfinite(x) and math.isfinite(y)):
-                raise ValueError(f"{name}: line {line_no}: non-finite value in {','.join(cells)!r}")
-            points.append((x, y))
-    if not header_seen:
-        raise ValueError(f"{name}: no header row 'x_m,y_m' (or 'x,y') found")
+    name, points, layers = _csv_rows(path)
+    if layers is not None and len(set(layers)) > 1:
+        raise ValueError(f"{name}: {len(set(layers))} layers ({', '.join(dict.fromkeys(layers))}); "
+                         "read a section of several layers with read_layers")
     return _outline_from_points(name, np.array(points, dtype=np.float64).reshape(-1, 2), base_y_m)
 
 
@@ -228,6 +269,193 @@ def dxf_points(path: str | os.PathLike) -> np.ndarray:
         raise ValueError(f"{name}: no polyline or line in the drawing's model space")
     extent = max(max(abs(c) for seg in segments for p in seg for c in p), 1.0)
     return np.array(_chain_lines(segments, 1e-9 * extent), dtype=float)
+
+
+def dxf_layers(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """The points of each layer of a DXF drawing, (K, 2) in drawing units, in the drawing's order
+    of layers: per layer its longest polyline (a closed one repeats its first point at the end)
+    or, without one, its LINE entities chained end to end. Where any layer has a polyline, the
+    layers without one are left out (lines on an annotation layer are no ground).
+
+    Raises
+    ------
+    ValueError
+        The file is not a readable DXF, or holds no polyline and no lines.
+    """
+    import ezdxf
+
+    name = os.fspath(path)
+    try:
+        doc = ezdxf.readfile(name)
+    except (OSError, ezdxf.DXFError) as err:
+        raise ValueError(f"{name}: not a readable DXF drawing ({err})") from None
+    msp = doc.modelspace()
+    polylines: dict[str, list[list[tuple[float, float]]]] = {}
+    lines: dict[str, list] = {}
+    for entity in msp:
+        layer = str(entity.dxf.layer)
+        kind = entity.dxftype()
+        if kind == "LWPOLYLINE":
+            pts = [(float(x), float(y)) for x, y in entity.get_points("xy")]
+            if entity.closed and pts:
+                pts.append(pts[0])
+            polylines.setdefault(layer, []).append(pts)
+        elif kind == "POLYLINE":
+            pts = [(float(v.dxf.location.x), float(v.dxf.location.y)) for v in entity.vertices]
+            if entity.is_closed and pts:
+                pts.append(pts[0])
+            polylines.setdefault(layer, []).append(pts)
+        elif kind == "LINE":
+            lines.setdefault(layer, []).append(((float(entity.dxf.start.x), float(entity.dxf.start.y)),
+                                                (float(entity.dxf.end.x), float(entity.dxf.end.y))))
+    if polylines:
+        return {layer: np.array(max(group, key=len), dtype=float) for layer, group in polylines.items()}
+    if not lines:
+        raise ValueError(f"{name}: no polyline or line in the drawing's model space")
+    out = {}
+    for layer, segments in lines.items():
+        extent = max(max(abs(c) for seg in segments for p in seg for c in p), 1.0)
+        out[layer] = np.array(_chain_lines(segments, 1e-9 * extent), dtype=float)
+    return out
+
+
+def _is_closed(pts: np.ndarray) -> bool:
+    return bool(np.array_equal(pts[0], pts[-1]) or pts[0, 0] == pts[-1, 0])
+
+
+def layers_from_points(name: str, groups: dict[str, np.ndarray],
+                       base_y_m: float | None = None) -> list[LayerBody]:
+    """The bodies of a section given as named point groups (the module docstring, Layers): every
+    group a closed outline (a body each), or every group an open profile (the bands between the
+    lines, the lowest down to the base). One group is one body, by the CSV rules.
+
+    Returns
+    -------
+    list of LayerBody
+        Named simple polygons (m), counter-clockwise, from the top down for profiles.
+
+    Raises
+    ------
+    ValueError
+        With the file name and what is wrong (one line): closed and open groups mixed, a group
+        that is neither, a band that is no simple polygon.
+    """
+    items = [(str(k), np.asarray(v, dtype=np.float64).reshape(-1, 2)) for k, v in groups.items()]
+    if not items:
+        raise ValueError(f"{name}: no points")
+    if len(items) == 1:
+        return [LayerBody(items[0][0], _outline_from_points(name, items[0][1], base_y_m), items[0][0])]
+    for layer, pts in items:
+        if len(np.unique(pts, axis=0)) < 2:
+            raise ValueError(f"{name}: layer {layer!r} needs at least 2 distinct points, got {len(np.unique(pts, axis=0))}")
+    closed = [_is_closed(pts) for _, pts in items]
+    if all(closed):
+        return [LayerBody(layer, _outline_from_points(f"{name}: layer {layer!r}", pts, None), layer)
+                for layer, pts in items]
+    if any(closed):
+        shut = [layer for (layer, _), c in zip(items, closed) if c]
+        raise ValueError(f"{name}: layers {', '.join(repr(x) for x in shut)} are closed outlines and the others open "
+                         "profiles; give either outlines (a body each) or profiles (the surface and the tops of "
+                         "the layers below it)")
+    return _bands(name, items, base_y_m)
+
+
+def _bands(name: str, items: list[tuple[str, np.ndarray]], base_y_m: float | None) -> list[LayerBody]:
+    """The bands between open profile lines (the highest the ground surface), the lowest down to the base."""
+    from shapely.geometry import Polygon
+    from shapely.ops import unary_union
+
+    lines = []
+    for layer, pts in items:
+        steps = np.diff(pts[:, 0])
+        if not (np.all(steps > 0) or np.all(steps < 0)):
+            raise ValueError(f"{name}: layer {layer!r}: an open profile needs x strictly increasing or decreasing")
+        lines.append((layer, pts[np.argsort(pts[:, 0])]))
+    x_all = np.concatenate([p[:, 0] for _, p in lines])
+    grid = np.linspace(x_all.min(), x_all.max(), 257)
+    lines.sort(key=lambda item: -float(np.interp(grid, item[1][:, 0], item[1][:, 1]).mean()))
+    lowest = float(min(p[:, 1].min() for _, p in lines))
+    base = lowest if base_y_m is None else float(base_y_m)
+    if not math.isfinite(base):
+        raise ValueError(f"base_y_m must be finite, got {base_y_m!r}")
+    if base > lowest:
+        raise ValueError(f"base_y_m = {base:g} m is above the lowest point of the layers (y = {lowest:g} m); "
+                         "it must be at or below it")
+    surface = lines[0][1]
+    x0, x1 = float(surface[0, 0]), float(surface[-1, 0])
+    extent = float(max(x1 - x0, np.ptp(np.concatenate([p[:, 1] for _, p in lines])), 1e-300))
+    section = Polygon(np.concatenate([surface, [[x1, base], [x0, base]]]))
+    if not section.is_valid or section.area <= 0.0:
+        raise ValueError(f"{name}: the surface (layer {lines[0][0]!r}) closed down to y = {base:g} m is no simple polygon")
+    pad = 1.0 + extent
+
+    def below(pts: np.ndarray):
+        # the line carried level beyond its ends to the section's and closed down below the base
+        ext = np.concatenate([[[x0 - pad, pts[0, 1]]], pts, [[x1 + pad, pts[-1, 1]]],
+                              [[x1 + pad, base - pad], [x0 - pad, base - pad]]])
+        return Polygon(ext)
+
+    tops = [section]
+    for _layer, pts in lines[1:]:
+        tops.append(tops[-1].intersection(below(pts)))  # a layer's top is under every line above it
+    bodies: list[LayerBody] = []
+    tiny = 1e-9 * section.area
+    for k, (layer, _pts) in enumerate(lines):
+        band = tops[k] if k + 1 == len(lines) else tops[k].difference(tops[k + 1])
+        parts = [g for g in getattr(band, "geoms", [band]) if isinstance(g, Polygon) and g.area > tiny]
+        parts.sort(key=lambda g: -g.area)
+        for n, part in enumerate(parts):
+            part = unary_union([part]).buffer(0)
+            if not isinstance(part, Polygon) or part.interiors:
+                raise ValueError(f"{name}: layer {layer!r} is no simple polygon between the lines (it encloses another)")
+            ring = np.asarray(part.exterior.coords, dtype=np.float64)[:-1]
+            ring = remove_spikes(drop_repeated_vertices(ring, 1e-12 * extent), 1e-12 * extent)
+            bodies.append(LayerBody(layer if n == 0 else f"{layer}-{n + 1}", counter_clockwise(ring), layer))
+    if not bodies:
+        raise ValueError(f"{name}: the layers enclose no area")
+    return bodies
+
+
+def read_layers(path: str | os.PathLike, base_y_m: float | None = None) -> list[LayerBody]:
+    """The bodies of a section from a file: several layers of a CSV (a ``layer`` column) or a DXF
+    drawing (its layers), or the one outline of any file :func:`read_outline` reads, named after
+    the file (module docstring, Layers).
+
+    Parameters
+    ----------
+    path : path-like
+    base_y_m : float, optional, m
+        The base open profiles are closed down to (default: the lowest point of any line).
+
+    Returns
+    -------
+    list of LayerBody
+        Named simple polygons (m), counter-clockwise; one for a file of one outline.
+
+    Raises
+    ------
+    ValueError
+        With the file name and what is wrong (one line).
+    """
+    name = os.fspath(path)
+    stem = os.path.splitext(os.path.basename(name))[0]
+    suffix = os.path.splitext(name)[1].lower()
+    if suffix == ".csv":
+        _name, points, layers = _csv_rows(path)
+        pts = np.array(points, dtype=np.float64).reshape(-1, 2)
+        if layers is None or len(set(layers)) == 1:
+            label = stem if layers is None else layers[0]
+            return [LayerBody(label, _outline_from_points(name, pts, base_y_m), label)]
+        groups: dict[str, list] = {}
+        for point, layer in zip(pts, layers):
+            groups.setdefault(layer, []).append(point)
+        return layers_from_points(name, {k: np.array(v) for k, v in groups.items()}, base_y_m)
+    if suffix == ".dxf":
+        found = dxf_layers(path)
+        if len(found) == 1:
+            return [LayerBody(stem, outline_from_dxf(path, base_y_m), stem)]
+        return layers_from_points(name, found, base_y_m)
+    return [LayerBody(stem, read_outline(path, base_y_m), stem)]
 
 
 def outline_from_dxf(path: str | os.PathLike, base_y_m: float | None = None) -> np.ndarray:

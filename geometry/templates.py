@@ -249,3 +249,89 @@ def slope_domain(
     cells_y = math.ceil((height * (1.0 + room)) / dx - 1e-9)
     cells_y = max(cells_y, math.ceil(height / dx - 1e-9) + 2)
     return (float(lo[0]), float(lo[1])), (cells_x * dx, cells_y * dx)
+
+
+@dataclass(frozen=True)
+class DomainFit:
+    """A grid box fitted to a section, and the section fitted to the box (:func:`fit_domain`).
+
+    Attributes
+    ----------
+    polygons : tuple of numpy.ndarray, each (K_i, 2), m
+        The bodies, their right end moved onto the right wall (the others unchanged).
+    origin_m, size_m : (float, float), m
+        The grid box: whole cells, the origin at the bodies' lower-left corner.
+    end_shift_m : float, m
+        How far the right end moved (positive: out; less than half a cell either way).
+    """
+
+    polygons: tuple[np.ndarray, ...]
+    origin_m: tuple[float, float]
+    size_m: tuple[float, float]
+    end_shift_m: float
+
+
+def fit_domain(
+    polygons: Sequence[np.ndarray],
+    cell_size_m: float,
+    runout_length_m: float = 0.0,
+    headroom_fraction: float = 0.25,
+) -> DomainFit:
+    """Fit the grid box to a section so that it stands on its supports, at any cell size.
+
+    The origin is the bodies' lower-left corner: the ground lies on the base and its left end
+    against the left wall. The width is the nearest whole number of cells (at least one), and the
+    vertices at the section's right end (those within a millionth of a cell of its largest x) move
+    onto the right wall, by less than half a cell: the end stands against the wall, with no sliver
+    of air between (the first stage would drop or slump the section into it) and no material cut
+    off. With ``runout_length_m`` the box reaches that much beyond the bodies instead (whole cells
+    again, nothing moved): room for material to run out over an open end. Above, the box has
+    ``headroom_fraction`` of the bodies' height, at least two cells.
+
+    Parameters
+    ----------
+    polygons : sequence of array_like, each (K_i, 2), m
+        The body outlines (a slope template's, an imported section's layers).
+    cell_size_m : float, m
+        Background-grid cell size, > 0.
+    runout_length_m : float, m
+        Room to the right of the bodies, >= 0 (0: the right end on the right wall).
+    headroom_fraction : float
+        Room above the bodies as a fraction of their height, >= 0.
+
+    Returns
+    -------
+    DomainFit
+
+    Raises
+    ------
+    ValueError
+        Naming the argument for a bad cell size, length or fraction, or no polygons.
+    """
+    dx = _check_number("cell_size_m", cell_size_m, allow_zero=False)
+    extra = _check_number("runout_length_m", runout_length_m, allow_zero=True)
+    room = _check_number("headroom_fraction", headroom_fraction, allow_zero=True)
+    if len(polygons) == 0:
+        raise ValueError("polygons must hold at least one body outline")
+    bodies = [np.array(p, dtype=np.float64).reshape(-1, 2) for p in polygons]
+    points = np.concatenate(bodies)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    width, height = float(hi[0] - lo[0]), float(hi[1] - lo[1])
+    shift = 0.0
+    if extra > 0.0:
+        cells_x = math.ceil((width + extra) / dx - 1e-9)
+    else:
+        cells_x = max(1, round(width / dx))
+        wall = _tidy(lo[0] + cells_x * dx)
+        shift = float(wall - hi[0])
+        if shift != 0.0:
+            at_end = 1e-6 * dx
+            for body in bodies:
+                body[body[:, 0] >= hi[0] - at_end, 0] = wall
+    cells_y = max(math.ceil(height * (1.0 + room) / dx - 1e-9), math.ceil(height / dx - 1e-9) + 2)
+    return DomainFit(tuple(bodies), (float(lo[0]), float(lo[1])), (_tidy(cells_x * dx), _tidy(cells_y * dx)), shift)
+
+
+def _tidy(value: float) -> float:
+    """A sum of whole cells without its last bits of rounding (99.9, not 99.89999999999999)."""
+    return float(f"{value:.12g}")

@@ -3,9 +3,13 @@
 :func:`project_warnings` lists them (``runout validate`` and ``runout run`` print them, the
 workbench shows them):
 
-- a body within one cell of a closed wall (fixed, slip or friction) or of a structure without
-  touching it: it falls or slides onto the wall at the start and the settlement reads as
-  deformation;
+- a body less than a cell from a closed wall (fixed, slip or friction) or a structure without
+  touching it: it falls or slides onto the wall at the start and the settlement
+  reads as deformation;
+- a body floating above the closed side gravity pulls it onto, at any height, resting on no
+  structure and no other body that rests on something, where the first stage is an
+  initial-stress stage (k0 or gravity: the bodies are taken as standing on their supports; a
+  dynamic first stage may drop a body on purpose);
 - a body drawn into a structure over a cell's area or more and half a cell deep: that part of it is not seeded and the
   body starts without it (drawing a slide across a wall by mistake removed 42 % of it unseen);
 - a k0 stage where the ground slopes: geostatic stresses are no equilibrium under a slope
@@ -184,25 +188,121 @@ def _grid_box(domain) -> tuple[float, float, float, float] | None:
     return x0, y0, x0 + cells[0] * dx, y0 + cells[1] * dx
 
 
+#: The inward normal of each side (out of the wall into the domain).
+_INWARD = {"left": (1.0, 0.0), "right": (-1.0, 0.0), "bottom": (0.0, 1.0), "top": (0.0, -1.0)}
+
+
+def _down_side(project: Project) -> str | None:
+    """The side gravity pulls the bodies onto (the bottom for gravity along -y); None without gravity."""
+    g = np.asarray(project.domain.gravity_m_s2, dtype=np.float64)
+    if not np.any(g):
+        return None
+    return max(_INWARD, key=lambda side: -float(np.dot(g, _INWARD[side])))
+
+
+def _starts_at_rest(project: Project) -> bool:
+    """Whether the first stage is an initial-stress stage (k0 or gravity): the bodies are taken as
+    standing on their supports, not released to fall."""
+    return bool(project.stages) and project.stages[0].type in ("k0", "gravity")
+
+
+def unsupported_bodies(project: Project) -> list[int]:
+    """The bodies that rest on nothing: not on the closed side gravity pulls them onto, on no
+    structure and on no body that rests on something (touching within
+    :data:`STRUCTURE_TOUCH_CELLS` of a cell; the base within :data:`TOUCH_TOLERANCE`)."""
+    return [i for group in _floating_groups(project) for i in group]
+
+
+def _floating_groups(project: Project) -> list[list[int]]:
+    """The bodies that rest on nothing (:func:`unsupported_bodies`), in groups of bodies touching
+    each other (a heap on a floating block falls with it)."""
+    from shapely.geometry import LineString, Polygon
+
+    domain = project.domain
+    side = _down_side(project)
+    box = _grid_box(domain)
+    if side is None or box is None or not project.bodies:
+        return []
+    dx = domain.cell_size_m
+    x0, y0, x1, y1 = box
+    shapes = [Polygon(b.polygon_m) for b in project.bodies]
+    supports = [Polygon(st.polygon_m) for st in project.structures]
+    if getattr(domain.boundaries, side).type in _CLOSED:
+        line = {"left": [(x0, y0), (x0, y1)], "right": [(x1, y0), (x1, y1)],
+                "bottom": [(x0, y0), (x1, y0)], "top": [(x0, y1), (x1, y1)]}[side]
+        base = LineString(line)
+    else:
+        base = None
+    near = STRUCTURE_TOUCH_CELLS * dx
+    held = {i for i, shape in enumerate(shapes)
+            if (base is not None and shape.distance(base) <= TOUCH_TOLERANCE * dx)
+            or any(shape.distance(st) <= near for st in supports)}
+    grown = True
+    while grown:
+        grown = False
+        for i, shape in enumerate(shapes):
+            if i not in held and any(shape.distance(shapes[j]) <= near for j in held):
+                held.add(i)
+                grown = True
+    free = [i for i in range(len(shapes)) if i not in held]
+    groups: list[list[int]] = []
+    for i in free:
+        touching = [g for g in groups if any(shapes[i].distance(shapes[j]) <= near for j in g)]
+        merged = sorted({i, *(j for g in touching for j in g)})
+        groups = [g for g in groups if g not in touching] + [merged]
+    return sorted(groups)
+
+
 def _wall_gaps(project: Project) -> list[str]:
+    """A body standing off a closed side by less than a cell; and, where the first stage is an
+    initial-stress stage, a body floating at any height above the closed side gravity pulls it
+    onto, resting on nothing."""
     domain = project.domain
     dx = domain.cell_size_m
     box = _grid_box(domain)
     if box is None:
         return []
     x0, y0, x1, y1 = box
-    warnings = []
-    for index, body in enumerate(project.bodies):
+    down = _down_side(project)
+
+    def side_gaps(body) -> dict[str, tuple[float, str, float]]:
         pts = np.asarray(body.polygon_m, dtype=np.float64)
-        gaps = {
+        return {
             "left": (pts[:, 0].min() - x0, "x", x0),
             "right": (x1 - pts[:, 0].max(), "x", x1),
             "bottom": (pts[:, 1].min() - y0, "y", y0),
             "top": (y1 - pts[:, 1].max(), "y", y1),
         }
+
+    # of a floating group, the body nearest the wall is the one to warn about (the others rest on it)
+    floating, carried = set(), set()
+    if _starts_at_rest(project) and down is not None:
+        for group in _floating_groups(project):
+            lowest = min(group, key=lambda i: side_gaps(project.bodies[i])[down][0])
+            floating.add(lowest)
+            carried.update(i for i in group if i != lowest)
+    warnings = []
+    for index, body in enumerate(project.bodies):
+        gaps = side_gaps(body)
         for side, (gap, axis, wall) in gaps.items():
             kind = getattr(domain.boundaries, side).type
-            if kind not in _CLOSED or not TOUCH_TOLERANCE * dx < gap < dx:
+            if kind not in _CLOSED or gap <= TOUCH_TOLERANCE * dx:
+                continue
+            if side == down and index in carried:
+                continue  # it falls with the body it rests on (warned about)
+            if side == down and index in floating:
+                stage = project.stages[0]
+                moved = {"left": f"[{x0 + gap:g}, {y0:g}]", "right": f"[{x0:g}, {y0:g}] with size_m[0] {gap:g} m less",
+                         "bottom": f"[{x0:g}, {y0 + gap:g}]", "top": f"[{x0:g}, {y0:g}] with size_m[1] {gap:g} m less"}
+                warnings.append(
+                    f"bodies.{index} ({body.name!r}) is {gap:.3g} m from the {side} wall ({kind}) without touching it "
+                    f"and rests on no structure or other body: stages.0 ({stage.label}, {stage.type}) takes it as "
+                    "standing on its support, so it falls onto the wall at the start and the fall reads as "
+                    f"settlement and stress; move it onto the wall ({axis} = {wall:g} m) or the wall to it "
+                    f"(domain.origin_m = {moved[side]}; the slope template's Fit the domain does it)"
+                )
+                continue
+            if gap >= dx:
                 continue
             warnings.append(
                 f"bodies.{index} ({body.name!r}) is {gap:.3g} m from the {side} wall ({kind}) without touching "

@@ -6,6 +6,7 @@ import logging
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from PySide6.QtWidgets import (
     QAbstractItemView,
     QCheckBox,
@@ -197,15 +198,17 @@ class SlopeDialog(QDialog):
                         "polygon_m": [[float(x), float(y)] for x, y in polygon]})
         return out
 
-    def domain(self, bodies: list[dict[str, Any]], cell_size_m: float) -> tuple[list[float], list[float]]:
-        """Origin and size of a grid box holding the bodies, with a cell of margin and headroom."""
-        xs = [p[0] for b in bodies for p in b["polygon_m"]]
-        ys = [p[1] for b in bodies for p in b["polygon_m"]]
-        margin = cell_size_m
-        x0, y0 = min(xs) - margin, min(ys) - margin
-        width = max(xs) - min(xs) + 2 * margin
-        height = (max(ys) - min(ys)) * 1.25 + 2 * margin
-        return [x0, y0], [width, height]
+    def fit(self, bodies: list[dict[str, Any]], cell_size_m: float
+            ) -> tuple[list[dict[str, Any]], list[float], list[float]]:
+        """The bodies and the grid box fitted to them (:func:`geometry.templates.fit_domain`): the
+        ground on the base, the section's ends on the side walls at any cell size (its right end
+        moved onto the wall by less than half a cell), a quarter of the height above."""
+        from geometry.templates import fit_domain
+
+        fitted = fit_domain([np.asarray(b["polygon_m"], dtype=float) for b in bodies], cell_size_m)
+        moved = [{**b, "polygon_m": [[float(x), float(y)] for x, y in polygon]}
+                 for b, polygon in zip(bodies, fitted.polygons)]
+        return moved, list(fitted.origin_m), list(fitted.size_m)
 
     def _accept(self) -> None:
         try:

@@ -80,23 +80,11 @@ def documentation_url() -> QUrl:
 
 
 def _gravity_for_slopes(data: dict[str, Any]) -> list[str]:
-    """Replace a k0 initial stage by gravity loading where the ground slopes (K0 is no
-    equilibrium there: :func:`projects.checks.recommended_initial_stage`); what was changed."""
-    from projects.checks import recommended_initial_stage
-    from projects.schema import validate_project
+    """Replace a k0 initial stage by gravity loading where the ground slopes
+    (:func:`projects.sections.gravity_for_slopes`); what was changed."""
+    from projects.sections import gravity_for_slopes
 
-    stages = data.get("stages") or []
-    if not stages or not isinstance(stages[0], dict) or stages[0].get("type") != "k0":
-        return []
-    try:
-        recommended = recommended_initial_stage(validate_project(data))
-    except (ProjectError, ValueError, ArithmeticError):
-        return []
-    if recommended.get("type") != "gravity":
-        return []
-    stages[0] = {**recommended, "name": stages[0].get("name", recommended["name"])}
-    return [f"The ground slopes: the initial stress comes from gravity loading over "
-            f"{recommended['duration_s']:g} s (K0 is no equilibrium on a slope)"]
+    return gravity_for_slopes(data)
 
 
 class MainWindow(QMainWindow):
@@ -688,7 +676,8 @@ class MainWindow(QMainWindow):
         cell = self.doc.get("domain.cell_size_m")
         cell = float(cell) if isinstance(cell, (int, float)) and cell > 0 else 0.25
         replace, fit = dialog.replace.isChecked(), dialog.fit_domain.isChecked()
-        origin, size = dialog.domain(bodies, cell)
+        if fit:
+            bodies, origin, size = dialog.fit(bodies, cell)
 
         def mutate(d: dict[str, Any]) -> None:
             existing = [] if replace else list(d.get("bodies", []))
@@ -747,46 +736,31 @@ class MainWindow(QMainWindow):
 
     def import_body(self, path: str | os.PathLike[str], material: str | None = None,
                     base_y_m: float | None = None) -> bool:
-        """Add a body from a CSV or DXF profile or a mesh outline (one undo step); the domain grows
-        to hold it when it does not (keeping its cell size, a margin of a tenth of the body)."""
-        import numpy as np
-
-        from geometry.importers import read_outline
+        """Add a section from a CSV or DXF profile (several layers: a body of its own material each)
+        or a mesh outline, standing on its supports (one undo step, :func:`projects.sections.place_section`):
+        the domain fitted to it (the base under it, its ends on the side walls), gravity loading
+        where the ground slopes, a cell size the estimate can afford at this machine's throughput."""
+        from geometry.importers import read_layers
+        from projects.sections import place_section
 
         try:
-            outline = read_outline(path, base_y_m)
+            layers = read_layers(path, base_y_m)
         except (ValueError, OSError) as err:
             self.show_error("Cannot import", str(err))
             return False
         material = material or (self.doc.material_names[0] if self.doc.material_names else "soil")
         name = Path(path).stem
-        lo, hi = outline.min(axis=0), outline.max(axis=0)
-        origin = self.doc.get("domain.origin_m") or [0.0, 0.0]
-        size = self.doc.get("domain.size_m") or [1.0, 1.0]
-        d_lo, d_hi = np.asarray(origin, float), np.asarray(origin, float) + np.asarray(size, float)
-        grow = bool(np.any(lo < d_lo) or np.any(hi > d_hi))
+        rate, _measured = self.settings.throughput(self.run_panel.arch())
+        notes: list[str] = []
 
         def mutate(d: dict[str, Any]) -> None:
-            names = {b.get("name") for b in d.get("bodies", [])}
-            body_name = name
-            while body_name in names:
-                body_name += "-2"
-            d.setdefault("bodies", []).append(
-                {"name": body_name, "material": material, "polygon_m": [[float(x), float(y)] for x, y in outline]})
-            if grow:
-                # a closed bottom: the base of the body rests on it; room above and to the sides
-                margin = 0.1 * float(max(hi - lo))
-                new_lo = np.minimum(d_lo, [lo[0] - margin, lo[1]])
-                new_hi = np.maximum(d_hi, hi + margin)
-                d["domain"]["origin_m"] = [float(v) for v in new_lo]
-                d["domain"]["size_m"] = [float(v) for v in new_hi - new_lo]
+            notes[:] = place_section(d, layers, material, particle_steps_per_s=rate)
 
         self.doc.edit(f"import {name}", mutate)
         self.doc.selection.set(len(self.doc.get("bodies", [])) - 1)
         self.tabs.setCurrentWidget(self.scene)
         self.scene.fit()
-        note = "; the domain was enlarged to hold it" if grow else ""
-        self.statusBar().showMessage(f"Imported {name}: {len(outline)} vertices{note}", 8000)
+        self.statusBar().showMessage("; ".join(notes), 15000)
         return True
 
     def go_to_problem(self, path: str) -> None:

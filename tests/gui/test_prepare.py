@@ -460,6 +460,28 @@ def test_slope_from_template(window):
     assert window.doc.get("stages")[0]["type"] == "k0"  # the same undo step
 
 
+def test_the_slope_template_fits_the_domain_on_its_supports_at_any_cell_size(window):
+    import math
+
+    from app.gui.dialogs import SlopeDialog
+    from projects.checks import project_warnings, unsupported_bodies
+
+    for cell in (0.1, 0.25, 0.37, 0.5):
+        window.doc.reset(_empty_project())
+        window.doc.set_value("domain.cell_size_m", cell)
+        dialog = SlopeDialog(window.doc.material_names, window)  # the defaults: 10 m at 45 degrees on 2 m
+        assert dialog.fit_domain.isChecked()
+        assert window.apply_slope(dialog)
+        dialog.deleteLater()
+        origin, size = window.doc.get("domain.origin_m"), window.doc.get("domain.size_m")
+        points = np.array([p for b in window.doc.get("bodies") for p in b["polygon_m"]])
+        right = origin[0] + math.ceil(size[0] / cell - 1e-9) * cell
+        assert points[:, 1].min() == origin[1] and points[:, 0].min() == origin[0], cell  # base, left wall
+        assert abs(points[:, 0].max() - right) < 1e-9, cell  # right wall
+        project = window.doc.project
+        assert unsupported_bodies(project) == [] and project_warnings(project) == [], cell
+
+
 def test_material_library_saves_and_inserts(window, tiny_file, tmp_path):
     window.open_project(tiny_file)
     window.materials_panel.save_to_library("dense sand")

@@ -113,8 +113,18 @@ def test_import_a_csv_profile_as_a_body(window, tmp_path):
     assert body["name"] == "survey" and body["material"] == "soil"
     assert sorted(map(tuple, body["polygon_m"])) == sorted([(0.0, 5.0), (4.0, 5.0), (10.0, 1.0), (16.0, 1.0),
                                                             (16.0, 0.0), (0.0, 0.0)])
-    assert window.doc.problems == []  # inside the 20 m x 10 m domain
-    window.doc.undo_stack.undo()
+    assert window.doc.problems == []
+    # the section stands on its supports: the domain fitted to it, its ends on the side walls, the
+    # base under it; gravity loading under the sloping ground; a cell size chosen from the section
+    assert window.doc.get("domain.origin_m") == [0.0, 0.0] and window.doc.get("domain.size_m")[0] == 16.0
+    assert window.doc.get("stages")[0]["type"] == "gravity"
+    cell = window.doc.get("domain.cell_size_m")
+    assert cell != 0.25 and f"cell size 0.25 -> {cell:g} m" in window.statusBar().currentMessage()
+    from projects.checks import project_warnings
+
+    assert project_warnings(window.doc.project) == []
+    window.doc.undo_stack.undo()  # one undo step takes it all back
+    assert window.doc.get("domain.cell_size_m") == 0.25 and window.doc.get("stages")[0]["type"] == "k0"
     assert window.doc.get("bodies") == []
     # a file that cannot be read is refused with one line
     bad = tmp_path / "bad.csv"
@@ -126,7 +136,7 @@ def test_import_a_csv_profile_as_a_body(window, tmp_path):
     assert window.doc.get("bodies") == []
 
 
-def test_import_a_dxf_polyline_and_grow_the_domain(window, tmp_path):
+def test_import_a_dxf_polyline_with_its_ends_on_the_walls(window, tmp_path):
     import ezdxf
 
     window.new_project()
@@ -139,8 +149,29 @@ def test_import_a_dxf_polyline_and_grow_the_domain(window, tmp_path):
     polygon = np.array(window.doc.get("bodies")[-1]["polygon_m"])
     assert polygon[:, 1].min() == -1.0 and polygon[:, 0].max() == 30.0
     origin, size = window.doc.get("domain.origin_m"), window.doc.get("domain.size_m")
-    assert origin[1] == -1.0 and origin[0] + size[0] > 30.0 and origin[1] + size[1] > 12.0
+    assert origin[1] == -1.0 and origin == [0.0, -1.0] and origin[1] + size[1] > 12.0
+    cell = window.doc.get("domain.cell_size_m")
+    assert abs(origin[0] + round(size[0] / cell) * cell - polygon[:, 0].max()) < 1e-9  # the right end on the wall
     assert window.doc.problems == []
+
+
+def test_import_a_dxf_of_layers_as_bodies_of_their_own_materials(window, tmp_path):
+    import ezdxf
+
+    window.new_project()
+    drawing = ezdxf.new()
+    for layer, points in (("fill", [(0, 12), (8, 12), (20, 2), (30, 2)]), ("rock", [(0, 5), (30, -1)])):
+        drawing.layers.add(layer)
+        drawing.modelspace().add_lwpolyline(points, dxfattribs={"layer": layer})
+    path = tmp_path / "section.dxf"
+    drawing.saveas(path)
+    assert window.import_body(path, "soil", base_y_m=-2.0)
+    bodies = window.doc.get("bodies")
+    assert [(b["name"], b["material"]) for b in bodies] == [("fill", "fill"), ("rock", "rock")]
+    assert set(window.doc.material_names) == {"soil", "fill", "rock"}
+    assert window.doc.problems == []
+    window.doc.undo_stack.undo()
+    assert window.doc.get("bodies") == [] and window.doc.material_names == ["soil"]
 
 
 # -- monitoring points and cross-sections ----------------------------------------------------------
