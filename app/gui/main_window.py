@@ -476,12 +476,44 @@ class MainWindow(QMainWindow):
         except (ProjectError, OSError, UnicodeDecodeError):
             return False
 
+    def commit_typing(self) -> None:
+        """Commit what the focused field holds (a shortcut such as Ctrl+S does not end its editing,
+        so its typing would not yet be in the project)."""
+        from app.gui.fields import _Bound
+
+        widget = QApplication.focusWidget()
+        while widget is not None and not isinstance(widget, _Bound):
+            widget = widget.parentWidget()
+        if widget is not None:
+            commit = getattr(widget, "commit", None) or getattr(widget, "_commit", None)
+            if callable(commit):
+                commit()
+
+    def _refuse_red_fields(self, what: str) -> bool:
+        """True (and the user told why) when fields are red: their values are not in the project,
+        so saving or running would use the previous ones."""
+        invalid = self.invalid_fields()
+        if not invalid:
+            return False
+        self.statusBar().showMessage(f"Not saved: {len(invalid)} field(s) hold values that are not valid"
+                                     if what == "save" else "Not run: fields hold values that are not valid", 8000)
+        self.show_error(f"Cannot {what}", "These fields hold values that are not valid (shown red); the "
+                        f"project still has the previous values, which the file would get. Correct them (or undo "
+                        f"the typing) before you {what}:\n" + "\n".join(invalid))
+        return True
+
     def save(self) -> bool:
+        self.commit_typing()
+        if self._refuse_red_fields("save"):
+            return False
         if self.doc.path is None:
             return self.save_as()
         return self._save_to(self.doc.path)
 
     def save_as(self) -> bool:
+        self.commit_typing()
+        if self._refuse_red_fields("save"):
+            return False
         path = self.ask_save_path()
         return self._save_to(Path(path)) if path else False
 
@@ -875,6 +907,7 @@ class MainWindow(QMainWindow):
         The document is written to a temporary project file for the run (the user's file and any
         unsaved edits stay as they are). Several runs may go on at once, each in its own folder.
         """
+        self.commit_typing()
         invalid = self.invalid_fields()
         if invalid:
             self.run_dock.show()

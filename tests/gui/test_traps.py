@@ -241,3 +241,49 @@ def test_help_shows_the_version_and_opens_the_documentation(window, monkeypatch)
     monkeypatch.setattr(QDesktopServices, "openUrl", lambda u: opened.append(u) or True)
     window.actions_["docs"].trigger()
     assert opened == [url]
+
+
+# -- saving what the fields show ----------------------------------------------------------------------
+
+def _focused(window, qtbot, edit):
+    """``edit`` on view, focused in the active window and its text selected (typing replaces it)."""
+    window.panels.setCurrentWidget(window.materials_panel)
+    window.activateWindow()
+    qtbot.waitUntil(window.isActiveWindow, timeout=5000)
+    edit.setFocus()
+    qtbot.waitUntil(edit.hasFocus, timeout=5000)
+    edit.selectAll()
+    return edit
+
+
+def test_ctrl_s_with_a_red_field_refuses_and_names_it(window, tiny_file, qtbot):
+    from PySide6.QtCore import Qt
+
+    window.open_project(tiny_file)
+    window.materials_panel.select("sand")
+    before = tiny_file.read_text()
+    window.materials_panel.fields["friction_angle_deg"].set_text("31")  # a valid edit: the project is dirty
+    edit = _focused(window, qtbot, window.materials_panel.fields["cohesion_pa"].edit)
+    qtbot.keyClicks(edit, "5 kg")  # red, and still being typed
+    errors = []
+    window.show_error = lambda title, text: errors.append((title, text))
+    qtbot.keyClick(edit, Qt.Key.Key_S, Qt.KeyboardModifier.ControlModifier)
+    assert errors and errors[0][0] == "Cannot save"
+    assert "Cohesion (materials.sand.cohesion_pa): unknown unit 'kg'" in errors[0][1]
+    assert tiny_file.read_text() == before  # nothing written: not the old cohesion under a "Saved"
+    assert not window.statusBar().currentMessage().startswith("Saved")
+    assert window.doc.is_dirty
+
+
+def test_ctrl_s_saves_what_a_field_holds_before_enter(window, tiny_file, qtbot):
+    from PySide6.QtCore import Qt
+
+    from projects.document import load_project
+
+    window.open_project(tiny_file)
+    window.materials_panel.select("sand")
+    edit = _focused(window, qtbot, window.materials_panel.fields["cohesion_pa"].edit)
+    qtbot.keyClicks(edit, "7 kPa")  # typed, no Enter, no focus change
+    qtbot.keyClick(edit, Qt.Key.Key_S, Qt.KeyboardModifier.ControlModifier)
+    assert window.statusBar().currentMessage().startswith("Saved")
+    assert load_project(tiny_file).materials["sand"].cohesion_pa == 7000.0
