@@ -717,7 +717,9 @@ class ResultsWriter:
         results = Results(self.out_dir)
         entries = results._entries()
         if len(entries) < keep:
-            raise ResultsError(f"{self.out_dir} holds {len(entries)} complete frames, the checkpoint needs {keep}")
+            raise ResultsError(f"{self.out_dir} holds {len(entries)} complete frames and its checkpoint needs {keep}: "
+                               "the frames after the last one are lost and the run cannot go on from its checkpoint; "
+                               "run the project again into it with --overwrite")
         self._pvd_entries = list(entries[:keep])
         self._submitted = keep
         kept = {Path(name).name for _, name in self._pvd_entries}

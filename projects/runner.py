@@ -343,21 +343,34 @@ def resume_run(
         ``force``).
     """
     from projects.document import dumps_project, load_project
-    from projects.results import PROJECT_NAME
+    from projects.results import PROJECT_NAME, write_checkpoint
 
     started = time.perf_counter()
     out_path = Path(results_dir).expanduser().absolute()
     if checkpoint is None:
         checkpoint = resumable(out_path)
     resolved = check_project(load_project(out_path / PROJECT_NAME), arch=arch, force=force)
+    original = checkpoint
     checkpoint = _without_stop_frame(checkpoint, out_path, resolved.config.output.interval_s,
                                      [st.name for st in resolved.config.structures])
+    checkpoint = _with_frames_on_disk(checkpoint, out_path, resolved.config.output.interval_s)
     sim = _simulation(resolved)
     try:
         try:
             sim.restore(checkpoint)
         except SolverError as err:
             raise ResultsError(f"cannot resume {out_path}: {err}") from None
+        if checkpoint is not original:
+            # the folder's checkpoint says what the writer below is about to make of the folder
+            # (the stop frame removed) before it does: a resume killed after the writer's take-over
+            # and before its first checkpoint left a folder of one frame less than its checkpoint
+            # needed, which no later resume could continue ("holds 34 complete frames, the
+            # checkpoint needs 35"); now every later resume starts from the same place
+            try:
+                write_checkpoint(out_path, checkpoint)
+            except OSError as err:
+                raise ResultsError(f"cannot resume {out_path}: writing its checkpoint failed: "
+                                   f"{err.strerror or err}") from None
         meta = _meta(resolved, sim, None)
         writer = ResultsWriter(out_path, dumps_project(resolved.project), meta,
                                keep_frames=int(checkpoint.run["cursor"]["frames"]))
@@ -425,6 +438,41 @@ def _without_stop_frame(checkpoint: Checkpoint, out_path: Path, interval_s: floa
     # last_output_step -1: a stop at a stage's last step still gets that stage's end frame
     run = {**run, "contacts_since_s": since_s, "cursor": {**cursor, "frames": frames - 1, "last_output_step": -1}}
     return dataclasses.replace(checkpoint, run=run, arrays=arrays)
+
+
+def _with_frames_on_disk(checkpoint: Checkpoint, out_path: Path, interval_s: float) -> Checkpoint:
+    """A stop checkpoint whose stop frame is already gone from the folder, continued from the frame
+    before it (as :func:`_without_stop_frame` does while the frame is there).
+
+    A resume killed after it had removed the stop frame and before it wrote a checkpoint of its own
+    (a folder left so by an earlier version) holds one frame less than its checkpoint says. Its
+    run continues from the stop's state with the frames before the stop kept; the contact forces
+    of the next output interval are averaged from the stop on (the rows of the stop frame, which
+    held the impulse up to it, went with the frame). Any other checkpoint is returned as it is
+    (the writer refuses a folder with fewer frames than it needs, naming what to do).
+    """
+    import dataclasses
+    import math
+
+    from projects.results import open_results
+
+    run, cursor = checkpoint.run, checkpoint.run.get("cursor", {})
+    t = float(run.get("time_s", 0.0))
+    frames = int(cursor.get("frames", 0))
+    previous_output_s = float(cursor.get("next_output_s", 0.0)) - interval_s
+    if (cursor.get("phase") != "loop" or cursor.get("reason") or frames < 2
+            or t <= previous_output_s + 1e-6 * interval_s):
+        return checkpoint  # not a stop between two output times
+    try:
+        times = open_results(out_path).series["time_s"]
+    except (OSError, ValueError, KeyError, ResultsError):
+        return checkpoint
+    if len(times) != frames - 1 or not math.isclose(float(times[-1]), previous_output_s, rel_tol=1e-9,
+                                                     abs_tol=1e-9 * interval_s):
+        return checkpoint
+    logger.warning("%s: the stop frame at t = %.6g s is gone; resuming from the frame before it", out_path, t)
+    run = {**run, "contacts_since_s": t, "cursor": {**cursor, "frames": frames - 1, "last_output_step": -1}}
+    return dataclasses.replace(checkpoint, run=run)
 
 
 def run_resolved(
