@@ -58,6 +58,20 @@ def solver_material(name: str, material: schema.Material) -> sc.Material:
         saturated_density_kg_m3=material.saturated_density_kg_m3,
         ru=material.ru or 0.0,
         softening=solver_softening(material) if plastic else None,
+        inertial=solver_inertial(material) if plastic else None,
+    )
+
+
+def solver_inertial(material: schema.Material) -> sc.InertialFriction | None:
+    """A material's mu(I) law in the solver's form (None without ``mu_i_friction_increase``); the
+    grains' density defaults to the material's."""
+    if material.mu_i_friction_increase is None:
+        return None
+    return sc.InertialFriction(
+        friction_increase=material.mu_i_friction_increase,
+        reference_inertial_number=material.mu_i_reference_number,
+        grain_diameter_m=material.grain_diameter_m,
+        grain_density_kg_m3=material.grain_density_kg_m3 or material.density_kg_m3,
     )
 
 

@@ -100,6 +100,13 @@ SOFTENING_KEYS: tuple[str, ...] = (
     "residual_plastic_strain",
     "softening_length_m",
 )
+#: A material's rate-dependent friction keys, the mu(I) law (solver.config.InertialFriction).
+INERTIAL_KEYS: tuple[str, ...] = (
+    "mu_i_friction_increase",
+    "mu_i_reference_number",
+    "grain_diameter_m",
+    "grain_density_kg_m3",
+)
 #: Material keys that only a Drucker-Prager material may have.
 PLASTIC_KEYS: tuple[str, ...] = (
     "cohesion_pa",
@@ -107,7 +114,7 @@ PLASTIC_KEYS: tuple[str, ...] = (
     "dilatancy_angle_deg",
     "tensile_strength_pa",
     "mohr_coulomb_match",
-) + SOFTENING_KEYS
+) + SOFTENING_KEYS + INERTIAL_KEYS
 #: The keys of a dynamic stage that end it when the mass has come to rest (solver.config.Stage).
 REST_KEYS: tuple[str, ...] = ("stop_when_kinetic_energy_below", "stop_when_max_speed_below_m_s")
 #: Numerics keys of the time step: give one of them (none: cfl = DEFAULT_CFL).
@@ -551,6 +558,10 @@ class Material(_Model):
     peak_plastic_strain: OptNonNegative = None
     residual_plastic_strain: OptPositive = None
     softening_length_m: OptPositive = None
+    mu_i_friction_increase: OptPositive = None
+    mu_i_reference_number: OptPositive = None
+    grain_diameter_m: OptPositive = None
+    grain_density_kg_m3: OptDensity = None
 
 
 class MaterialChange(_Model):
@@ -1211,6 +1222,7 @@ def _material_rules(materials: Mapping[str, Any]) -> list[Problem]:
                     problems.append(Problem(f"{path}.{key}", None, 'required for model "drucker-prager"'))
             problems += _dilatancy_rule(path, material, changed=None)
             problems += _softening_rule(path, material, changed=None)
+            problems += _inertial_rule(path, material)
         elif model == "linear-elastic":
             for key in PLASTIC_KEYS:
                 if key in material:
@@ -1315,6 +1327,30 @@ def _softening_rule(path: str, values: Mapping[str, Any], changed: Mapping[str, 
     if psi_r is not None and phi_r is not None and psi_r > phi_r and not problems:
         problems.append(Problem(f"{path}.residual_dilatancy_angle_deg", psi_r,
                                 f"must not exceed the residual friction angle ({phi_r:g})"))
+    return problems
+
+
+def _inertial_rule(path: str, values: Mapping[str, Any]) -> list[Problem]:
+    """The mu(I) law needs its friction increase, reference inertial number and grain diameter
+    together, a friction angle above zero (the increase is over tan(phi)) and no softening."""
+    given = [k for k in INERTIAL_KEYS if k in values]
+    if not given:
+        return []
+    key = "mu_i_friction_increase"
+    if key not in values:
+        return [Problem(f"{path}.{k}", values[k], "needs mu_i_friction_increase (mu_2 - mu_s of the mu(I) law) "
+                        "to make the friction depend on the rate") for k in given]
+    problems = [Problem(f"{path}.{k}", None, f"required with {key}: the mu(I) law needs "
+                        + ("the reference inertial number I0" if k == "mu_i_reference_number" else
+                           "the grain diameter d in I = gamma_dot d / sqrt(p / rho_s)"))
+                for k in ("mu_i_reference_number", "grain_diameter_m") if k not in values]
+    phi = _num(values.get("friction_angle_deg"))
+    if phi is not None and phi <= 0.0:
+        problems.append(Problem(f"{path}.{key}", values[key], "needs friction_angle_deg > 0: the friction rises "
+                                "with the rate from tan(friction_angle_deg)"))
+    if "softening_law" in values:
+        problems.append(Problem(f"{path}.{key}", values[key], "not allowed with softening_law: a material's "
+                                "friction either softens or depends on the rate"))
     return problems
 
 

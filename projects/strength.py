@@ -105,6 +105,8 @@ def reduced_materials(materials: tuple[sc.Material, ...], indices: tuple[int, ..
             dilatancy_angle_rad=min(m.dilatancy_angle_rad, phi),
             tensile_strength_pa=None if m.tensile_strength_pa is None else m.tensile_strength_pa / factor,
             softening=_reduced_softening(m.softening, factor),
+            inertial=None if m.inertial is None else replace(
+                m.inertial, friction_increase=m.inertial.friction_increase / factor),
         )
     return tuple(out)
 

@@ -88,6 +88,26 @@ class Softening:
 
 
 @dataclass(frozen=True)
+class InertialFriction:
+    """The rate dependence of a granular material's friction, the mu(I) law of dense granular flow
+    (GDR MiDi 2004; Jop, Forterre and Pouliquen 2006, Nature 441:727):
+
+        mu(I) = mu_s + friction_increase * I / (reference_inertial_number + I)
+        I = gamma_dot d / sqrt(p / rho_s)
+
+    ``mu_s = tan(phi)`` the material's own friction, ``gamma_dot = sqrt(2 D':D')`` the shear rate
+    (the deviator of the rate of deformation, out-of-plane component included), ``p`` the mean
+    pressure, ``d`` the grain diameter and ``rho_s`` the grains' density. The cone's slope follows
+    the friction coefficient, ``alpha(I) = alpha mu(I) / mu_s`` (solver/materials/__init__.py).
+    """
+
+    friction_increase: float
+    reference_inertial_number: float
+    grain_diameter_m: float
+    grain_density_kg_m3: float
+
+
+@dataclass(frozen=True)
 class Material:
     """Parameters of one material (one row of the per-material tables).
 
@@ -119,6 +139,8 @@ class Material:
     ru: float = 0.0
     #: strain softening (None: the strength stays at its peak)
     softening: Softening | None = None
+    #: rate-dependent friction, the mu(I) law (None: the friction does not depend on the rate)
+    inertial: InertialFriction | None = None
 
     @property
     def wet_density_kg_m3(self) -> float:
@@ -245,6 +267,11 @@ def averages_volume(setting: str, materials) -> bool:
 def softens(materials) -> bool:
     """Whether some of ``materials`` softens (the softening return map is compiled in only then)."""
     return any(m.model == "drucker-prager" and m.softening is not None for m in materials)
+
+
+def flows_inertially(materials) -> bool:
+    """Whether some of ``materials`` has a rate-dependent friction (mu(I), compiled in only then)."""
+    return any(m.model == "drucker-prager" and m.inertial is not None for m in materials)
 
 
 @dataclass(frozen=True)

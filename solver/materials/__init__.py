@@ -12,7 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 from solver.runtime import mat_mat, ti, transpose
 
-from solver.config import Material, softens
+from solver.config import Material, flows_inertially, softens
 from solver.fieldio import FieldIO
 from solver.materials import drucker_prager, linear_elastic, softening
 
@@ -24,6 +24,10 @@ MATERIAL_COLUMNS = ("model", "K", "G", "alpha", "kc", "alpha_psi", "t_cut", "rho
 #: residual (c Pa, phi rad, psi rad) and the tensile strength (Pa, 1e30 for none)
 SOFTENING_COLUMNS = ("soft_law", "soft_e_peak", "soft_e_res", "soft_scale", "soft_match", "soft_peak",
                      "soft_res", "soft_tension")
+#: The mu(I) law's columns (solver.config.InertialFriction): the friction increase over the
+#: material's own ``tan(phi)`` (0: none), the reference inertial number ``I0`` and
+#: ``d sqrt(rho_s)``, so that ``I = gamma_dot d sqrt(rho_s) / sqrt(p)``
+INERTIAL_COLUMNS = ("mui_ratio", "mui_i0", "mui_scale")
 _INT_COLUMNS = ("model", "soft_law", "soft_match")
 softening.check_match_codes(drucker_prager.MATCHES)
 
@@ -31,8 +35,12 @@ softening.check_match_codes(drucker_prager.MATCHES)
 def material_rows(materials: Sequence[Material], cell_size_m: float | None = None) -> dict[str, np.ndarray]:
     """The per-material parameter table as numpy columns (SI units); ``cell_size_m`` sets the
     softening's regularisation scale (None: one, as in a single-point test)."""
-    rows: dict[str, list] = {k: [] for k in MATERIAL_COLUMNS + SOFTENING_COLUMNS}
+    rows: dict[str, list] = {k: [] for k in MATERIAL_COLUMNS + SOFTENING_COLUMNS + INERTIAL_COLUMNS}
     for m in materials:
+        mui = m.inertial if m.model == "drucker-prager" and m.friction_angle_rad > 0.0 else None
+        rows["mui_ratio"].append(0.0 if mui is None else mui.friction_increase / math.tan(m.friction_angle_rad))
+        rows["mui_i0"].append(1.0 if mui is None else mui.reference_inertial_number)
+        rows["mui_scale"].append(0.0 if mui is None else mui.grain_diameter_m * math.sqrt(mui.grain_density_kg_m3))
         soft = m.softening if m.model == "drucker-prager" else None
         peak = (m.cohesion_pa, m.friction_angle_rad, m.dilatancy_angle_rad)
         rows["soft_law"].append(0 if soft is None else softening.LAW_CODES[soft.law])
@@ -75,7 +83,7 @@ class MaterialTable:
     """
 
     def __init__(self, materials: Sequence[Material], np_float=np.float32, shared_io: bool = False,
-                 cell_size_m: float | None = None, softening: bool | None = None):
+                 cell_size_m: float | None = None, softening: bool | None = None, inertial: bool | None = None):
         n = max(1, len(materials))
         self.np_float = np_float
         self.count = len(materials)
@@ -83,6 +91,9 @@ class MaterialTable:
         #: some material may soften (compiled in; default: one of ``materials`` does; a run whose
         #: stages change materials decides it for all of them)
         self.softening = softens(materials) if softening is None else bool(softening)
+        #: some material's friction depends on the rate (mu(I), compiled in only then; default: one of
+        #: ``materials``'s does)
+        self.inertial = flows_inertially(materials) if inertial is None else bool(inertial)
         self.model = ti.field(ti.i32, n)
         self.K = ti.field(float, n)
         self.G = ti.field(float, n)
@@ -101,7 +112,11 @@ class MaterialTable:
                 setattr(self, name, ti.field(float, n))
             self.soft_peak = ti.Vector.field(3, float, n)
             self.soft_res = ti.Vector.field(3, float, n)
-            names = MATERIAL_COLUMNS + SOFTENING_COLUMNS
+            names = names + SOFTENING_COLUMNS
+        if self.inertial:
+            for name in INERTIAL_COLUMNS:
+                setattr(self, name, ti.field(float, n))
+            names = names + INERTIAL_COLUMNS
         #: the table's fields by column name
         self.columns = {name: getattr(self, name) for name in names}
         #: the table as loaded, numpy columns in the fields' dtypes
@@ -121,6 +136,8 @@ class MaterialTable:
         """Replace every row (a stage's material changes): one kernel launch for the whole table."""
         if softens(materials) and not self.softening:
             raise ValueError("a material softens, but the table was built without softening")
+        if flows_inertially(materials) and not self.inertial:
+            raise ValueError("a material's friction depends on the rate (mu(I)), but the table was built without it")
         rows = material_rows(materials, self.cell_size_m)
         self.host = {name: column.astype(np.int32 if name in _INT_COLUMNS else self.np_float)
                      for name, column in rows.items() if name in self.columns}
@@ -152,10 +169,29 @@ class MaterialTable:
                     out, deq, yielded = drucker_prager.return_map(
                         trial, K, G, self.alpha[mat], self.kc[mat], self.alpha_psi[mat], self.t_cut[mat])
             else:
+                alpha = self.alpha[mat]
+                if ti.static(self.inertial):
+                    alpha *= 1.0 + self.mui_ratio[mat] * self._inertial_fraction(mat, trial, D)
                 out, deq, yielded = drucker_prager.return_map(
-                    trial, K, G, self.alpha[mat], self.kc[mat], self.alpha_psi[mat], self.t_cut[mat]
+                    trial, K, G, alpha, self.kc[mat], self.alpha_psi[mat], self.t_cut[mat]
                 )
         return out, deq, yielded
+
+    @ti.func
+    def _inertial_fraction(self, mat, s, D):
+        """``I / (I0 + I)`` of the mu(I) law (solver.config.InertialFriction) at the rate of
+        deformation ``D`` (in-plane; no out-of-plane rate) and the pressure of the stress ``s``
+        (the step's elastic trial): the inertial number ``I = gamma_dot d / sqrt(p / rho_s)`` with
+        ``gamma_dot = sqrt(2 D':D')``; 1 where the material carries no pressure (``I`` without
+        bound), 0 at rest."""
+        tr = D[0, 0] + D[1, 1]
+        d0 = D[0, 0] - tr / 3.0
+        d1 = D[1, 1] - tr / 3.0
+        dz = -tr / 3.0
+        gamma_dot = ti.sqrt(2.0 * (d0 * d0 + d1 * d1 + dz * dz + 2.0 * D[0, 1] * D[0, 1]))
+        pressure = ti.max(-(s[0] + s[1] + s[3]) / 3.0, 0.0)
+        x = gamma_dot * self.mui_scale[mat]
+        return x / (self.mui_i0[mat] * ti.sqrt(pressure) + x + 1e-30)
 
     @ti.func
     def viscous_stress(self, mat, sv, D, W, dt, before, after, yielded):
