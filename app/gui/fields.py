@@ -5,7 +5,9 @@ schema's own rule for that key (:func:`app.gui.document.check_value`), so the me
 ``runout validate`` would print; a bad value is shown in red with the message as tooltip and in
 the panel's message line, and is never written to the project. A value the schema accepts is
 committed as one undo step when editing finishes. Number fields accept a unit after the number
-("5 kPa", "20 kN/m3" for a unit weight into a density; see :mod:`app.gui.units`) and store SI.
+("5 kPa", "20 kN/m3" for a unit weight into a density; see :mod:`app.gui.units`), store SI and
+show the value again in the unit last typed for that key (``20 kN/m3``, the SI value in the
+tooltip); a plain number brings back the SI unit.
 A field left red blocks Run (:meth:`app.gui.main_window.MainWindow.invalid_fields`). Problems that involve several keys (found by
 validating the whole project) are shown in orange on the editor of the key they name.
 """
@@ -144,7 +146,34 @@ class NumberField(_Bound):
         self.edit.textEdited.connect(self._check)
         self.edit.editingFinished.connect(self.commit)
         self.error = ""
+        #: per key, the unit last typed with a value there ("20 kN/m3" into a density): the field
+        #: shows the value in it again, not converted to the SI unit it stores
+        self.shown_units: dict[str, str] = {}
         self.refresh()
+
+    def _factor(self, unit: str) -> float | None:
+        """SI per one ``unit`` typed in this field (None: not a unit it converts)."""
+        value, error = parse_quantity(f"1 {unit}", self.unit.text())
+        return None if error or value is None or not value > 0 else value
+
+    def shown_text(self, value: Any) -> str:
+        """``value`` (SI) as the field shows it: in the unit last typed for this key, else SI."""
+        unit = self.shown_units.get(self.path or "")
+        factor = self._factor(unit) if unit else None
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and factor is not None:
+            return f"{format_number(float(value) / factor)} {unit}"
+        return format_number(value) if value is not None else ""
+
+    def _remember_unit(self, text: str) -> None:
+        from app.gui.units import split_unit
+
+        if not self.path:
+            return
+        _number, unit = split_unit(text)
+        if unit and self.unit.text() != "°" and self._factor(unit) not in (None, 1.0):
+            self.shown_units[self.path] = unit
+        else:
+            self.shown_units.pop(self.path, None)
 
     def _parse(self, text: str) -> tuple[Any, str]:
         if not text.strip():
@@ -171,7 +200,9 @@ class NumberField(_Bound):
             self.edit.setToolTip(problem)
         else:
             self.edit.setStyleSheet("")
-            self.edit.setToolTip("")
+            value = self.value()
+            shown = self.path in self.shown_units and isinstance(value, (int, float))
+            self.edit.setToolTip(f"stored as {format_number(value)} {self.unit.text()}" if shown else "")
 
     def commit(self) -> bool:
         """Write the typed value to the project (one undo step) if the schema accepts it."""
@@ -183,9 +214,14 @@ class NumberField(_Bound):
             self.message.emit(f"{self.label}: {self.error}")
             return False
         current = self.value()
-        value = typed_or_kept(self.edit.text(), value, current)
+        text = self.edit.text()
+        value = current if current is not None and text.strip() == self.shown_text(current) else \
+            typed_or_kept(text, value, current)
+        self._remember_unit(text)
         changed = not (value == current and (value is None) == (current is None))
         done = changed and self.doc.set_value(self.path, value, f"change {self.label.lower()}")
+        if not done:
+            self.refresh()  # the value in the unit just typed
         forget_typing(self.edit)
         return done
 
@@ -199,7 +235,7 @@ class NumberField(_Bound):
         if self.error and self.edit.hasFocus():
             return  # keep what the user is typing
         value = self.value()
-        text = format_number(value) if value is not None else ""
+        text = self.shown_text(value)
         if self.edit.text() != text:
             self.edit.setText(text)
         self.error = ""

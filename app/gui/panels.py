@@ -1168,7 +1168,12 @@ class StagesPanel(Panel):
         self.changes.setRowCount(len(rows))
         for r, (m, k, v) in enumerate(rows):
             label, unit = FIELD_INFO.get(k, (k, ""))
-            for c, text in enumerate((m, label, f"{format_number(v)} {unit}")):
+            shown = f"{format_number(v)} {unit}"
+            if unit == "kg/m³" and isinstance(v, (int, float)):  # typed as a unit weight, perhaps: both
+                from projects.units import UNIT_WEIGHT_GRAVITY_M_S2
+
+                shown += f" (unit weight {float(v) * UNIT_WEIGHT_GRAVITY_M_S2 / 1e3:.4g} kN/m³)"
+            for c, text in enumerate((m, label, shown)):
                 item = QTableWidgetItem(text)
                 item.setData(Qt.ItemDataRole.UserRole, (m, k))
                 self.changes.setItem(r, c, item)

@@ -49,7 +49,14 @@ def test_material_fields_accept_units_and_store_si(window, tiny_file):
     assert window.doc.get("materials.sand.cohesion_pa") == 5000.0
     assert window.doc.get("materials.sand.youngs_modulus_pa") == 1e7
     assert window.doc.get("materials.sand.density_kg_m3") == pytest.approx(2000.0)  # 19.62 kN/m³ over 9.81
-    assert fields["cohesion_pa"].edit.text() == "5000"  # shown in the field's own unit afterwards
+    assert fields["cohesion_pa"].edit.text() == "5 kPa"  # shown again in the unit typed
+    assert fields["density_kg_m3"].edit.text() == "19.62 kN/m3"  # a unit weight comes back as one
+    assert fields["density_kg_m3"].edit.toolTip() == "stored as 2000 kg/m³"
+    fields["cohesion_pa"].set_text("5 kPa")  # the same text again: no edit
+    assert window.doc.get("materials.sand.cohesion_pa") == 5000.0
+    fields["cohesion_pa"].set_text("6000")  # a plain number: the SI unit again
+    assert fields["cohesion_pa"].edit.text() == "6000"
+    fields["cohesion_pa"].set_text("5 kPa")
     fields["cohesion_pa"].set_text("5 kg")
     assert "unknown unit 'kg'" in fields["cohesion_pa"].error
     assert window.doc.get("materials.sand.cohesion_pa") == 5000.0
@@ -287,3 +294,20 @@ def test_ctrl_s_saves_what_a_field_holds_before_enter(window, tiny_file, qtbot):
     qtbot.keyClick(edit, Qt.Key.Key_S, Qt.KeyboardModifier.ControlModifier)
     assert window.statusBar().currentMessage().startswith("Saved")
     assert load_project(tiny_file).materials["sand"].cohesion_pa == 7000.0
+
+
+def test_a_stage_change_takes_0_kpa_and_shows_a_density_as_a_unit_weight_too(window, tiny_file):
+    window.open_project(tiny_file)
+    stages = window.stages_panel
+    stages.select(1)
+    stages.change_material.setCurrentText("sand")
+    stages.change_key.setCurrentIndex(stages.change_key.findData("cohesion_pa"))
+    stages.change_value.setText("0 kPa")
+    stages._set_change()
+    assert window.doc.get("stages.1.material_changes.sand.cohesion_pa") == 0.0
+    stages.change_key.setCurrentIndex(stages.change_key.findData("density_kg_m3"))
+    stages.change_value.setText("20 kN/m3")
+    stages._set_change()
+    assert window.doc.get("stages.1.material_changes.sand.density_kg_m3") == pytest.approx(20e3 / 9.81)
+    shown = [stages.changes.item(r, 2).text() for r in range(stages.changes.rowCount())]
+    assert "0 Pa" in shown and "2038.735984 kg/m³ (unit weight 20 kN/m³)" in shown
