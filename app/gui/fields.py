@@ -131,9 +131,12 @@ class NumberField(_Bound):
     """A number with its unit; empty text means "left out" when ``optional``."""
 
     def __init__(self, doc: ProjectDocument, path: str | None, label: str, unit: str, *,
-                 optional: bool = False, placeholder: str = "", parent: QWidget | None = None) -> None:
+                 optional: bool = False, placeholder: str = "", integer: bool = False,
+                 words: Sequence[str] = (), parent: QWidget | None = None) -> None:
         super().__init__(doc, path, label, parent)
         self.optional = optional
+        self.integer = integer  # a count (max_trials): written as an integer
+        self.words = tuple(words)  # words the key takes instead of a number ("limit-equilibrium")
         self.edit = QLineEdit()
         self.edit.setPlaceholderText(placeholder or ("none" if optional else ""))
         self.edit.setAlignment(Qt.AlignmentFlag.AlignRight)
@@ -178,9 +181,15 @@ class NumberField(_Bound):
     def _parse(self, text: str) -> tuple[Any, str]:
         if not text.strip():
             return None, "" if self.optional else "required"
+        if text.strip() in self.words:
+            return text.strip(), check_value(self.path, text.strip()) or "" if self.path else ""
         number, error = parse_quantity(text, self.unit.text())  # "5 kPa" -> 5000.0 in a Pa field
         if number is None:
             return None, error
+        if self.integer:
+            if not float(number).is_integer():
+                return None, "must be an integer"
+            number = int(number)
         if self.path is None:
             return number, ""
         return number, check_value(self.path, number) or ""

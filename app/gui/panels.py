@@ -68,6 +68,7 @@ from projects.schema import (
     DAMPING_MODELS,
     DEFAULT_DAMPING_MODEL,
     DEFAULT_MOHR_COULOMB_MATCH,
+    FIRST_TRIALS,
     MATERIAL_MODELS,
     MOHR_COULOMB_MATCHES,
     OUTPUT_FIELDS,
@@ -1082,6 +1083,39 @@ class StagesPanel(Panel):
         form.addRow("Stop at KE below", self.stop_ke)
         form.addRow("and speed below", self.stop_speed)
         form.addRow("Min. duration", self.min_duration)
+        self.strength_factor = NumberField(doc, None, "Strength factor", "–", optional=True,
+                                           placeholder="F_fail of the search")
+        form.addRow("Strength factor", self.strength_factor)
+        self.stage_form = form
+        self.layout_.addWidget(box)
+
+        # a strength-reduction stage's own settings (docs/project-format.md, strength reduction)
+        box, form = _form("Strength reduction (factor of safety)")
+        self.trial_duration = NumberField(doc, None, "Trial duration", "s", optional=True,
+                                          placeholder="the gravity stage's duration")
+        self.tolerance = NumberField(doc, None, "Tolerance", "–", optional=True, placeholder="0.01")
+        self.first_trial = NumberField(doc, None, "First trial", "–", optional=True,
+                                       placeholder="Bishop's factor", words=FIRST_TRIALS)
+        self.first_trial.edit.setToolTip(f"a factor, or {FIRST_TRIALS[0]} (Bishop's factor of the section)")
+        self.bracket_step = NumberField(doc, None, "Bracket step", "–", optional=True, placeholder="0.1")
+        self.max_trials = NumberField(doc, None, "Largest number of trials", "–", optional=True,
+                                      placeholder="40", integer=True)
+        self.failure_displacement = NumberField(doc, None, "Failure displacement", "m", optional=True,
+                                                placeholder="5 % of the model's height")
+        self.failure_ke = NumberField(doc, None, "Kinetic-energy ratio", "–", optional=True, placeholder="0.001")
+        self.limit_equilibrium = QCheckBox("Bishop's search beside it")
+        self.limit_equilibrium.setToolTip("limit_equilibrium: Bishop's simplified method over the same section "
+                                          "(a few seconds); its factor is the first trial by default")
+        self.limit_equilibrium.toggled.connect(self._limit_equilibrium_toggled)
+        form.addRow("Trial duration", self.trial_duration)
+        form.addRow("Tolerance", self.tolerance)
+        form.addRow("First trial", self.first_trial)
+        form.addRow("Bracket step", self.bracket_step)
+        form.addRow("Max. trials", self.max_trials)
+        form.addRow("Fails at", self.failure_displacement)
+        form.addRow("KE ratio", self.failure_ke)
+        form.addRow("", self.limit_equilibrium)
+        self.strength_box = box
         self.layout_.addWidget(box)
 
         box = QGroupBox("Material changes at the start of this stage")
@@ -1119,7 +1153,9 @@ class StagesPanel(Panel):
             row.addWidget(w)
         vbox.addLayout(row)
         self.layout_.addWidget(box)
-        self.watch(self.name, self.duration, self.k0, self.damping, self.stop_ke, self.stop_speed, self.min_duration)
+        self.watch(self.name, self.duration, self.k0, self.damping, self.stop_ke, self.stop_speed, self.min_duration,
+                   self.strength_factor, self.trial_duration, self.tolerance, self.first_trial, self.bracket_step,
+                   self.max_trials, self.failure_displacement, self.failure_ke)
         self.finish()
         self._current: int | None = None
         self._on_changed(frozenset({"stages"}))
@@ -1145,20 +1181,43 @@ class StagesPanel(Panel):
         kind = self.doc.get(f"{base}.type") if base else None
         self.name.set_path(f"{base}.name" if base else None)
         self.kind.set_path(f"{base}.type" if base else None)
-        timed = kind in ("gravity", "dynamic")  # the stages that have a duration and damping
+        timed = kind in ("gravity", "dynamic")  # the stages that have a duration
+        reduction = base is not None and kind == "strength-reduction"
         self.duration.set_path(f"{base}.duration_s" if base and timed else None)
         self.k0.set_path(f"{base}.k0" if base and kind == "k0" else None)
         self.ramp.set_path(f"{base}.ramp_fraction" if base and kind == "gravity" else None)
-        self.damping.set_path(f"{base}.damping.coefficient" if base and timed else None)
-        if base and kind == "gravity" and self.doc.get(f"{base}.damping") is None:
-            self.damping.edit.setPlaceholderText("0.7 (default for gravity)")
+        self.damping.set_path(f"{base}.damping.coefficient" if base and (timed or reduction) else None)
+        if base and kind in ("gravity", "strength-reduction") and self.doc.get(f"{base}.damping") is None:
+            self.damping.edit.setPlaceholderText(f"0.7 (default for {kind})")
         else:
             self.damping.edit.setPlaceholderText("none")
         dynamic = base is not None and kind == "dynamic"
         self.stop_ke.set_path(f"{base}.stop_when_kinetic_energy_below" if dynamic else None)
         self.stop_speed.set_path(f"{base}.stop_when_max_speed_below_m_s" if dynamic else None)
         self.min_duration.set_path(f"{base}.min_duration_s" if dynamic else None)
-        for f in (self.duration, self.ramp, self.k0, self.damping, self.stop_ke, self.stop_speed, self.min_duration):
+        # the run-out after a strength reduction starts with the strengths reduced by this factor
+        after_reduction = dynamic and any(isinstance(st, dict) and st.get("type") == "strength-reduction"
+                                          for st in self._stages()[:i])
+        self.strength_factor.set_path(f"{base}.strength_factor" if after_reduction else None)
+        strength = {self.trial_duration: "trial_duration_s", self.tolerance: "tolerance",
+                    self.first_trial: "first_trial", self.bracket_step: "bracket_step",
+                    self.max_trials: "max_trials", self.failure_displacement: "failure.displacement_m",
+                    self.failure_ke: "failure.kinetic_energy_ratio"}
+        for f, key in strength.items():
+            f.set_path(f"{base}.{key}" if reduction else None)
+        self.limit_equilibrium.blockSignals(True)
+        self.limit_equilibrium.setChecked(bool(self.doc.get(f"{base}.limit_equilibrium", True)) if reduction else True)
+        self.limit_equilibrium.setEnabled(reduction)
+        self.limit_equilibrium.blockSignals(False)
+        self.strength_box.setVisible(reduction)
+        # rows a stage of this type has no key for are hidden, not greyed out
+        rows = {self.duration: timed, self.ramp: kind == "gravity", self.k0: kind == "k0",
+                self.damping: timed or reduction, self.stop_ke: dynamic, self.stop_speed: dynamic,
+                self.min_duration: dynamic, self.strength_factor: after_reduction}
+        for f, shown in rows.items():
+            self.stage_form.setRowVisible(f, shown or base is None)
+        for f in (self.duration, self.ramp, self.k0, self.damping, self.stop_ke, self.stop_speed, self.min_duration,
+                  self.strength_factor, *strength):
             if f.path is None:
                 f.edit.setText("")
         self.change_material.clear()
@@ -1180,6 +1239,13 @@ class StagesPanel(Panel):
         for w in (self.change_material, self.change_key, self.change_value, self.change_set, self.change_remove,
                   self.remove_button, self.up_button, self.down_button):
             w.setEnabled(base is not None)
+
+    def _limit_equilibrium_toggled(self, on: bool) -> None:
+        i = self._current
+        if i is not None and self.doc.get(f"stages.{i}.type") == "strength-reduction":
+            # true is the default: the key is written only to turn the search off
+            self.doc.set_value(f"stages.{i}.limit_equilibrium", None if on else False,
+                               "turn Bishop's search " + ("on" if on else "off"))
 
     def _commit_damping(self) -> bool:
         """Damping is a table ``{type = "local", coefficient = ..}``: write or remove it whole."""

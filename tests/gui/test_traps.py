@@ -311,3 +311,41 @@ def test_a_stage_change_takes_0_kpa_and_shows_a_density_as_a_unit_weight_too(win
     assert window.doc.get("stages.1.material_changes.sand.density_kg_m3") == pytest.approx(20e3 / 9.81)
     shown = [stages.changes.item(r, 2).text() for r in range(stages.changes.rowCount())]
     assert "0 Pa" in shown and "2038.735984 kg/m³ (unit weight 20 kN/m³)" in shown
+
+
+# -- the strength-reduction stage ----------------------------------------------------------------
+
+def test_the_strength_reduction_stage_has_its_settings(window, tmp_path):
+    from tests.gui.conftest import EXAMPLES
+
+    window.open_project(EXAMPLES / "slope_fos.toml")
+    stages, doc = window.stages_panel, window.doc
+    stages.select(1)
+    assert stages.strength_box.isVisibleTo(stages)
+    fields = (stages.trial_duration, stages.tolerance, stages.first_trial, stages.bracket_step,
+              stages.max_trials, stages.failure_displacement, stages.failure_ke, stages.damping)
+    assert all(f.isEnabled() for f in fields)
+    assert not stages.stage_form.isRowVisible(stages.duration)  # not allowed here: hidden, not greyed
+    assert stages.trial_duration.edit.text() == "2" and stages.first_trial.edit.text() == "limit-equilibrium"
+    assert stages.first_trial.commit() is False and stages.first_trial.error == ""  # the word is kept
+    stages.tolerance.set_text("0.02")
+    stages.failure_displacement.set_text("5 cm")
+    stages.max_trials.set_text("12")
+    assert doc.get("stages.1.tolerance") == 0.02 and doc.get("stages.1.failure.displacement_m") == 0.05
+    assert doc.get("stages.1.max_trials") == 12 and isinstance(doc.get("stages.1.max_trials"), int)
+    assert doc.get("stages.1.failure.kinetic_energy_ratio") == 0.001  # the table's other key kept
+    stages.max_trials.set_text("12.5")
+    assert stages.max_trials.error == "must be an integer"
+    stages.max_trials.set_text("1")
+    assert "2" in stages.max_trials.error and doc.get("stages.1.max_trials") == 12
+    stages.first_trial.set_text("1.4")
+    assert doc.get("stages.1.first_trial") == 1.4
+    stages.limit_equilibrium.setChecked(False)
+    assert doc.get("stages.1.limit_equilibrium") is False
+    assert doc.project is not None  # every value the panel wrote is one the schema takes
+    stages.select(2)  # the run-out after it: the factor its strengths are reduced by
+    assert not stages.strength_box.isVisibleTo(stages) and stages.strength_factor.isEnabled()
+    stages.strength_factor.set_text("1.2")
+    assert doc.get("stages.2.strength_factor") == 1.2 and doc.project is not None
+    stages.select(0)
+    assert not stages.strength_factor.isEnabled() and not stages.stage_form.isRowVisible(stages.strength_factor)
