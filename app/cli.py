@@ -717,7 +717,7 @@ def bench(
 
 @cli.command()
 def study(
-    name: Annotated[str, typer.Argument(help="sand-column | bui2008 | slope | tradeoff | extremes | fos", show_default=False)],
+    name: Annotated[str, typer.Argument(help="sand-column | bui2008 | slope | tradeoff | extremes | fos | softening", show_default=False)],
     out_dir: Annotated[Path | None, typer.Option("--out", help="Report folder (default: study-results/NAME).")] = None,
     quick: Annotated[bool, typer.Option("--quick", help="The reduced version: a few minutes on two CPU cores.")] = False,
     budget_min: Annotated[float | None, typer.Option(

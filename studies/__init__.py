@@ -19,6 +19,9 @@ extremes       runs at the edges of the parameter space: stable or stopped with 
                never NaN, hang or traceback (:mod:`studies.extremes`)
 fos            factor of safety by strength reduction against the cell size and Bishop's
                method; its cost in equilibrium runs; the infinite slope (:mod:`studies.fos`)
+softening      a strain-softening clay bank's failure time, run-out and retrogression against
+               the cell size with and without a softening length; run-out against the
+               brittleness (:mod:`studies.softening`)
 =============  ===============================================================================
 """
 
@@ -38,6 +41,7 @@ STUDIES: dict[str, str] = {
     "tradeoff": "tradeoff",
     "extremes": "extremes",
     "fos": "fos",
+    "softening": "softening",
 }
 
 #: Default output folder of ``runout study NAME``: ``study-results/NAME`` (``-quick`` appended).
