@@ -38,6 +38,24 @@ STRUCTURE_COLOR = "#b4b4b4"
 DEFAULT_FRICTION_DEG = 20.0
 #: The colour of targets in the scene view.
 TARGET_COLOR = "#9334e6"
+#: The kinds of target, as the panel names them: ``x_m`` and ``point_m``.
+TARGET_KINDS = ("vertical line", "point")
+
+
+def surface_at(polygons: list[Any], x: float) -> float | None:
+    """The highest point at ``x`` of the outlines ``polygons`` (lists of [x, y]): the ground there;
+    None where none of them reaches ``x``."""
+    top = None
+    for polygon in polygons:
+        try:
+            pts = [(float(p[0]), float(p[1])) for p in polygon]
+        except (TypeError, ValueError, IndexError):
+            continue
+        for (ax, ay), (bx, by) in zip(pts, pts[1:] + pts[:1]):
+            if min(ax, bx) <= x <= max(ax, bx):
+                y = max(ay, by) if ax == bx else ay + (x - ax) * (by - ay) / (bx - ax)
+                top = y if top is None else max(top, y)
+    return top
 
 
 def contact_kind(contact: Any) -> str:
@@ -71,7 +89,8 @@ class StructuresPanel(PolygonPanel):
     def _buttons(self) -> list[QWidget]:
         self.add_button = QPushButton("Add wall")
         self.add_button.setToolTip("A vertical wall (2 cells wide, a quarter of the domain high) at the middle "
-                                   "of the base; edit its vertices in the table or drag them in the view")
+                                   "of the domain, standing on the ground there (the bodies' and structures' "
+                                   "top, else the base); edit its vertices in the table or drag them in the view")
         self.add_button.clicked.connect(lambda: self.add_structure())
         return [self.add_button]
 
@@ -104,7 +123,9 @@ class StructuresPanel(PolygonPanel):
 
     def add_structure(self, polygon: list[list[float]] | None = None, name: str | None = None,
                       contact: Any = "slip") -> int:
-        """Append a structure (by default a wall in the middle of the base) and select it; its index."""
+        """Append a structure (by default a wall in the middle of the domain, standing on the ground:
+        its foot follows the top of the bodies and structures there, never inside them) and select
+        it; its index."""
         if polygon is None:
             origin = self.doc.get("domain.origin_m", [0.0, 0.0])
             size = self.doc.get("domain.size_m", [1.0, 1.0])
@@ -112,9 +133,19 @@ class StructuresPanel(PolygonPanel):
             try:
                 x0 = float(origin[0]) + round(float(size[0]) / 2.0 / float(cell)) * float(cell)
                 y0, width, height = float(origin[1]), 2.0 * float(cell), float(size[1]) / 4.0
+                y_top = float(origin[1]) + float(size[1])
             except (TypeError, ValueError, IndexError, ZeroDivisionError):
-                x0, y0, width, height = 0.0, 0.0, 0.1, 0.25
-            polygon = [[x0, y0], [x0 + width, y0], [x0 + width, y0 + height], [x0, y0 + height]]
+                x0, y0, width, height, y_top = 0.0, 0.0, 0.1, 0.25, 1.0
+            outlines = [item.get("polygon_m") or [] for kind in ("bodies", "structures")
+                        for item in (self.doc.get(kind) or []) if isinstance(item, dict)]
+            feet = []
+            for x in (x0, x0 + width):
+                ground = surface_at(outlines, x)
+                feet.append(y0 if ground is None else max(y0, ground))
+            top = min(max(feet) + height, y_top)
+            if top <= max(feet):  # no room above the ground: a wall of what room there is
+                top = max(feet) + 0.5 * (y_top - max(feet)) if y_top > max(feet) else max(feet) + height
+            polygon = [[x0, feet[0]], [x0 + width, feet[1]], [x0 + width, top], [x0, top]]
         item = {"name": name or self.free_name("structure"), "polygon_m": [list(map(float, p)) for p in polygon],
                 "contact": contact}
         self.doc.edit(f"add structure {item['name']}", lambda d: d.setdefault("structures", []).append(item))
@@ -160,7 +191,7 @@ class TargetsPanel(Panel):
         box = QGroupBox("Add a target")
         row = QHBoxLayout(box)
         self.new_kind = QComboBox()
-        self.new_kind.addItems(["vertical line", "point"])
+        self.new_kind.addItems(list(TARGET_KINDS))
         self.new_kind.setAccessibleName("New target kind")
         self.new_kind.currentTextChanged.connect(lambda t: self.new_y.setEnabled(t == "point"))
         self.new_x = QLineEdit()
@@ -178,11 +209,19 @@ class TargetsPanel(Panel):
 
         box, form = _form("Selected target")
         self.name = TextField(doc, None, "Target name")
+        self.kind = QComboBox()
+        self.kind.addItems(list(TARGET_KINDS))
+        self.kind.setAccessibleName("Target kind")
+        self.kind.setToolTip("The selected target's kind: choosing the other one turns it into that kind at the "
+                             "same x (a point at the ground there)")
+        self.kind.activated.connect(lambda _i: self.set_kind(self.kind.currentText()))
         self.x = NumberField(doc, None, "Target x", "m")
         self.point = PairField(doc, None, "Target point", "m", names=("x", "y"))
         form.addRow("Name", self.name)
+        form.addRow("Kind", self.kind)
         form.addRow("Line at x", self.x)
         form.addRow("Point", self.point)
+        self.target_form = form
         self.layout_.addWidget(box)
         self.remove_button = QPushButton("Remove")
         self.remove_button.clicked.connect(self.remove_target)
@@ -235,6 +274,11 @@ class TargetsPanel(Panel):
             self.name.set_path(f"{base}.name" if base else None)
             self.x.set_path(f"{base}.x_m" if base and not is_point else None)
             self.point.set_path(f"{base}.point_m" if is_point else None)
+            # the form is the selected target's: its kind, and only the row of that kind
+            self.kind.setCurrentText(TARGET_KINDS[1] if is_point else TARGET_KINDS[0])
+            self.kind.setEnabled(base is not None)
+            self.target_form.setRowVisible(self.x, base is None or not is_point)
+            self.target_form.setRowVisible(self.point, base is None or is_point)
             if base is None or is_point:
                 self.x.edit.setText("")
             if not is_point:
@@ -262,6 +306,37 @@ class TargetsPanel(Panel):
             return
         self.show_message("")
         self.add_target(x, y)
+        # the next target starts from the default again: neither this one's kind nor its y carries over
+        self.new_kind.setCurrentText(TARGET_KINDS[0])
+        self.new_x.clear()
+        self.new_y.clear()
+
+    def set_kind(self, kind: str) -> bool:
+        """Make the selected target a vertical line or a point (at the ground at its x, else at
+        mid-height of the domain), as one undo step."""
+        sel = self.selected
+        if sel is None or kind not in TARGET_KINDS:
+            return False
+        target = dict(self._targets()[sel])
+        point = target.get("point_m")
+        if (kind == TARGET_KINDS[1]) == isinstance(point, list):
+            return False
+        if kind == TARGET_KINDS[0]:
+            target.pop("point_m", None)
+            target["x_m"] = float(point[0])
+        else:
+            x = float(target.pop("x_m", 0.0))
+            outlines = [b.get("polygon_m") or [] for b in (self.doc.get("bodies") or []) if isinstance(b, dict)]
+            ground = surface_at(outlines, x)
+            if ground is None:
+                origin, size = self.doc.get("domain.origin_m", [0.0, 0.0]), self.doc.get("domain.size_m", [1.0, 1.0])
+                ground = float(origin[1]) + float(size[1]) / 2.0
+            target["point_m"] = [x, float(ground)]
+
+        def mutate(d: dict[str, Any]) -> None:
+            d["targets"][sel] = target
+
+        return self.doc.edit(f"make target {target.get('name', sel)} a {kind}", mutate)
 
     def add_target(self, x_m: float, y_m: float | None = None, name: str | None = None) -> int:
         """Add a vertical line at ``x_m`` (or the point ``(x_m, y_m)``) and select it; its index."""

@@ -349,3 +349,58 @@ def test_the_strength_reduction_stage_has_its_settings(window, tmp_path):
     assert doc.get("stages.2.strength_factor") == 1.2 and doc.project is not None
     stages.select(0)
     assert not stages.strength_factor.isEnabled() and not stages.stage_form.isRowVisible(stages.strength_factor)
+
+
+# -- a new wall stands on the ground --------------------------------------------------------------
+
+def test_add_wall_stands_on_the_ground_not_in_the_soil(window, tiny_file):
+    window.open_project(tiny_file)
+    # soil over the base right of the column, 0.1 m deep, rising to 0.14 m at the right end
+    window.doc.edit("soil", lambda d: d["bodies"].append(
+        {"name": "soil", "material": "sand", "polygon_m": [[0.12, 0.0], [0.6, 0.0], [0.6, 0.14], [0.12, 0.1]]}))
+    seeded = len(window.doc.seeded_run().particles.positions_m)
+    index = window.structures_panel.add_structure()
+    wall = np.array(window.doc.get(f"structures.{index}.polygon_m"))
+    assert wall[:, 0].min() == pytest.approx(0.3) and wall[:, 0].max() == pytest.approx(0.34)
+    ground = [0.1 + (x - 0.12) * 0.04 / 0.48 for x in (0.3, 0.34)]
+    assert wall[0, 1] == pytest.approx(ground[0]) and wall[1, 1] == pytest.approx(ground[1])  # on the surface
+    assert wall[:, 1].max() == pytest.approx(max(ground) + 0.075)  # a quarter of the domain high
+    assert len(window.doc.seeded_run().particles.positions_m) == seeded  # it took no particle of the soil
+    assert window.doc.problems == []
+    window.doc.undo_stack.undo()
+    window.doc.edit("no soil", lambda d: d["bodies"].pop())
+    bare = np.array(window.doc.get(f"structures.{window.structures_panel.add_structure()}.polygon_m"))
+    assert bare[0, 1] == 0.0 and bare[1, 1] == 0.0  # on the base where nothing lies
+
+
+# -- targets: the form is the selected target's, the next one starts afresh ----------------------
+
+def test_the_target_forms_follow_the_target_not_the_last_one(window, tiny_file):
+    window.open_project(tiny_file)
+    panel = window.targets_panel
+    panel.new_kind.setCurrentText("point")
+    panel.new_x.setText("0.3")
+    panel.new_y.setText("0.01")
+    panel._add_typed()
+    assert window.doc.get("targets.0.point_m") == [0.3, 0.01]
+    # the Add form does not keep the point's kind or its y for the next target
+    assert panel.new_kind.currentText() == "vertical line" and not panel.new_y.isEnabled()
+    assert panel.new_x.text() == "" and panel.new_y.text() == ""
+    panel.new_x.setText("0.4")
+    panel._add_typed()
+    assert window.doc.get("targets.1") == {"name": "target-2", "x_m": 0.4}
+    # the selected target's form shows its kind and only its row
+    assert panel.kind.currentText() == "vertical line"
+    assert panel.target_form.isRowVisible(panel.x) and not panel.target_form.isRowVisible(panel.point)
+    window.doc.selection.select("targets", 0)
+    assert panel.kind.currentText() == "point"
+    assert panel.target_form.isRowVisible(panel.point) and not panel.target_form.isRowVisible(panel.x)
+    # and turns a target into the other kind, as one undo step
+    assert panel.set_kind("vertical line")
+    assert window.doc.get("targets.0") == {"name": "target-1", "x_m": 0.3}
+    assert panel.kind.currentText() == "vertical line" and panel.x.edit.text() == "0.3"
+    window.doc.selection.select("targets", 1)
+    assert panel.set_kind("point")
+    assert window.doc.get("targets.1.point_m") == [0.4, 0.15]  # at mid-height: no body reaches x = 0.4
+    window.doc.undo_stack.undo()
+    assert window.doc.get("targets.1") == {"name": "target-2", "x_m": 0.4}
