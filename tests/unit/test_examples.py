@@ -15,7 +15,7 @@ from projects.document import dumps_project, load_project, loads_project, save_p
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "projects" / "examples"
 NAMES = ["bui2008_aluminium_bars", "sand_column", "slope_sun_song_2015", "tiny_column", "slope_fos", "debris_barrier",
-         "reservoir_drawdown", "rain_water_table"]
+         "reservoir_drawdown", "rain_water_table", "sensitive_clay_spread"]
 PAPER_SCENES = NAMES[:3]
 
 
@@ -127,3 +127,26 @@ def test_tiny_column_is_tiny():
     assert 100 <= len(run.particles) <= 500
     assert e["simulated_time_s"] == 0.05 and e["steps"] <= 500
     assert [s.kind for s in run.config.stages] == ["k0", "dynamic"]
+
+
+def test_sensitive_clay_spread_softens_regularised_and_stands_at_peak_on_paper():
+    project, run = particles_of("sensitive_clay_spread")
+    from projects.checks import project_warnings
+
+    clay = project.materials["sensitive_clay"]
+    assert clay.softening_law == "linear" and clay.friction_angle_deg == 0.0
+    assert clay.cohesion_pa / clay.residual_cohesion_pa == pytest.approx(6.25)
+    # regularised with a length of at least the cell size: no softening warning
+    assert clay.softening_length_m >= project.domain.cell_size_m
+    assert not [w for w in project_warnings(project) if "soften" in w]
+    # the trigger remoulds the toe only, to the clay's residual strength
+    [trigger] = [s for s in project.stages if s.material_changes]
+    assert set(trigger.material_changes) == {"toe"}
+    assert trigger.material_changes["toe"].cohesion_pa == clay.residual_cohesion_pa
+    # gamma H / c_p = 7.2: a vertical scarp of the bank's 10 m height stands at peak only below
+    # 3.83 c_p / gamma = 5.3 m (Taylor), so each scarp the slides leave fails in turn
+    height = max(y for _, y in project.bodies[1].polygon_m)
+    gamma = clay.density_kg_m3 * 9.81
+    assert gamma * height / clay.cohesion_pa == pytest.approx(7.2, rel=0.01)
+    assert 3.83 * clay.cohesion_pa / gamma < height
+    assert 6_000 < len(run.particles) < 10_000
