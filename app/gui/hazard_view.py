@@ -129,6 +129,7 @@ class HazardView(QWidget):
         self.doc: dict[str, Any] | None = None
         self._stamp: float | None = None
         self.last_report: Path | None = None
+        self.report_opened: bool | None = None  # whether a browser took the last report
         self.header = QLabel("Open a results folder with hazard files (a run with a dynamic stage).")
         self.header.setWordWrap(True)
         self.header.setStyleSheet("padding: 3px; color: #3c4043;")
@@ -138,6 +139,14 @@ class HazardView(QWidget):
         top = QHBoxLayout()
         top.addWidget(self.header, 1)
         top.addWidget(self.export_button)
+        #: where the last report went, stays on view (the browser it opens in covers the window)
+        self.report_label = QLabel("")
+        self.report_label.setTextFormat(Qt.TextFormat.RichText)
+        self.report_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextBrowserInteraction)
+        self.report_label.setOpenExternalLinks(True)
+        self.report_label.setWordWrap(True)
+        self.report_label.setStyleSheet("padding: 0 3px 3px 3px; color: #3c4043;")
+        self.report_label.setVisible(False)
 
         # constrained: the legend above the plots takes its room from them (_draw)
         self.figure = Figure(figsize=(8.0, 9.0), layout="constrained")
@@ -181,12 +190,14 @@ class HazardView(QWidget):
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         layout.addLayout(top)
+        layout.addWidget(self.report_label)
         layout.addWidget(split, 1)
         self.export_button.clicked.connect(self.export_and_open)
 
     # -- reading ----------------------------------------------------------------------------------
 
     def clear(self, text: str = "") -> None:
+        self.report_label.setVisible(False)
         self.path = None
         self.doc = None
         self._stamp = None
@@ -231,6 +242,8 @@ class HazardView(QWidget):
         except (OSError, ValueError, KeyError) as err:
             self.clear(f"Cannot read the hazard files of {p}: {err}")
             return False
+        if self.path != p:
+            self.report_label.setVisible(False)  # the report named there is another folder's
         self.path, self.doc, self._stamp = p, doc, stamp
         scene = None
         structures = results.summary.get("structures") if results is not None else None
@@ -363,15 +376,35 @@ class HazardView(QWidget):
         finally:
             QApplication.restoreOverrideCursor()
         self.last_report = html
+        self.show_report_place(html)
         self.message.emit(f"Wrote {html}")
         return html
+
+    def show_report_place(self, html: Path, opened: bool | None = None) -> None:
+        """Say where the report is, in the tab, until another folder is shown: the file (a link
+        that opens it) and its folder (a link that opens the folder)."""
+        from html import escape
+
+        file_url = QUrl.fromLocalFile(str(html)).toString()
+        folder_url = QUrl.fromLocalFile(str(html.parent)).toString()
+        note = "" if opened is None else (" (opened in the web browser)" if opened else
+                                          " (no web browser could be opened here: open the file in one)")
+        self.report_label.setText(f"Report written to <a href=\"{escape(file_url)}\">{escape(str(html))}</a>"
+                                  f"{escape(note)} · <a href=\"{escape(folder_url)}\">open its folder</a>")
+        self.report_label.setToolTip(str(html))
+        self.report_label.setVisible(True)
+        self.report_opened = opened
 
     def open_report(self, html: Path) -> bool:
         return QDesktopServices.openUrl(QUrl.fromLocalFile(str(html)))
 
     def export_and_open(self) -> Path | None:
         html = self.export_report()
-        if html is not None and not self.open_report(html):
+        if html is None:
+            return None
+        opened = self.open_report(html)
+        self.show_report_place(html, opened)
+        if not opened:
             # no browser to hand it to (no desktop launcher): say where the report is
             self.message.emit(f"Wrote {html}; no web browser could be opened here: open that file in one")
         return html

@@ -1156,7 +1156,11 @@ class MainWindow(QMainWindow):
             self.show_error("Export hazard report", f"{results.path} has no hazard files: the run wrote no "
                             "hazard envelopes (hazard.enabled = false, or no dynamic stage ran).")
             return None
-        return self.hazard_view.export_and_open()
+        html = self.hazard_view.export_and_open()
+        if html is not None:  # said where it went, also after the browser came and went
+            lost = "" if self.hazard_view.report_opened else "; no web browser could be opened here: open that file in one"
+            self.statusBar().showMessage(f"Hazard report written to {html}{lost}")
+        return html
 
     def sweep_dialog(self) -> bool:
         """Define a sweep or calibration of the open project, write its file and start it."""

@@ -404,3 +404,24 @@ def test_the_target_forms_follow_the_target_not_the_last_one(window, tiny_file):
     assert window.doc.get("targets.1.point_m") == [0.4, 0.15]  # at mid-height: no body reaches x = 0.4
     window.doc.undo_stack.undo()
     assert window.doc.get("targets.1") == {"name": "target-2", "x_m": 0.4}
+
+
+# -- export report says where it wrote -----------------------------------------------------------
+
+def test_export_report_says_where_it_wrote_and_keeps_saying_it(window, make_results, monkeypatch):
+    from tests.gui.test_analysis import write_hazard
+
+    path = make_results()
+    write_hazard(path)
+    window.open_results(path)
+    window.tabs.setCurrentWidget(window.results_view)  # exported from the Results tab (File menu)
+    monkeypatch.setattr(window.hazard_view, "open_report", lambda html: True)  # a browser took it
+    html = window.export_report_dialog()
+    assert html == path / "report" / "report.html"
+    label = window.hazard_view.report_label
+    assert label.isVisibleTo(window.hazard_view) and str(html) in label.text()
+    assert "open its folder" in label.text() and "opened in the web browser" in label.text()
+    assert window.statusBar().currentMessage() == f"Hazard report written to {html}"
+    window.open_results(make_results("other.results"))  # another folder: that report is not its own
+    window.hazard_view.show_results(window.results_view.results.path, window.results_view.results)
+    assert not label.isVisibleTo(window.hazard_view)
