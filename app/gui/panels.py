@@ -1119,6 +1119,7 @@ class StagesPanel(Panel):
         self.layout_.addWidget(box)
 
         box = QGroupBox("Material changes at the start of this stage")
+        self.changes_box = box  # none on a strength-reduction stage: its trials reduce the strengths
         vbox = QVBoxLayout(box)
         self.changes = QTableWidget(0, 3)
         self.changes.setHorizontalHeaderLabels(["Material", "Property", "New value"])
@@ -1149,8 +1150,17 @@ class StagesPanel(Panel):
         self.change_set.clicked.connect(self._set_change)
         self.change_remove = QPushButton("Remove")
         self.change_remove.clicked.connect(self._remove_change)
-        for w in (self.change_material, self.change_key, self.change_value, self.change_set, self.change_remove):
-            row.addWidget(w)
+        # two rows: what changes, then its value, so that the box fits the dock at the window's
+        # default size (one row of five was 520 px wide and cut off Remove and the value field)
+        self.change_key.setSizeAdjustPolicy(QComboBox.SizeAdjustPolicy.AdjustToMinimumContentsLengthWithIcon)
+        self.change_key.setMinimumContentsLength(12)
+        row.addWidget(self.change_material)
+        row.addWidget(self.change_key, 1)
+        vbox.addLayout(row)
+        row = QHBoxLayout()
+        row.addWidget(self.change_value, 1)
+        row.addWidget(self.change_set)
+        row.addWidget(self.change_remove)
         vbox.addLayout(row)
         self.layout_.addWidget(box)
         self.watch(self.name, self.duration, self.k0, self.damping, self.stop_ke, self.stop_speed, self.min_duration,
@@ -1210,6 +1220,7 @@ class StagesPanel(Panel):
         self.limit_equilibrium.setEnabled(reduction)
         self.limit_equilibrium.blockSignals(False)
         self.strength_box.setVisible(reduction)
+        self.changes_box.setVisible(not reduction)
         # rows a stage of this type has no key for are hidden, not greyed out
         rows = {self.duration: timed, self.ramp: kind == "gravity", self.k0: kind == "k0",
                 self.damping: timed or reduction, self.stop_ke: dynamic, self.stop_speed: dynamic,

@@ -425,3 +425,25 @@ def test_export_report_says_where_it_wrote_and_keeps_saying_it(window, make_resu
     window.open_results(make_results("other.results"))  # another folder: that report is not its own
     window.hazard_view.show_results(window.results_view.results.path, window.results_view.results)
     assert not label.isVisibleTo(window.hazard_view)
+
+
+# -- the left panel at the window's default size -------------------------------------------------
+
+def test_every_project_panel_fits_the_dock_at_the_default_window_size(window, qtbot):
+    from app.gui.main_window import MainWindow
+    from tests.gui.conftest import EXAMPLES
+
+    window.resize(*MainWindow.DEFAULT_SIZE)
+    qtbot.wait(50)
+    cut = []
+    for example in ("tiny_column", "debris_barrier", "slope_fos"):
+        window.open_project(EXAMPLES / f"{example}.toml", ask=False)
+        for stage in range(len(window.doc.get("stages"))):
+            window.stages_panel.select(stage)
+            for i in range(window.panels.count()):
+                window.panels.setCurrentIndex(i)
+                panel = window.panels.widget(i)
+                need, have = panel.widget().minimumSizeHint().width(), panel.viewport().width()
+                if need > have:
+                    cut.append(f"{example}, stage {stage}, {window.panels.tabText(i)}: {need} px in {have}")
+    assert cut == []
