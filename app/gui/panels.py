@@ -69,6 +69,7 @@ from projects.schema import (
     DEFAULT_DAMPING_MODEL,
     DEFAULT_MOHR_COULOMB_MATCH,
     FIRST_TRIALS,
+    INERTIAL_KEYS,
     MATERIAL_MODELS,
     MOHR_COULOMB_MATCHES,
     OUTPUT_FIELDS,
@@ -486,7 +487,7 @@ class MaterialsPanel(Panel):
             table = d["materials"][name]
             table["model"] = model
             if model == "linear-elastic":
-                for key in (*PLASTIC_KEYS, "mohr_coulomb_match", "softening_law"):
+                for key in (*PLASTIC_KEYS, "mohr_coulomb_match", "softening_law", *INERTIAL_KEYS):
                     table.pop(key, None)
                 for stage in d.get("stages", []):
                     change = stage.get("material_changes", {}).get(name)
