@@ -4,8 +4,9 @@
 Neither Ray nor Taichi enters the workbench: the child schedules the runs; the workbench rereads
 ``progress.json`` and ``sweep.csv`` (or ``calibration.csv``) every second
 (:func:`sweeps.folder.read_sweep`, :func:`sweeps.calibrate.read_calibration`) and draws, from the
-runs completed so far, the exceedance curve of a measure (with its DKW band) and the probability
-profile along the section (with Wilson bands), with :mod:`sweeps.analysis` (numpy and scipy). A
+runs completed so far, the exceedance curve of a measure (with its DKW band), the measure against
+a parameter (each completed run a point) and the probability profile along the section (with
+Wilson bands), with :mod:`sweeps.analysis` (numpy and scipy). A
 calibration shows its trials with their misfit and the misfit against each parameter.
 A folder written earlier, or by ``runout sweep`` on the command line, opens the same way
 (File ▸ Open sweep).
@@ -107,11 +108,16 @@ class SweepView(QWidget):
         self.table.setToolTip("Double-click a completed run to open its results")
         self.table.cellDoubleClicked.connect(self._open_run)
         self.measure = QComboBox()
-        self.measure.setToolTip("The measure whose exceedance curve is drawn")
+        self.measure.setToolTip("The measure whose exceedance curve is drawn, and against the parameter")
         self.measure.currentTextChanged.connect(lambda _t: self._draw())
+        self.parameter = QComboBox()
+        self.parameter.setToolTip("The parameter the measure is drawn against (each completed run a point)")
+        self.parameter.currentTextChanged.connect(lambda _t: self._draw())
         mrow = QHBoxLayout()
-        mrow.addWidget(QLabel("Exceedance of"))
+        mrow.addWidget(QLabel("Measure"))
         mrow.addWidget(self.measure, 1)
+        mrow.addWidget(QLabel("against"))
+        mrow.addWidget(self.parameter, 1)
         self.figure = Figure(figsize=(9.0, 3.6))
         self.canvas = FigureCanvasQTAgg(self.figure)
         self.canvas.setMinimumHeight(220)
@@ -363,6 +369,14 @@ class SweepView(QWidget):
             preferred = next((m for m in measures if m.endswith("runout_distance_m")), measures[0] if measures else "")
             self.measure.setCurrentText(preferred)
         self.measure.blockSignals(False)
+        chosen = self.parameter.currentText()
+        self.parameter.blockSignals(True)
+        self.parameter.clear()
+        self.parameter.addItems(list(data.parameters))
+        if chosen in data.parameters:
+            self.parameter.setCurrentText(chosen)
+        self.parameter.blockSignals(False)
+        self.parameter.setVisible(self.kind == "sweep")
 
     def _open_run(self, row: int, _column: int) -> None:
         if self.data is None or row >= len(self.data.rows):
@@ -386,6 +400,23 @@ class SweepView(QWidget):
             return None
         return exceedance(self.data.column(self.measure.currentText()))
 
+    def measure_against_parameter(self) -> tuple[str, np.ndarray, np.ndarray] | None:
+        """The chosen measure of each completed run against the chosen parameter, sorted by the
+        parameter: ``(parameter, values, measures)`` (None without a sweep, a measure or a parameter).
+        A sweep of a few values (a list, a range, a grid) reads here, where its exceedance curve of
+        three samples says little."""
+        if self.data is None or self.kind != "sweep" or not self.measure.currentText() \
+                or not self.parameter.currentText():
+            return None
+        key = self.parameter.currentText()
+        x = np.asarray(self.data.column(key), dtype=float)
+        y = np.asarray(self.data.column(self.measure.currentText()), dtype=float)
+        if len(x) != len(y):
+            return None
+        ok = np.isfinite(x) & np.isfinite(y)
+        order = np.argsort(x[ok], kind="stable")
+        return key, x[ok][order], y[ok][order]
+
     def probability_profile(self) -> Any:
         """The probability profile of the completed runs (or None without a [profile])."""
         from sweeps.analysis import probability_profile
@@ -403,7 +434,7 @@ class SweepView(QWidget):
         if self.kind == "calibration":
             self._draw_calibration()
             return
-        left, right = fig.subplots(1, 2)
+        left, middle, right = fig.subplots(1, 3)
         ex = self.exceedance()
         name = self.measure.currentText()
         if ex is not None and ex.n:
@@ -421,6 +452,17 @@ class SweepView(QWidget):
         left.set_xlabel(name, fontsize=8)
         left.set_ylabel("probability of exceedance", fontsize=8)
         left.set_title("Exceedance curve", fontsize=9)
+        against = self.measure_against_parameter()
+        if against is not None and len(against[1]):
+            key, xs_p, ys_p = against
+            middle.plot(xs_p, ys_p, "o-", color="tab:green", ms=5, lw=1, label=f"{len(xs_p)} completed runs")
+            middle.legend(fontsize=7)
+            middle.set_xlabel(key, fontsize=8)
+        else:
+            middle.text(0.5, 0.5, "no completed run yet" if self.data.parameters else "no parameter",
+                        ha="center", va="center", transform=middle.transAxes)
+        middle.set_ylabel(name, fontsize=8)
+        middle.set_title("Measure against parameter", fontsize=9)
         prof = self.probability_profile()
         field = self.data.profile_field()
         if prof is not None and prof.n:
@@ -428,7 +470,9 @@ class SweepView(QWidget):
                 line, = right.plot(prof.x_m, prof.p[k], label=f"{field} > {t:g}")
                 right.fill_between(prof.x_m, prof.lower[k], prof.upper[k], color=line.get_color(), alpha=0.15)
             right.legend(fontsize=7)
-            right.set_title(f"Probability profile ({prof.n} runs, Wilson 95 %)", fontsize=9)
+            right.set_title(f"Probability profile ({prof.n} runs)", fontsize=9)
+            right.text(0.98, 0.02, "bands: Wilson 95 %", ha="right", va="bottom", fontsize=7, color="#5f6368",
+                       transform=right.transAxes)
         else:
             right.text(0.5, 0.5, "no profile" if not field else "no completed run yet", ha="center", va="center",
                        transform=right.transAxes)
@@ -436,10 +480,10 @@ class SweepView(QWidget):
         right.set_ylim(-0.02, 1.02)
         right.set_xlabel("x (m)", fontsize=8)
         right.set_ylabel("probability", fontsize=8)
-        for a in (left, right):
+        for a in (left, middle, right):
             a.tick_params(labelsize=8)
             a.grid(True, color="#e6e6e6", linewidth=0.6)
-        fig.subplots_adjust(left=0.07, right=0.98, top=0.9, bottom=0.16, wspace=0.25)
+        fig.subplots_adjust(left=0.06, right=0.99, top=0.9, bottom=0.16, wspace=0.32)
         self.canvas.draw_idle()
 
     def _draw_calibration(self) -> None:

@@ -407,8 +407,9 @@ def test_the_sweep_tab_lists_runs_and_draws_exceedance_and_probability_profile(w
     assert prof.n == 3
     expected = [sum(xx <= d for d in (0.1, 0.2, 0.3)) / 3 for xx in prof.x_m]
     assert np.allclose(prof.p[0], expected)
-    left, right = view.figure.axes
+    left, middle, right = view.figure.axes
     assert left.get_title() == "Exceedance curve" and "3 runs" in right.get_title()
+    assert middle.get_title() == "Measure against parameter"
     # a run completes: the next poll shows it
     write_sweep(tmp_path / "s2.sweep", [0.1, 0.2, 0.3, 0.4, 0.5], ["completed"] * 5)
     for name in ("sweep.csv", "progress.json"):

@@ -447,3 +447,22 @@ def test_every_project_panel_fits_the_dock_at_the_default_window_size(window, qt
                 if need > have:
                     cut.append(f"{example}, stage {stage}, {window.panels.tabText(i)}: {need} px in {have}")
     assert cut == []
+
+
+# -- a sweep of a few values: the measure against the parameter ---------------------------------
+
+def test_a_three_value_sweep_plots_the_measure_against_the_parameter(window, tmp_path):
+    from tests.gui.test_analysis import write_sweep
+
+    folder = tmp_path / "three.sweep"
+    write_sweep(folder, [0.3, 0.1, 0.2], ["completed"] * 3)  # friction 25, 26, 27 degrees
+    assert window.open_sweep(folder)
+    view = window.sweep_view
+    assert view.parameter.currentText() == "materials.sand.friction_angle_deg"
+    key, x, y = view.measure_against_parameter()
+    assert key == "materials.sand.friction_angle_deg"
+    assert np.allclose(x, [25, 26, 27]) and np.allclose(y, [0.3, 0.1, 0.2])
+    middle = next(a for a in view.figure.axes if a.get_title() == "Measure against parameter")
+    line = middle.get_lines()[0]
+    assert np.allclose(line.get_xdata(), [25, 26, 27]) and np.allclose(line.get_ydata(), [0.3, 0.1, 0.2])
+    assert middle.get_xlabel() == key and middle.get_ylabel() == "hazard.runout_distance_m"
