@@ -618,6 +618,8 @@ class Contacts:
             body = F @ (m * g)
             if ti.static(e.wet):
                 body += F @ e.water_force(vol, wet)
+            if ti.static(e.loaded):
+                body += F @ e.loads.force(p)
             # only where the particle's stencil reaches a contact node of this structure
             base, fx, w, dw = e._stencil(x)
             held = 0.0

@@ -24,8 +24,9 @@ Components, chosen once at construction, add their stages to the recipe and are 
 method's stages (each in its own module): ``contact`` (solver.contact: the contact law of the
 closed sides and the structures, their normals, mirror images and the contact tally), ``walls``
 (solver.walls: the closed sides as mirror planes and a friction side's wall columns),
-``periodic`` (solver.periodic: periodic left and right sides) and ``damping`` (solver.damping:
-the materials' damping stress and local damping). :attr:`Engine.recipe` lists the step's stages.
+``periodic`` (solver.periodic: periodic left and right sides), ``damping`` (solver.damping:
+the materials' damping stress and local damping) and ``loads`` (solver.loads: the surcharges'
+forces on the surface particles, added where the weight is). :attr:`Engine.recipe` lists the step's stages.
 
 The particle passes (P2G; stress and force for mpm and apic) are written per particle
 (``_update_particle``: the particle's own constitutive update; ``_add_particle``: its shares to
@@ -104,7 +105,7 @@ class Engine:
                  np_float=np.float32, speed_bound_m_s: float = 1e30, remove_unstable: bool = False,
                  damping: bool = True, scatter: str = "auto", bands: int | None = None,
                  structures: tuple[Structure, ...] = (), viscous: bool | None = None, water=None,
-                 softening: bool | None = None, volumetric_averaging: bool = False):
+                 softening: bool | None = None, volumetric_averaging: bool = False, loads=None):
         if scheme not in ("mpm", "apic", "apic-affine"):
             raise ValueError(f"unknown scheme {scheme!r}; allowed: mpm, apic, apic-affine")
         self.scheme = scheme
@@ -157,6 +158,9 @@ class Engine:
         #: None: dry, and none of it is compiled in)
         self.water = water
         self.wet = water is not None
+        #: surcharges (solver.loads.Loads, built by the caller where a run has one; None: none compiled in)
+        self.loads = loads
+        self.loaded = loads is not None
         self.structures = self.contact.structures
         self.n_structures = self.contact.n_structures
         self.n_contacts = self.contact.n_contacts
@@ -333,6 +337,7 @@ class Engine:
         if self.six_stage:  # mpm, apic: MPM-APIC's six stages
             stages = (
                 ("ground water", self.water_step, self.wet),
+                ("surcharges", self.loads_step, self.loaded),
                 ("reset grid", self.reset_grid, True),                           # 1
                 ("corner normals", c.material_normals, c.has_zone),
                 ("P2G momentum", self.p2g_momentum, True),                      # 2: eqs 14-15
@@ -356,6 +361,7 @@ class Engine:
         else:  # apic-affine: improved MPM-APIC's four stages
             stages = (
                 ("ground water", self.water_step, self.wet),
+                ("surcharges", self.loads_step, self.loaded),
                 ("reset grid", self.reset_grid, True),                           # 1
                 ("corner normals", c.material_normals, c.has_zone),
                 ("volumetric average", self.average_dilatation, self.averaging),
@@ -400,6 +406,12 @@ class Engine:
         """The ground water's lines moved on by the step, and the step's gravity for its pressure."""
         for _ in range(1):
             self.water.begin_step(dt, g)
+
+    @ti.func
+    def loads_step(self, dt, g, damping, damped: ti.template()):
+        """The surcharges' forces moved on by the step (solver.loads)."""
+        for _ in range(1):
+            self.loads.begin_step(dt)
 
     @ti.func
     def reset_grid(self, dt, g, damping, damped: ti.template()):
@@ -642,6 +654,8 @@ class Engine:
         buoyant = ti.Vector.zero(float, 2)
         if ti.static(self.wet):
             buoyant = self.water_force(vol, wet)
+        if ti.static(self.loaded):
+            buoyant += self.loads.force(p)  # a surcharge's share (solver.loads), spread as the weight is
         mv = m * self.v[p]
         mC = m * self.C[p]
         for i, j in ti.static(ti.ndrange(3, 3)):
@@ -650,7 +664,7 @@ class Engine:
             weight = w[i][0] * w[j][1]
             grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
             force = -vol * mat_vec(sig, grad) + weight * m * g
-            if ti.static(self.wet):
+            if ti.static(self.wet or self.loaded):
                 force += weight * buoyant
             I = base + offset
             self.to_grid.add(self.g_mass, I, weight * m)
@@ -751,11 +765,13 @@ class Engine:
         buoyant = ti.Vector.zero(float, 2)
         if ti.static(self.wet):
             buoyant = self.water_force(vol, wet)
+        if ti.static(self.loaded):
+            buoyant += self.loads.force(p)  # a surcharge's share (solver.loads)
         for i, j in ti.static(ti.ndrange(3, 3)):
             weight = w[i][0] * w[j][1]
             grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
             force = -vol * mat_vec(sig, grad) + weight * m * g
-            if ti.static(self.wet):
+            if ti.static(self.wet or self.loaded):
                 force += weight * buoyant
             self.to_grid.add(self.g_f, base + ti.Vector([i, j]), force)
 

@@ -127,6 +127,8 @@ class MirrorWalls:
                     force = -vol * mat_vec(sig, grad) + wx * wy * m * g
                     if ti.static(e.wet):
                         force += wx * wy * e.water_force(vol, wet)
+                    if ti.static(e.loaded):
+                        force += wx * wy * e.loads.force(p)
                     I = base + ti.Vector([i, j])
                     # atomic where threads share the pass: few particles get here. In the split
                     # scatter a ghost node, like any node, belongs to one band.
