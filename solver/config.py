@@ -381,6 +381,68 @@ class Water:
 
 
 @dataclass(frozen=True)
+class Surcharge:
+    """A distributed load on the ground surface (solver/loads.py, docs/solver.md, loads).
+
+    It acts along gravity on the uppermost particles (highest y) of the ground between
+    ``x = from_m`` and ``x = to_m`` (project coordinates, ``from_m < to_m``), ``pressure_pa`` at
+    ``from_m`` and ``pressure_end_pa`` at ``to_m`` (None: ``pressure_pa`` throughout), linear
+    between them, per unit length of x (with gravity along -y: per horizontal area, a fill's
+    ``gamma t``). It is a force, not a mass: it has no inertia and no seismic share. The particles
+    under it at the start of a stage carry it, wherever they move.
+    """
+
+    name: str
+    from_m: float
+    to_m: float
+    pressure_pa: float
+    pressure_end_pa: float | None = None
+
+    def pressure_at(self, x_m):
+        """The pressure at ``x_m`` (Pa; linear between the ends, the end values beyond them)."""
+        end = self.pressure_pa if self.pressure_end_pa is None else self.pressure_end_pa
+        t = np.clip((np.asarray(x_m, dtype=np.float64) - self.from_m) / (self.to_m - self.from_m), 0.0, 1.0)
+        return self.pressure_pa + t * (end - self.pressure_pa)
+
+    @property
+    def force_n_per_m(self) -> float:
+        """The load's resultant, N per metre out of plane: the pressure integrated over the segment."""
+        end = self.pressure_pa if self.pressure_end_pa is None else self.pressure_end_pa
+        return 0.5 * (self.pressure_pa + end) * (self.to_m - self.from_m)
+
+
+@dataclass(frozen=True)
+class Seismic:
+    """Pseudo-static seismic coefficients of a stage (docs/solver.md, loads).
+
+    The body force per unit mass is ``g + k_h |g| h + k_v |g| u``: ``u = -g / |g|`` points up,
+    ``h`` is horizontal (across gravity) with ``direction`` +1 along ``(u_y, -u_x)`` (+x when
+    gravity points along -y) and -1 against it. So a mass ``m`` feels ``k_h m |g|`` horizontally
+    and weighs ``(1 - k_v) m |g|``: ``k_v > 0`` is an upward inertial force.
+    """
+
+    k_h: float = 0.0
+    k_v: float = 0.0
+    direction: float = 1.0
+
+
+def body_force_m_s2(gravity_m_s2, seismic: Seismic | None) -> tuple[float, float]:
+    """The body force per unit mass of a stage (m/s2): gravity, with its seismic coefficients.
+
+    This is the one place where a stage's seismic coefficients enter the solver (the run's steps,
+    the strength-reduction trials). Without them, gravity itself (the same floats)."""
+    gx, gy = float(gravity_m_s2[0]), float(gravity_m_s2[1])
+    if seismic is None or (seismic.k_h == 0.0 and seismic.k_v == 0.0):
+        return (gx, gy)
+    gn = math.hypot(gx, gy)
+    if gn == 0.0:
+        return (gx, gy)
+    ux, uy = -gx / gn, -gy / gn
+    hx, hy = seismic.direction * uy, -seismic.direction * ux
+    return (gx + gn * (seismic.k_h * hx + seismic.k_v * ux), gy + gn * (seismic.k_h * hy + seismic.k_v * uy))
+
+
+@dataclass(frozen=True)
 class Stage:
     """One stage of the analysis.
 
@@ -414,6 +476,14 @@ class Stage:
     #: where the stage moves the ground water: linearly from its position at the stage's start to
     #: this one over ``duration_s`` (None: unchanged; at once in a k0 stage)
     water: Water | None = None
+    #: the surcharges in force during the stage (solver/loads.py): at once, or, in a gravity stage,
+    #: ramped up with gravity
+    surcharges: tuple[Surcharge, ...] = ()
+    #: a load that changes over the stage: the surcharges at its start, from which those of
+    #: ``surcharges`` are reached linearly over ``duration_s`` (None: at once)
+    surcharges_from: tuple[Surcharge, ...] | None = None
+    #: pseudo-static seismic coefficients (None: gravity alone)
+    seismic: Seismic | None = None
 
     @property
     def ramp_s(self) -> float:
@@ -508,6 +578,16 @@ class SimulationConfig:
         return (self.water is not None or any(st.water is not None for st in self.stages)
                 or any(m.ru > 0.0 for m in self.materials)
                 or any(m.ru > 0.0 for st in self.stages for m in (st.materials or ())))
+
+    @property
+    def has_surcharges(self) -> bool:
+        """Whether some stage has a surcharge (the load component is compiled in only then)."""
+        return any(st.surcharges or st.surcharges_from for st in self.stages)
+
+    @property
+    def has_seismic(self) -> bool:
+        """Whether some stage has seismic coefficients."""
+        return any(st.seismic is not None for st in self.stages)
 
 
 @dataclass(frozen=True, eq=False)

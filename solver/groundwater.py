@@ -33,11 +33,17 @@ class GroundWater:
         its magnitude, and depths are measured along its direction (also while a gravity stage
         ramps gravity up from zero)
     np_float : numpy float type of the run's precision (what the host writes into the fields)
+    seismic : some stage may have seismic coefficients: the water's pressure then stays that of
+        gravity alone (:meth:`set_seismic`); compiled in only then
     """
 
     def __init__(self, columns: int, origin_x_m: float, dx: float, materials: Sequence[Material],
-                 full_gravity_m_s2, np_float=np.float32):
+                 full_gravity_m_s2, np_float=np.float32, seismic: bool = False):
         self.np_float = np_float  # the fields' float type (the run's precision)
+        self.seismic = bool(seismic)
+        #: with seismic coefficients: 1 / (1 - k_v), which takes the step's body force back to gravity's
+        self.unseismic = ti.field(float, ())
+        self.unseismic[None] = 1.0
         self.columns = int(columns)
         self.origin_x = float(origin_x_m)
         self.dx = float(dx)
@@ -99,6 +105,16 @@ class GroundWater:
         self.fraction[None] = 0.0 if moving else 1.0
         self.rate[None] = 1.0 / duration_s if moving else 0.0
 
+    def set_seismic(self, seismic) -> None:
+        """The stage's seismic coefficients (solver.config.Seismic or None): the step's body force
+        then holds them, and the water's pressure is still that of gravity alone (pseudo-static
+        practice: the coefficients act on the masses, not on the pore pressure)."""
+        if not self.seismic:
+            if seismic is not None and (seismic.k_h != 0.0 or seismic.k_v != 0.0):
+                raise ValueError("this ground water was built without seismic support (seismic=False)")
+            return
+        self.unseismic[None] = 1.0 if seismic is None else 1.0 / (1.0 - seismic.k_v)
+
     def state(self) -> dict[str, np.ndarray]:
         """What a checkpoint keeps of the water's move (the lines themselves come from the stages)."""
         return {"fraction": np.array([self.fraction[None]], dtype=np.float64)}
@@ -112,7 +128,12 @@ class GroundWater:
     def begin_step(self, dt, g):
         """Move the lines on by one step and keep its gravity (once per step, from a serial loop)."""
         self.fraction[None] = ti.min(1.0, self.fraction[None] + self.rate[None] * dt)
-        self.g_now[None] = g
+        if ti.static(self.seismic):
+            # gravity alone: the body force's part along gravity without its (1 - k_v), and no k_h
+            d = ti.Vector(self.down)
+            self.g_now[None] = g.dot(d) * self.unseismic[None] * d
+        else:
+            self.g_now[None] = g
 
     @ti.func
     def at(self, x):

@@ -59,6 +59,7 @@ from solver.config import (
     Stage,
     Water,
     averages_volume,
+    body_force_m_s2,
     softens,
 )
 from solver.initial_stress import k0_stress
@@ -211,9 +212,12 @@ def validate(config: SimulationConfig, particles: Particles) -> None:
 class Simulation:
     """One analysis: builds the engine in the calling thread and advances it stage by stage."""
 
-    def __init__(self, config: SimulationConfig, particles: Particles, *, damping_support: bool = False):
+    def __init__(self, config: SimulationConfig, particles: Particles, *, damping_support: bool = False,
+                 surcharge_support: bool = False, seismic_support: bool = False):
         """``damping_support`` builds the engine for local damping even when no stage of the
-        configuration uses it (the steps of :meth:`advance` may)."""
+        configuration uses it (the steps of :meth:`advance` may); ``surcharge_support`` and
+        ``seismic_support`` build it for surcharges and seismic coefficients likewise
+        (:meth:`set_loads` may give them)."""
         validate(config, particles)
         self.config = config
         self.particles = particles
@@ -233,7 +237,14 @@ class Simulation:
             from solver.groundwater import GroundWater
 
             groundwater = GroundWater(local_grid.cells[0] + 1 + 2 * PAD, -PAD * local_grid.cell_size_m,
-                                      local_grid.cell_size_m, config.materials, config.gravity_m_s2, np_float)
+                                      local_grid.cell_size_m, config.materials, config.gravity_m_s2, np_float,
+                                      seismic=config.has_seismic or seismic_support)
+        # surcharges (solver/loads.py): compiled in only where the run has some
+        loads = None
+        if config.has_surcharges or surcharge_support:
+            from solver.loads import Loads
+
+            loads = Loads(len(particles), np_float)
         self.engine = Engine(
             local_grid, config.materials, len(particles), config.numerics.scheme, np_float,
             speed_bound_m_s=self.speed_bound_m_s, remove_unstable=config.numerics.guard == "remove",
@@ -246,7 +257,11 @@ class Simulation:
                 (float(x - self.origin_m[0]), float(y - self.origin_m[1])) for x, y in st.polygon_m))
                 for st in config.structures),
             water=groundwater,
+            loads=loads,
         )
+        #: the body force of the steps (m/s2): the stage's gravity with its seismic coefficients
+        #: (solver.config.body_force_m_s2); :meth:`advance` steps with it
+        self._body_force = tuple(float(v) for v in config.gravity_m_s2)
         #: the water's move in force: (start, end, duration) in the project's coordinates; the
         #: engine moves it on step by step (its ``water.fraction``)
         self._water_move: tuple[Water | None, Water | None, float] = (config.water, config.water, 0.0)
@@ -472,6 +487,8 @@ class Simulation:
             arrays.update({f"water/{k}": v for k, v in self.engine.water.state().items()})
         if self.envelopes is not None:  # a resumed run continues its envelopes
             arrays.update({f"envelopes/{k}": v for k, v in self.envelopes.state().items()})
+        if self.engine.loads is not None:  # the surcharges' forces and how far they have grown
+            arrays.update({f"loads/{k}": v for k, v in self.engine.loads.state().items()})
         return Checkpoint(run=run, arrays=arrays, fingerprint=self.fingerprint)
 
     def restore(self, checkpoint: Checkpoint) -> None:
@@ -494,6 +511,14 @@ class Simulation:
             table = stage.materials if stage.materials is not None else table
         if table != self._materials:
             self._load_materials(table)
+        if self.cursor.stage_index < len(self.config.stages):
+            stage = self.config.stages[self.cursor.stage_index]
+            self._body_force = body_force_m_s2(self.config.gravity_m_s2, stage.seismic)
+            if self.engine.water is not None:
+                self.engine.water.set_seismic(stage.seismic)
+        if self.engine.loads is not None:
+            self.engine.loads.load_state({k.split("/", 1)[1]: v for k, v in checkpoint.arrays.items()
+                                          if k.startswith("loads/")})
         if self.engine.water is not None and self.cursor.stage_index < len(self.config.stages):
             # the stage's water move, then how far it had gone (the engine's state holds it)
             self._start_water_move(self.cursor.stage_index)
@@ -624,7 +649,7 @@ class Simulation:
         e = self.engine
         c = self.cursor
         interval = cfg.output.interval_s
-        g_full = np.asarray(cfg.gravity_m_s2, dtype=float)
+        g_static = np.asarray(cfg.gravity_m_s2, dtype=float)
         n = len(self.particles)
         wall0 = time.perf_counter()
         self.status = "running"
@@ -641,6 +666,7 @@ class Simulation:
                     log.info("stage %r: material parameters changed", stage.name)
                 if e.water is not None:
                     self._start_water_move(index)
+                self._start_loads(stage)
                 if stage.kind == "k0":
                     now = e.state(("active", "x"))
                     stress = k0_stress(self.particles, self._materials, cfg.gravity_m_s2,
@@ -671,6 +697,7 @@ class Simulation:
             stage_end = c.stage_start_s + stage.duration_s
             if c.phase == "loop":
                 damping = stage.damping
+                g_full = np.asarray(body_force_m_s2(cfg.gravity_m_s2, stage.seismic), dtype=float)
                 while not c.reason and self.time_s < stage_end - 1e-12 * max(1.0, stage_end):
                     # step size: the configured one, landing exactly on outputs and the stage end
                     h = step_length(self.time_s, min(c.next_output_s, stage_end), c.dt_s)
@@ -678,8 +705,10 @@ class Simulation:
                         ramp = min(1.0, (self.time_s + h - c.stage_start_s) / stage.ramp_s)
                         gravity = g_full * ramp
                     else:
+                        ramp = 1.0
                         gravity = g_full
-                    self._gravity_now = gravity
+                    # the frames' pore pressure: the water's own gravity (no seismic share)
+                    self._gravity_now = g_static * ramp if stage.seismic is not None else gravity
                     e.step(h, (gravity[0], gravity[1]), damping)
                     if self.first_step_at is None:  # start-up ends here (kernels compiled or loaded)
                         self.first_step_at = time.perf_counter()
@@ -804,7 +833,9 @@ class Simulation:
     def advance(self, duration_s: float, *, damping: float = 0.0,
                 check: Callable[[float, dict], str | None] | None = None,
                 cancel: Callable[[], bool] | None = None) -> str:
-        """Step the current state for up to ``duration_s`` with full gravity, yielding no frames.
+        """Step the current state for up to ``duration_s`` with full gravity and the loads in
+        force (those of the last stage that ran at their end values, or :meth:`set_loads`'),
+        yielding no frames.
 
         Every :data:`CHECK_EVERY` steps the stability guard runs and ``check(elapsed_s,
         diagnostics)`` is called; a non-empty string it returns ends the advance early and is
@@ -815,7 +846,7 @@ class Simulation:
         """
         runtime.check_owner()
         e = self.engine
-        g = tuple(float(v) for v in self.config.gravity_m_s2)
+        g = self._body_force
         d = e.diagnostics()
         dt = self._time_step(d["max_speed"])
         elapsed = 0.0
@@ -843,6 +874,64 @@ class Simulation:
         if check is not None:
             return check(elapsed, d) or ""
         return ""
+
+    # ------------------------------------------------------------------ loads
+    def _surface_forces(self, surcharges) -> np.ndarray | None:
+        """Each particle's share of ``surcharges`` now (N/m, (N, 2)); None without any."""
+        if not surcharges:
+            return None
+        from solver.loads import surface_forces
+
+        now = self.engine.state(("x", "active"))
+        # the particle spacing: the width of the columns whose top particles carry a load
+        spacing = float(np.sqrt(np.median(np.asarray(self.particles.volumes_m2, dtype=np.float64))))
+        g = np.asarray(self.config.gravity_m_s2, dtype=float)
+        gn = float(np.linalg.norm(g))
+        down = g / gn if gn > 0.0 else np.array([0.0, -1.0])
+        forces, carried = surface_forces(now["x"], now["active"].astype(bool), spacing, surcharges, down,
+                                         offset_m=self.origin_m)
+        for load, got in zip(surcharges, carried):
+            want = load.force_n_per_m
+            if abs(got - want) > 1e-3 * abs(want):
+                log.warning("surcharge %r: the particles under it carry %.4g N/m of its %.4g N/m (part of "
+                            "x = %g..%g m lies beyond the ground)", load.name, got, want, load.from_m, load.to_m)
+        return forces
+
+    def _start_loads(self, stage: Stage) -> None:
+        """At the start of ``stage``: its body force and its surcharges' forces on the surface
+        particles (ramped up with gravity in a gravity stage, from ``surcharges_from`` over the
+        stage where given, else at once; none in a k0 stage)."""
+        self._body_force = body_force_m_s2(self.config.gravity_m_s2, stage.seismic)
+        e = self.engine
+        if e.water is not None:
+            e.water.set_seismic(stage.seismic)
+        if e.loads is None:
+            return
+        if stage.kind == "k0":
+            e.loads.set_forces(None, None, 0.0)
+        elif stage.kind == "gravity":
+            e.loads.set_forces(None, self._surface_forces(stage.surcharges), stage.ramp_s)
+        elif stage.surcharges_from is not None:
+            e.loads.set_forces(self._surface_forces(stage.surcharges_from), self._surface_forces(stage.surcharges),
+                               stage.duration_s)
+        else:
+            e.loads.set_forces(None, self._surface_forces(stage.surcharges), 0.0)
+
+    def set_loads(self, surcharges=(), seismic=None) -> None:
+        """The loads of the following steps of :meth:`advance`, at once and at full value:
+        ``surcharges`` (solver.config.Surcharge, on the surface particles now) and ``seismic``
+        (solver.config.Seismic or None). The strength reduction's trials stand under these."""
+        if surcharges and self.engine.loads is None:
+            raise SolverError("this engine was built without surcharges (surcharge_support=False)")
+        self._body_force = body_force_m_s2(self.config.gravity_m_s2, seismic)
+        if self.engine.water is not None:
+            self.engine.water.set_seismic(seismic)
+        if self.engine.loads is not None:
+            self.engine.loads.set_forces(None, self._surface_forces(tuple(surcharges)), 0.0)
+
+    def surcharge_forces(self) -> np.ndarray | None:
+        """Each particle's surcharge force now (N/m, (N, 2) float64); None where none is compiled in."""
+        return None if self.engine.loads is None else self.engine.loads.forces()
 
     def set_materials(self, materials: tuple[Material, ...]) -> None:
         """Replace the material table now (one row per material of the configuration)."""
