@@ -221,6 +221,59 @@ class Soil:
 
 
 @dataclass(frozen=True)
+class Surcharge:
+    """A vertical distributed load on the ground surface between ``x_from_m`` and ``x_to_m``:
+    ``pressure_from_pa`` at ``x_from_m``, ``pressure_to_pa`` at ``x_to_m`` (default: the same),
+    linear between, per unit horizontal length (Pa = N/m per metre). A force, not a mass: no
+    seismic share."""
+
+    x_from_m: float
+    x_to_m: float
+    pressure_from_pa: float
+    pressure_to_pa: float | None = None
+
+    def __post_init__(self):
+        end = self.pressure_from_pa if self.pressure_to_pa is None else self.pressure_to_pa
+        values = (self.x_from_m, self.x_to_m, self.pressure_from_pa, end)
+        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
+            raise ValueError(f"surcharge {values!r}: give finite numbers")
+        if not self.x_to_m > self.x_from_m:
+            raise ValueError(f"surcharge x_to_m = {self.x_to_m!r} must be > x_from_m = {self.x_from_m!r}")
+        if self.pressure_from_pa < 0.0 or end < 0.0:
+            raise ValueError(f"surcharge pressures {self.pressure_from_pa!r}, {end!r}: must be >= 0 (Pa)")
+        object.__setattr__(self, "pressure_to_pa", float(end))
+
+    def on(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The load on the stretches ``[lo, hi]`` of x (N/m) and where it acts (x, m)."""
+        a = np.maximum(lo, self.x_from_m)
+        b = np.minimum(hi, self.x_to_m)
+        width = np.maximum(b - a, 0.0)
+        mid = 0.5 * (a + b)
+        t = (mid - self.x_from_m) / (self.x_to_m - self.x_from_m)
+        return width * (self.pressure_from_pa + t * (self.pressure_to_pa - self.pressure_from_pa)), mid
+
+
+@dataclass(frozen=True)
+class Seismic:
+    """Pseudo-static seismic coefficients: each slice's soil (its weight ``W``, water in its
+    pores included) takes a horizontal force ``k_h W`` at its centroid, towards ``+x`` with
+    ``direction = 1`` and ``-x`` with ``-1``, and weighs ``(1 - k_v) W`` (``k_v > 0``: an upward
+    inertial force). Free water and surcharges take none (the water's pressure stays static)."""
+
+    k_h: float = 0.0
+    k_v: float = 0.0
+    direction: float = 1.0
+
+    def __post_init__(self):
+        if not (isinstance(self.k_h, (int, float)) and math.isfinite(self.k_h) and 0.0 <= self.k_h < 1.0):
+            raise ValueError(f"k_h = {self.k_h!r}: allowed 0 <= k_h < 1 (the direction is direction's)")
+        if not (isinstance(self.k_v, (int, float)) and math.isfinite(self.k_v) and -1.0 < self.k_v < 1.0):
+            raise ValueError(f"k_v = {self.k_v!r}: allowed -1 < k_v < 1")
+        if self.direction not in (1.0, -1.0):
+            raise ValueError(f"direction = {self.direction!r}: 1 (+x) or -1 (-x)")
+
+
+@dataclass(frozen=True)
 class Circle:
     """A slip circle: centre (m) and radius (m)."""
 
@@ -292,6 +345,10 @@ class _Slices(NamedTuple):
     soil: np.ndarray  # (M, C) soil index (len(soils) = none)
     mass: np.ndarray  # (M, C) the slice is part of the sliding mass
     valid: np.ndarray  # (M,)
+    load: np.ndarray | None = None  # (M, C) surcharge on the slice's top (N/m), None without any
+    load_d: np.ndarray | None = None  # (M, C) where it acts, offset from the centre (m)
+    w_soil: np.ndarray | None = None  # (M, C) the slice's soil weight, free water not included (N/m)
+    y_g: np.ndarray | None = None  # (M, C) the height of the soil's centroid (m)
 
 
 class Section:
@@ -310,10 +367,15 @@ class Section:
     free_ends : (bool, bool)
         Whether the left and right ends of the section are free vertical faces that a slip
         circle may come out through (default: both are walls or cuts of continuing ground).
+    surcharges : sequence of Surcharge
+        Vertical distributed loads on the ground surface (default: none).
+    seismic : Seismic, optional
+        Pseudo-static seismic coefficients (default: none).
     """
 
     def __init__(self, polygons: Sequence[np.ndarray], soils: Sequence[Soil], columns: int = 300, rows: int = 600,
-                 *, water: Water | None = None, free_ends: tuple[bool, bool] = (False, False)):
+                 *, water: Water | None = None, free_ends: tuple[bool, bool] = (False, False),
+                 surcharges: Sequence[Surcharge] = (), seismic: Seismic | None = None):
         if len(polygons) != len(soils) or not polygons:
             raise ValueError("give one soil per polygon and at least one polygon")
         if water is not None and not isinstance(water, Water):
@@ -322,6 +384,12 @@ class Section:
             raise ValueError(f"free_ends = {free_ends!r}: give two booleans (left end, right end)")
         self.water = water
         self.free_ends = (bool(free_ends[0]), bool(free_ends[1]))
+        if any(not isinstance(q, Surcharge) for q in surcharges):
+            raise ValueError(f"surcharges = {surcharges!r}: give stability.bishop.Surcharge entries")
+        if seismic is not None and not isinstance(seismic, Seismic):
+            raise ValueError(f"seismic = {seismic!r}: give a stability.bishop.Seismic or None")
+        self.surcharges = tuple(surcharges)
+        self.seismic = seismic if seismic is not None and (seismic.k_h > 0.0 or seismic.k_v != 0.0) else None
         self.polygons = [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in polygons]
         self.soils = tuple(soils)
         pts = np.vstack(self.polygons)
@@ -348,6 +416,12 @@ class Section:
         # weight per unit width of the material above each row node, nodes 0..rows (bottom to top)
         above = np.zeros((columns, rows + 1))
         above[:, :-1] = np.cumsum(cell_w[:, ::-1], axis=1)[:, ::-1]
+        if self.seismic is not None:
+            # the soil's own weight above each row node (free water is added below) and its first
+            # moment about y = 0, for the seismic forces at the slices' centroids
+            self.soil_above = above.copy()
+            self.moment_above = np.zeros((columns, rows + 1))
+            self.moment_above[:, :-1] = np.cumsum((cell_w * yc[None, :])[:, ::-1], axis=1)[:, ::-1]
         self.cohesion = np.array([s.cohesion_pa for s in self.soils] + [0.0])
         self.tan_phi = np.array([math.tan(s.friction_angle_rad) for s in self.soils] + [0.0])
         self.ru = np.array([s.ru for s in self.soils] + [0.0])
@@ -450,7 +524,25 @@ class Section:
         cell = np.clip(np.floor(t).astype(np.int64), 0, rows - 1)
         owner = self.owner[cols, cell]
         soil = np.where(owner >= 0, owner, len(self.soils))
-        return _Slices(d_mid, th_lo, th_hi, d_lo, d_hi, weight, w_above, ys, soil, mass, valid)
+        load = load_d = w_soil = y_g = None
+        if self.surcharges:
+            # each slice's top takes the loads over its stretch of x, acting where they lie
+            lo, hi = xc[:, None] + d_lo, xc[:, None] + d_hi
+            load = np.zeros_like(weight)
+            first = np.zeros_like(weight)
+            for q in self.surcharges:
+                force, at = q.on(lo, hi)
+                load += force
+                first += force * (at - xc[:, None])
+            load = np.where(mass, load, 0.0)
+            load_d = np.where(load > 0.0, first / np.where(load > 0.0, load, 1.0), d_mid)
+        if self.seismic is not None:
+            soil_w = (1 - f) * self.soil_above[cols, k] + f * self.soil_above[cols, k + 1]
+            moment = (1 - f) * self.moment_above[cols, k] + f * self.moment_above[cols, k + 1]
+            w_soil = np.where(mass, soil_w * (d_hi - d_lo), 0.0)
+            y_g = np.where(soil_w > 0.0, moment / np.where(soil_w > 0.0, soil_w, 1.0), ys)
+        return _Slices(d_mid, th_lo, th_hi, d_lo, d_hi, weight, w_above, ys, soil, mass, valid, load, load_d, w_soil,
+                       y_g)
 
     def _pore_pressure(self, s: _Slices) -> np.ndarray:
         """Pore pressure on the slice bases (Pa): the water lines' and ``ru``'s, the larger."""
@@ -525,33 +617,44 @@ class Section:
         r = np.where(positive, r, 1.0)
         s = self._slices(xc, yc, r, min_depth_m)
         dxs, th_l, th_r, w, soil, mass, valid = s.d_mid, s.th_lo, s.th_hi, s.weight, s.soil, s.mass, s.valid
+        weights = np.sum(w, axis=1)
+        # the vertical load on each slice: its weight, less k_v of its soil's, and its surcharge
+        # (the surcharge's moment taken where it acts); the seismic horizontal forces' moment
         moment = np.sum(w * dxs, axis=1)
-        if self.water is not None:
-            moment_w = self._free_water_moment(s, xc, yc, r)
-            # the slide turns the way the weights and the free water drive it together
-            sign = np.where(moment + moment_w >= 0.0, 1.0, -1.0)
-        else:
-            sign = np.where(moment >= 0.0, 1.0, -1.0)
+        extra = np.zeros(len(xc))  # moments (N m / m) beside the weights' and the free water's
+        horizontal = None
+        if s.load is not None:
+            extra += np.sum(s.load * s.load_d, axis=1)
+            w = w + s.load
+        if s.w_soil is not None:
+            q = self.seismic
+            extra -= q.k_v * np.sum(s.w_soil * dxs, axis=1)
+            w = w - q.k_v * s.w_soil
+            horizontal = q.direction * q.k_h * s.w_soil  # along +x (N/m)
+            extra += np.sum(horizontal * (s.y_g - yc[:, None]), axis=1)
+        moment_w = self._free_water_moment(s, xc, yc, r) if self.water is not None else np.zeros(len(xc))
+        # the slide turns the way the weights, the loads and the free water drive it together
+        sign = np.where(moment + extra + moment_w >= 0.0, 1.0, -1.0)
         length = r[:, None] * (th_r - th_l)  # the arc in each column, exactly (m)
-        sin_a = sign[:, None] * np.sin(0.5 * (th_l + th_r))
+        sin_t = np.sin(0.5 * (th_l + th_r))
+        sin_a = sign[:, None] * sin_t
         cos_a = np.cos(0.5 * (th_l + th_r))
         c = np.where(mass, self.cohesion[soil], 0.0)
         tp = np.where(mass, self.tan_phi[soil], 0.0)
-        drive = np.sum(w * sin_a, axis=1)
-        if self.water is not None:
-            drive = drive + sign * moment_w / r
-        valid &= (drive > DRIVE_MIN * np.sum(w, axis=1)) & positive
+        # the driving moment over R: sum W sin(alpha) of the slices' own lever arms, the rest
+        # (the loads' offsets from their slices' mid-points, the seismic forces, the free water) whole
+        drive = np.sum(w * sin_a, axis=1) + sign * (extra - np.sum((w - s.weight) * dxs, axis=1) + moment_w) / r
+        valid &= (drive > DRIVE_MIN * weights) & positive
         drive = np.where(valid, drive, 1.0)
-        if self.wet:
-            u = self._pore_pressure(s)
-            b = s.d_hi - s.d_lo
-            fellenius = np.sum(np.where(mass, c * length + np.maximum(w - u * b, 0.0) * cos_a * tp, 0.0),
-                               axis=1) / drive
-            resist = np.where(mass, c * length * cos_a + np.maximum(w - u * b, 0.0) * tp, 0.0)
-        else:
-            fellenius = np.sum(np.where(mass, c * length + w * cos_a * tp, 0.0), axis=1) / drive
-            # c b is c l cos(alpha) with the column's exact arc length (steep ends of an arc included)
-            resist = np.where(mass, c * length * cos_a + w * tp, 0.0)
+        u_b = self._pore_pressure(s) * (s.d_hi - s.d_lo) if self.wet else 0.0
+        # Fellenius: the base's normal force from the slice alone, its vertical load and the
+        # horizontal force (k_h W pushes the slice onto a base that faces it)
+        normal = np.maximum(w - u_b, 0.0) * cos_a if self.wet else w * cos_a
+        if horizontal is not None:
+            normal = np.maximum(normal + horizontal * sin_t, 0.0)
+        fellenius = np.sum(np.where(mass, c * length + normal * tp, 0.0), axis=1) / drive
+        # Bishop: c b is c l cos(alpha) with the column's exact arc length (steep ends of an arc included)
+        resist = np.where(mass, c * length * cos_a + (np.maximum(w - u_b, 0.0) if self.wet else w) * tp, 0.0)
         f = np.maximum(fellenius, 1e-3)
         f = np.where(valid, f, 1.0)
         for _ in range(iterations):
