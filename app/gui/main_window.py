@@ -238,6 +238,10 @@ class MainWindow(QMainWindow):
         a["cancel"] = self._action("&Cancel run", self.cancel_run, "Shift+F5")
         a["cancel"].setIcon(style.standardIcon(QStyle.StandardPixmap.SP_MediaStop))
         a["cancel"].setEnabled(False)
+        a["resume"] = self._action("Res&ume run", lambda: self.resume_run(), None,
+                                   "Continue the shown run, killed or stopped, from its last checkpoint (runout run "
+                                   "--resume)")
+        a["resume"].setEnabled(False)
         a["compare"] = self._action("&Compare results…", self.show_compare)
 
         bar = self.menuBar()
@@ -263,7 +267,7 @@ class MainWindow(QMainWindow):
         model.addSeparator()
         model.addActions([a["slope"], a["import_body"]])
         run = bar.addMenu("&Run")
-        run.addActions([a["run"], a["cancel"]])
+        run.addActions([a["run"], a["cancel"], a["resume"]])
         view = bar.addMenu("&View")
         view.addAction(a["compare"])
         help_menu = bar.addMenu("&Help")
@@ -299,6 +303,7 @@ class MainWindow(QMainWindow):
         self.bodies_panel.drawRequested.connect(lambda: self.actions_["draw"].setChecked(True))
         self.bodies_panel.templateRequested.connect(self.slope_dialog)
         self.run_panel.runRequested.connect(self.start_run)
+        self.run_panel.resumeRequested.connect(lambda: self.resume_run())
         self.run_panel.cancelRequested.connect(self.cancel_run)
         self.run_panel.problemActivated.connect(self.go_to_problem)
         self.run_panel.runSelected.connect(self._select_run)
@@ -565,6 +570,7 @@ class MainWindow(QMainWindow):
         self._unfollow()
         self.settings.add_recent(path, "results")
         self.tabs.setCurrentWidget(self.results_view)
+        self._update_resume()
         return True
 
     def _unfollow(self) -> None:
@@ -936,20 +942,71 @@ class MainWindow(QMainWindow):
         name = self.doc.path.stem if self.doc.path is not None else "untitled"
         run = RunProcess(self.doc.text(), out_dir, name, overwrite=overwrite, source=self.doc.path,
                          unsaved=self.doc.path is None or self.doc.is_dirty, parent=self)
+        run.title = project.runout.title or self.doc.display_name  # what the live view's header says
+        return self._launch(run, f"Running in a new process… results go to {out_dir}")
+
+    def resumable_folder(self) -> Path | None:
+        """The results folder the Resume action would continue (the shown one, or the followed
+        run's), when it looks resumable: a checkpoint, not complete, no run of this window in it.
+        Cheap; :func:`projects.runner.resumable` checks it in full when asked to resume."""
+        from projects.results import CHECKPOINT_NAME
+
+        results = self.results_view.results
+        folder = results.path if results is not None else (self.followed.out_dir if self.followed else None)
+        if folder is None or not (Path(folder) / CHECKPOINT_NAME).is_file():
+            return None
+        if any(r.is_running() and r.out_dir == Path(folder).absolute() for r in self.runs):
+            return None
+        status = results.status if results is not None else None
+        return None if status in ("completed", "failed") else Path(folder)
+
+    def _update_resume(self) -> None:
+        can = self.resumable_folder() is not None
+        self.actions_["resume"].setEnabled(can)
+        self.run_panel.resume_button.setEnabled(can)
+
+    def resume_run(self, folder: str | os.PathLike[str] | None = None) -> bool:
+        """Continue a killed or stopped run in its own folder from its last checkpoint (a child
+        ``runout run --resume FOLDER``), followed as any run. ``folder``: the shown results."""
+        from projects.results import ResultsError
+        from projects.runner import resumable
+
+        path = Path(folder).expanduser().absolute() if folder is not None else self.resumable_folder()
+        if path is None:
+            results = self.results_view.results
+            self.show_error("Cannot resume", "Show the results of a killed or stopped run first (File ▸ Open "
+                            "results)" + (f": {results.path} is {results.status}" if results is not None else "."))
+            return False
+        if any(r.is_running() and r.out_dir == path.absolute() for r in self.runs):
+            self.show_error("Cannot resume", f"{path} is being written by a run of this window")
+            return False
+        try:
+            resumable(path)  # one line on what stands in the way, before a process starts
+        except (ResultsError, OSError, ValueError) as err:
+            self.show_error("Cannot resume", str(err))
+            return False
+        run = RunProcess("", path, path.stem, resume=True, parent=self)
+        results = self.results_view.results
+        run.title = (results.summary.get("title") if results is not None and results.path == path else None) \
+            or path.stem
+        return self._launch(run, f"Resuming the run in {path} from its last checkpoint…")
+
+    def _launch(self, run: RunProcess, message: str) -> bool:
+        """Start ``run``, list it and follow it."""
         run.runStarted.connect(lambda _e, r=run: self._run_started(r))
         run.progressed.connect(lambda e, r=run: self._run_progressed(r, e))
         run.frameWritten.connect(lambda _e, r=run: self._run_frame(r))
         run.ended.connect(lambda o, r=run: self._run_ended(r, o))
-        run.title = project.runout.title or self.doc.display_name  # what the live view's header says
         self.runs.append(run)
         self.run_panel.add_run(self._run_text(run))
         self.follow(run)
-        self.statusBar().showMessage(f"Running in a new process… results go to {out_dir}")
+        self.statusBar().showMessage(message)
         try:
             run.start()
         except OSError as err:
             self.show_error("The run could not start", str(err))
             return False
+        self._update_resume()  # not into a folder a run of this window writes
         self._update_run_item(run)
         return True
 
@@ -1083,6 +1140,7 @@ class MainWindow(QMainWindow):
             except (ResultsError, OSError, ValueError) as err:
                 logger.warning("cannot show the results: %s", err)
         self.statusBar().showMessage(f"Run {state}: {outcome.message}", 10000)
+        self._update_resume()
         if not ask:
             return
         if outcome.status == "error":

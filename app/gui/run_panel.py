@@ -89,6 +89,8 @@ class RunPanel(QWidget):
     runRequested()
     cancelRequested()
         Cancel the run selected in the run list.
+    resumeRequested()
+        Continue the shown run, killed or stopped, from its checkpoint.
     problemActivated(str)
         The key path of a problem the user double-clicked.
     runSelected(int)
@@ -99,6 +101,7 @@ class RunPanel(QWidget):
 
     runRequested = Signal()
     cancelRequested = Signal()
+    resumeRequested = Signal()
     problemActivated = Signal(str)
     runSelected = Signal(int)
     removeUnknownRequested = Signal()
@@ -157,8 +160,14 @@ class RunPanel(QWidget):
         self.cancel_button = QPushButton("Cancel")
         self.cancel_button.setEnabled(False)
         self.cancel_button.clicked.connect(self.cancelRequested)
+        self.resume_button = QPushButton("Resume")
+        self.resume_button.setToolTip("Continue the shown run, killed or stopped, from its last checkpoint "
+                                      "in its own folder (runout run --resume)")
+        self.resume_button.setEnabled(False)
+        self.resume_button.clicked.connect(self.resumeRequested)
         row.addWidget(self.run_button)
         row.addWidget(self.cancel_button)
+        row.addWidget(self.resume_button)
         vbox.addLayout(row)
         self.progress = QProgressBar()
         self.progress.setRange(0, 1000)

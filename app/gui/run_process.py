@@ -99,6 +99,9 @@ class RunProcess(QObject):
         copy it runs).
     unsaved : bool
         ``--unsaved``: the project holds edits not saved in ``source``, or has no file.
+    resume : bool
+        ``--resume OUT_DIR``: continue the killed or stopped run in ``out_dir`` from its last
+        checkpoint (``project_text`` is not used: the folder's ``project.toml`` runs).
 
     Signals
     -------
@@ -120,8 +123,9 @@ class RunProcess(QObject):
 
     def __init__(self, project_text: str, out_dir: Path, name: str = "untitled", arch: str | None = None,
                  overwrite: bool = False, source: Path | None = None, unsaved: bool = False,
-                 parent: QObject | None = None) -> None:
+                 resume: bool = False, parent: QObject | None = None) -> None:
         super().__init__(parent)
+        self.resume = resume
         self.name = name
         self.source = source
         self.unsaved = unsaved
@@ -159,10 +163,15 @@ class RunProcess(QObject):
         """The child's command line (after writing the temporary project file)."""
         if self._tmp is None:
             self._tmp = Path(tempfile.mkdtemp(prefix="runout-run-"))
-        project_file = self._tmp / f"{self.name}.toml"
-        project_file.write_text(self.project_text, encoding="utf-8")
         from projects.runner import runout_command
 
+        if self.resume:  # the folder's own project.toml, provenance and settings: nothing else is given
+            args = runout_command("run", "--resume", str(self.out_dir), "--progress", "jsonl")
+            if self.arch in ("cpu", "gpu"):
+                args += ["--arch", self.arch]
+            return args
+        project_file = self._tmp / f"{self.name}.toml"
+        project_file.write_text(self.project_text, encoding="utf-8")
         args = runout_command("run", str(project_file), "--out", str(self.out_dir), "--progress", "jsonl")
         if self.arch in ("cpu", "gpu"):
             args += ["--arch", self.arch]

@@ -466,3 +466,44 @@ def test_a_three_value_sweep_plots_the_measure_against_the_parameter(window, tmp
     line = middle.get_lines()[0]
     assert np.allclose(line.get_xdata(), [25, 26, 27]) and np.allclose(line.get_ydata(), [0.3, 0.1, 0.2])
     assert middle.get_xlabel() == key and middle.get_ylabel() == "hazard.runout_distance_m"
+
+
+# -- a killed run is resumed from the workbench -------------------------------------------------
+
+def test_a_killed_run_is_resumed_from_the_workbench(window, tmp_path, qtbot):
+    import os
+    import signal
+
+    from projects.results import open_results
+    from tests.gui.conftest import _project_file
+
+    project = _project_file(tmp_path, "resumed.toml", ["stages.1.duration_s=3.0", "output.interval_s=0.05"])
+    window.open_project(project)
+    errors = []
+    window.show_error = lambda title, text: errors.append((title, text))
+    assert not window.run_panel.resume_button.isEnabled()
+    assert window.start_run()
+    run = window.followed
+    checkpoint = run.out_dir / "checkpoint.npz"
+    qtbot.waitUntil(lambda: checkpoint.is_file() and window.results_view.results is not None
+                    and len(window.results_view.results) >= 3, timeout=90_000)
+    os.kill(run.pid, signal.SIGKILL)
+    qtbot.waitUntil(lambda: not window.running, timeout=30_000)
+    assert window.last_result.status == "killed"
+    killed_frames = len(open_results(run.out_dir))
+    # the killed run's folder is shown, and Resume is offered for it
+    assert window.run_panel.resume_button.isEnabled() and window.actions_["resume"].isEnabled()
+    window.run_panel.resume_button.click()
+    resumed = window.followed
+    assert resumed is not run and resumed.resume and resumed.out_dir == run.out_dir
+    assert "--resume" in resumed.command()
+    assert not window.run_panel.resume_button.isEnabled()  # not twice into one folder
+    qtbot.waitUntil(lambda: not window.running, timeout=120_000)
+    assert window.last_result.status == "completed", window.last_result.message
+    assert resumed.started_event["first_frame"] > 0  # from the checkpoint, not from the start
+    results = open_results(run.out_dir)
+    assert results.status == "completed" and len(results) == 61 and len(results) > killed_frames
+    assert results.times[-1] == pytest.approx(3.0, abs=1e-6)
+    assert not window.run_panel.resume_button.isEnabled()  # complete: nothing to resume
+    window.resume_run(run.out_dir)
+    assert errors[-1][0] == "Cannot resume" and "complete: nothing to resume" in errors[-1][1]
