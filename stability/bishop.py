@@ -78,6 +78,26 @@ these give the closed forms
 / [(gamma_m (1 - m) z + gamma_sat m z) sin(b) cos(b)]`` and, with ``ru``,
 ``F = c' / (gamma z sin(b) cos(b)) + (1 - ru / cos^2(b)) tan(phi') / tan(b)``.
 
+Loads
+-----
+- A :class:`Surcharge` is a vertical load on the ground surface between two x, linear along it
+  (per unit horizontal length): each slice's top takes the part over its stretch of x, which
+  adds to its vertical load ``W`` (and so to its base's normal force) and to the driving moment
+  where it lies.
+- :class:`Seismic` coefficients (the pseudo-static method; Kramer 1996, Geotechnical Earthquake
+  Engineering, ch. 10; Duncan and Wright 2005, ch. on seismic stability): each slice's soil, of
+  weight ``W`` (water in its pores included), takes a horizontal force ``k_h W`` at its centroid
+  and weighs ``(1 - k_v) W``. The horizontal forces enter the moment about the centre (their
+  lever arm ``y_c - y_g``), not the slices' vertical equilibrium, so Bishop's factor is
+  ``F = sum[(c' b + ((1 - k_v) W + Q - u b) tan(phi')) / m_alpha] / (sum[((1 - k_v) W + Q)
+  sin(alpha)] + sum[k_h W (y_c - y_g)] / R + M_w / R)`` (``Q`` a slice's surcharge, the
+  horizontal term with the sign of its moment); the ordinary method's base normal force takes
+  ``k_h W sin`` of the base's inclination off (or on, the force facing the base). Free water and
+  surcharges take no seismic share, and the pore pressures stay static.
+
+On an infinite slope these give ``F = [c' + (V cos^2 b - H sin b cos b) tan(phi')] / [V sin b
+cos b + H cos^2 b]``, ``V = (1 - k_v) gamma z + q`` and ``H = k_h gamma z`` per horizontal area.
+
 Slices are the columns of a fine raster over the section (``columns`` of them, default 300):
 the weight of a slice is the raster's cumulative weight above the slip surface in its column
 (``rows`` cells per column, default 600), its strength that of the soil at the base. Where an
