@@ -343,7 +343,7 @@ def test_overrides_on_raw_data_do_not_modify_it():
 @pytest.mark.parametrize(
     ("override", "message"),
     [
-        ("numerics.schem=apic", "numerics.schem: unknown key; allowed: scheme, time_step_s, cfl, precision, arch, preset, advanced"),
+        ("numerics.schem=apic", "numerics.schem: unknown key; allowed: scheme, time_step_s, cfl, precision, arch, preset, volumetric_averaging, advanced"),
         ("bodies.3.name=x", "bodies.3: no such item; bodies has indices 0 to 0"),
         ("bodies.first.name=x", "bodies.first: no such item; bodies has indices 0 to 0"),
         ("bodies.-1.name=x", "bodies.-1: no such item; bodies has indices 0 to 0"),
@@ -357,11 +357,16 @@ def test_overrides_on_raw_data_do_not_modify_it():
             "materials.sand.colour=red",
             "materials.sand.colour: unknown key; allowed: model, density_kg_m3, youngs_modulus_pa, "
             "poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, tensile_strength_pa, "
-            "mohr_coulomb_match, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru",
+            "mohr_coulomb_match, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru, "
+            "softening_law, residual_cohesion_pa, residual_friction_angle_deg, residual_dilatancy_angle_deg, "
+            "peak_plastic_strain, residual_plastic_strain, softening_length_m, mu_i_friction_increase, "
+            "mu_i_reference_number, grain_diameter_m, grain_density_kg_m3",
         ),
         ("stages.1.material_changes.sand.model=x", "stages.1.material_changes.sand.model: unknown key; allowed: "
          "density_kg_m3, youngs_modulus_pa, poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, "
-         "tensile_strength_pa, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru"),
+         "tensile_strength_pa, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru, "
+         "softening_law, residual_cohesion_pa, residual_friction_angle_deg, residual_dilatancy_angle_deg, "
+         "peak_plastic_strain, residual_plastic_strain, softening_length_m"),
         ("materials.sand.poisson_ratio=0.6", "materials.sand.poisson_ratio = 0.6: must be >= 0 and < 0.5"),
         ("numerics.scheme=flip", 'numerics.scheme = "flip": must be one of "mpm", "apic", "apic-affine"'),
         ("runout.title=1", "runout.title = 1: must be a string"),
@@ -379,7 +384,7 @@ def test_several_bad_override_paths_reported_together(project):
     with pytest.raises(ProjectError) as info:
         apply_overrides(project, ["numerics.schem=apic", "nothing", "stages.5.duration_s=1"])
     assert problems(info) == [
-        "numerics.schem: unknown key; allowed: scheme, time_step_s, cfl, precision, arch, preset, advanced",
+        "numerics.schem: unknown key; allowed: scheme, time_step_s, cfl, precision, arch, preset, volumetric_averaging, advanced",
         "nothing: expected KEY=VALUE",
         "stages.5: no such item; stages has indices 0 to 1",
     ]

@@ -122,7 +122,7 @@ def test_to_dict_validates_back_to_equal():
 
 GOLDEN = [
     ("materials.bars.poisson_ratio", 0.6, "materials.bars.poisson_ratio = 0.6: must be >= 0 and < 0.5"),
-    ("numerics.schem", "apic", "numerics.schem: unknown key; allowed: scheme, time_step_s, cfl, precision, arch, preset, advanced"),
+    ("numerics.schem", "apic", "numerics.schem: unknown key; allowed: scheme, time_step_s, cfl, precision, arch, preset, volumetric_averaging, advanced"),
     ("bodies.0.material", "sand", 'bodies.0.material = "sand": no such material; defined: bars'),
     ("materials.bars.density_kg_m3", -1, "materials.bars.density_kg_m3 = -1: must be > 0"),
     ("materials.bars.youngs_modulus_pa", 0.0, "materials.bars.youngs_modulus_pa = 0.0: must be > 0"),
@@ -222,7 +222,9 @@ GOLDEN = [
         {"bars": {"friction_angle": 10.0}},
         "stages.1.material_changes.bars.friction_angle: unknown key; allowed: density_kg_m3, "
         "youngs_modulus_pa, poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, "
-        "tensile_strength_pa, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru",
+        "tensile_strength_pa, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru, "
+        "softening_law, residual_cohesion_pa, residual_friction_angle_deg, residual_dilatancy_angle_deg, "
+        "peak_plastic_strain, residual_plastic_strain, softening_length_m",
     ),
     (
         "stages.1.material_changes",
@@ -444,7 +446,7 @@ def test_several_problems_at_once_in_file_order():
         "materials.bars.dilatancy_angle_deg = 30.0: must not exceed friction_angle_deg (19.8)",
         'bodies.0.material = "sand": no such material; defined: bars',
         "bodies.0.polygon_m.2 = [0.2, 0.5]: outside the domain (x in [0, 0.8], y in [0, 0.15])",
-        "numerics.schem: unknown key; allowed: scheme, time_step_s, cfl, precision, arch, preset, advanced",
+        "numerics.schem: unknown key; allowed: scheme, time_step_s, cfl, precision, arch, preset, volumetric_averaging, advanced",
         "numerics.cfl = 0.3: give time_step_s or cfl, not both (time_step_s = 2e-05)",
         'stages.2.type = "gravity": must come before the first dynamic stage (stages.1)',
         "output.interval_s = -1.0: must be > 0",
