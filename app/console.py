@@ -64,14 +64,19 @@ def fail(message: str, code: int = EXIT_INVALID) -> NoReturn:
 def stop_on_signals(stop: StopRequest) -> Iterator[StopRequest]:
     """Turn SIGINT, SIGTERM and SIGHUP into a stop request while the block runs.
 
-    A second Ctrl-C raises KeyboardInterrupt, for a solver that does not reach its next check.
+    A second Ctrl-C raises KeyboardInterrupt, for a solver that does not reach its next check:
+    once, and not while the run finishes its results folder (``stop.may_interrupt()``, where the
+    request has it: :class:`projects.runner.StopRequest`); later ones only repeat the request.
     Outside the main thread (signals cannot be caught there) the block runs unchanged.
     """
 
     def handler(signum: int, _frame: object) -> None:
-        if stop.requested and signum == signal.SIGINT:
-            raise KeyboardInterrupt
+        repeated = stop.requested
         stop.request(signal.Signals(signum).name)
+        if repeated and signum == signal.SIGINT:
+            may = getattr(stop, "may_interrupt", None)
+            if may is None or may():
+                raise KeyboardInterrupt
 
     if sys.platform == "win32" or not in_main_thread():
         yield stop

@@ -702,7 +702,10 @@ class ResultsWriter:
                     clear_own_files(self.out_dir, [*self._patterns, MARKER_NAME])
             self._abandon()
             raise ResultsError(f"cannot write results to {self.out_dir}: {err.strerror or err}") from err
-        except BaseException:
+        except BaseException:  # a Ctrl-C while the folder is set up: a new run leaves nothing either
+            if keep_frames is None:
+                with contextlib.suppress(OSError):
+                    clear_own_files(self.out_dir, [*self._patterns, MARKER_NAME])
             self._abandon()
             raise
 
@@ -750,6 +753,11 @@ class ResultsWriter:
         return dict(results.summary), rows
 
     # -- caller side -----------------------------------------------------------------------
+
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` has been called (the final summary written)."""
+        return self._closed
 
     @property
     def frames_submitted(self) -> int:

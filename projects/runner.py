@@ -83,11 +83,31 @@ class StopRequest:
 
     ``request("SIGTERM")`` from a signal handler or another thread; the run stops at the
     solver's next check and its message names the reason.
+
+    A repeated Ctrl-C may interrupt a solver that does not reach its next check
+    (:func:`app.console.stop_on_signals` raises KeyboardInterrupt when :meth:`may_interrupt`
+    says so): once, and never after the run has begun to finish its results folder
+    (:meth:`finishing`), so that Ctrl-C pressed three times 20-50 ms apart still leaves a final
+    ``summary.json`` and no lock (the third one landed in the writer's close and left the folder
+    "running" and locked in 7 of 8 tries).
     """
 
     def __init__(self) -> None:
         self._event = threading.Event()
         self.reason = ""
+        self._interrupted = False
+        self._finishing = False
+
+    def may_interrupt(self) -> bool:
+        """Whether a repeated Ctrl-C may raise KeyboardInterrupt now (True once, before finishing)."""
+        if self._interrupted or self._finishing:
+            return False
+        self._interrupted = True
+        return True
+
+    def finishing(self) -> None:
+        """The run is finishing its results folder (or has): Ctrl-C no longer interrupts it."""
+        self._finishing = True
 
     def request(self, reason: str = "stop requested") -> None:
         if not self._event.is_set():
@@ -268,7 +288,7 @@ def run_project(
         if start_from is not None:
             meta["started_from"] = str(Path(start_from).absolute())
         writer = ResultsWriter(out_path, dumps_project(resolved.project), meta, overwrite=overwrite)
-        return _run(sim, resolved, writer, started, cancel, on_frame, on_progress)
+        return _run_finished(sim, resolved, writer, started, cancel, on_frame, on_progress)
     finally:
         sim.close()
 
@@ -375,7 +395,7 @@ def resume_run(
         writer = ResultsWriter(out_path, dumps_project(resolved.project), meta,
                                keep_frames=int(checkpoint.run["cursor"]["frames"]))
         logger.info("resuming %s at t = %.6g s (step %d)", out_path, sim.time_s, sim.steps)
-        return _run(sim, resolved, writer, started, cancel, on_frame, on_progress)
+        return _run_finished(sim, resolved, writer, started, cancel, on_frame, on_progress)
     finally:
         sim.close()
 
@@ -591,6 +611,26 @@ def _meta(resolved: ResolvedRun, sim: Any, project_path: Path | None, unsaved: b
     return meta
 
 
+def _run_finished(sim: Any, resolved: ResolvedRun, writer: ResultsWriter, started: float, cancel: Any,
+                  on_frame: Any, on_progress: Any) -> RunResult:
+    """:func:`_run` into an open writer, which is closed whatever happens: a Ctrl-C that lands
+    before the run loop's own handling (between the writer's start and its first statement) still
+    leaves a final ``summary.json`` ("stopped") and no lock."""
+    try:
+        return _run(sim, resolved, writer, started, cancel, on_frame, on_progress)
+    except KeyboardInterrupt:
+        if writer.closed:
+            raise
+        if isinstance(cancel, StopRequest):
+            cancel.finishing()
+        summary = writer.close("stopped", "interrupted (Ctrl-C) before the first step")
+        return RunResult(summary["status"], summary["message"], writer.out_dir, summary)
+    except BaseException:
+        if not writer.closed:
+            writer.close("failed", "the run ended before its first step")
+        raise
+
+
 def _run(
     sim: Any,
     resolved: ResolvedRun,
@@ -604,31 +644,33 @@ def _run(
     from projects.results import write_checkpoint
     from projects.strength import TRIALS_NAME, strength_reduction
 
-    driver = strength_reduction(resolved)  # None unless the project has a strength-reduction stage
-    hazard = None
-    if writer is not None:
-        from projects import hazard as hazard_files
-
-        for name in (hazard_files.HAZARD_JSON, hazard_files.PROFILE_CSV, hazard_files.TARGETS_CSV,
-                     hazard_files.HAZARD_VTI):
-            writer.own(name)
-        if driver is not None:
-            writer.own(TRIALS_NAME)
-        hazard = HazardOutput(writer.out_dir, sim, settings(resolved.project), writer.submit)
-    watch = _FailureWatch(sim, settings(resolved.project), writer.out_dir if writer is not None else None)
-    setup_s = time.perf_counter() - started
     status, message = "failed", "the run ended unexpectedly"
+    setup_s = time.perf_counter() - started
     loop_start = time.perf_counter()
     steps0 = sim.steps
     interval = resolved.checkpoint_interval_s
     last_checkpoint_s = sim.time_s
+    driver = hazard = watch = None
 
     def save_checkpoint() -> None:
         # frames first: a checkpoint on disk promises every frame up to its own
         writer.flush()
         write_checkpoint(writer.out_dir, sim.checkpoint())
 
-    try:
+    try:  # from here on every way out finishes the folder (its setup too: a Ctrl-C may land in it)
+        driver = strength_reduction(resolved)  # None unless the project has a strength-reduction stage
+        if writer is not None:
+            from projects import hazard as hazard_files
+
+            for name in (hazard_files.HAZARD_JSON, hazard_files.PROFILE_CSV, hazard_files.TARGETS_CSV,
+                         hazard_files.HAZARD_VTI):
+                writer.own(name)
+            if driver is not None:
+                writer.own(TRIALS_NAME)
+            hazard = HazardOutput(writer.out_dir, sim, settings(resolved.project), writer.submit)
+        watch = _FailureWatch(sim, settings(resolved.project), writer.out_dir if writer is not None else None)
+        setup_s = time.perf_counter() - started
+        loop_start = time.perf_counter()
         frames = (sim.run(cancel=cancel, on_progress=on_progress) if driver is None
                   else driver.run(sim, cancel=cancel, on_progress=on_progress))
         for frame in frames:
@@ -667,6 +709,8 @@ def _run(
         status, message = "failed", f"ended by {type(err).__name__}"
         raise
     finally:
+        if isinstance(cancel, StopRequest):
+            cancel.finishing()  # no KeyboardInterrupt from a Ctrl-C from here on: the folder is finished
         motion = _motion(sim, resolved, status)
         if hazard is not None and status in ("completed", "stopped"):
             try:
@@ -682,7 +726,7 @@ def _run(
             "wall_time_s": time.perf_counter() - started,
             "particle_steps_per_s": particles * steps / loop_s if loop_s > 0 else 0.0,
         }
-        extra = {"setup_time_s": setup_s, **_equilibrium(sim), **watch.summary(),
+        extra = {"setup_time_s": setup_s, **_equilibrium(sim), **(watch.summary() if watch is not None else {}),
                  # whether the answer is final: the mass at rest at the end (projects.motion)
                  "still_moving": None if motion is None else motion["still_moving"], "motion_at_end": motion,
                  # the stability limit at rest (material damping shortens it: docs/solver.md)
