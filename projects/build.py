@@ -205,7 +205,11 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
     stages = []
     reduced = False  # after a strength-reduction stage projects.strength sets the material table
     water = solver_water(project)
-    for stage, table, stage_water in zip(project.stages, material_tables(project), water[1:]):
+    from projects.loads import stage_loads
+
+    loads = stage_loads(project)
+    for stage, table, stage_water, (surcharges, surcharges_from, seismic) in zip(
+            project.stages, material_tables(project), water[1:], loads):
         if stage.type == "strength-reduction":
             reduced = True
             continue  # driven by projects.strength between the solver's stages
@@ -229,6 +233,9 @@ def solver_config(project: Project, *, arch_override: str | None = None) -> sc.S
                 stop_when_max_speed_below_m_s=stage.stop_when_max_speed_below_m_s,
                 min_duration_s=stage.min_duration_s or 0.0,
                 water=stage_water if stage.water is not None else None,
+                surcharges=surcharges,
+                surcharges_from=surcharges_from,
+                seismic=seismic,
             )
         )
 
@@ -563,7 +570,10 @@ def estimate(project: Project) -> dict[str, object]:
         ``grid_nodes`` (int, with ghost layers), ``seeding_candidates`` (int, lattice points
         tested), ``time_step_s`` (float, s), ``time_step_source`` ("time_step_s" or "cfl"),
         ``max_p_wave_speed_m_s`` (float), ``simulated_time_s`` (float, s, all stages),
-        ``steps`` (int, all stages), ``frames`` (int, about one per ``output.interval_s``),
+        ``steps`` (int, all stages), ``may_stop_early`` (bool, a stage may end before its duration),
+        ``trial_steps`` (int, one strength-reduction trial at most; 0 without one; the search's trials
+        come on top of ``steps``; :mod:`projects.cost` turns both into wall time),
+        ``frames`` (int, about one per ``output.interval_s``),
         ``bytes_per_particle`` and ``bytes_per_node`` (int, memory), ``memory_bytes`` (int),
         ``frame_bytes`` (int, one frame file), ``disk_bytes`` (int, the results folder),
         ``hazard_cells`` (int, cells of the hazard raster; 0 without hazard output, counted in
@@ -601,6 +611,15 @@ def estimate(project: Project) -> dict[str, object]:
     shrink = _ratio(undamped_limit, damped_limit) if damped.damping_beta_s > 0.0 else 1.0
     durations = [stage.duration_s or 0.0 for stage in project.stages]
     steps = _count(sum(_ratio(d, dt) for d in durations if d > 0.0))
+    # what the time above may not hold: a stage that may stop early (at most that), and the trials
+    # of a strength reduction (each at most its trial duration; their number is the search's)
+    may_stop_early = any(stage.stop_when_kinetic_energy_below is not None
+                         or getattr(stage, "stop_when_max_speed_below_m_s", None) is not None
+                         for stage in project.stages)
+    trial_s = next(((stage.trial_duration_s or next((s.duration_s or 0.0 for s in project.stages
+                                                     if s.type == "gravity"), 0.0))
+                    for stage in project.stages if stage.type == "strength-reduction"), 0.0)
+    trial_steps = _count(_ratio(trial_s, dt)) if trial_s > 0.0 else 0
     total = float(sum(durations))
     intervals = _ratio(total, project.output.interval_s)
     frames = _count(math.floor(intervals + 1e-9) + 1.0 if math.isfinite(intervals) else math.inf)
@@ -643,6 +662,8 @@ def estimate(project: Project) -> dict[str, object]:
         "max_p_wave_speed_m_s": c_p,
         "simulated_time_s": total,
         "steps": steps,
+        "may_stop_early": may_stop_early,
+        "trial_steps": trial_steps,
         "frames": frames,
         "bytes_per_particle": per_particle,
         "bytes_per_node": per_node,

@@ -261,8 +261,13 @@ def _dumps(project: Project) -> str:
     for stage in data["stages"]:
         table = tomlkit.table()
         for key, value in stage.items():
-            if key in ("damping", "failure"):
+            if key in ("damping", "failure", "seismic"):
                 table[key] = _inline(value)
+            elif key == "surcharges" and value:
+                loads = tomlkit.aot()
+                for load in value:
+                    loads.append(_table(load))
+                table[key] = loads
             elif key == "material_changes":
                 changes = tomlkit.table(is_super_table=True)
                 for name, change in value.items():

@@ -518,13 +518,15 @@ def run_resolved(
 
 def _simulation(resolved: ResolvedRun) -> Any:
     # importing the simulation loads Taichi: do it only when a run really starts
-    from projects.strength import settings_of
+    from projects.strength import settings_of, trial_loads
     from solver.simulation import Simulation
 
     try:
-        # strength-reduction trials step with local damping whatever the stages say
+        # strength-reduction trials step with local damping whatever the stages say, under their loads
+        surcharges, seismic = trial_loads(resolved.project)
         return Simulation(resolved.config, resolved.particles,
-                          damping_support=settings_of(resolved.project) is not None)
+                          damping_support=settings_of(resolved.project) is not None,
+                          surcharge_support=bool(surcharges), seismic_support=seismic is not None)
     except SolverError as err:
         raise _solver_rejects(err) from None
     except (MemoryError, OverflowError, RuntimeError, ValueError) as err:  # e.g. --force past the limits
@@ -737,6 +739,10 @@ def _run(
             extra["startup_s"] = process_age_s() - (time.perf_counter() - sim.first_step_at)
             # the same span in CPU seconds of the process (less disturbed by other work on the machine)
             extra["startup_cpu_s"] = sim.first_step_cpu_s
+        if sim.first_step_at is not None and steps > 1:
+            # wall seconds per step after the first (frames, envelopes and checks included): what
+            # the pre-run estimate's cost model is measured on (projects.cost)
+            extra["step_time_s"] = (loop_start + loop_s - sim.first_step_at) / (steps - 1)
         if driver is not None:
             extra.update(driver.summary())
             if writer is not None:

@@ -85,7 +85,8 @@ STRENGTH_FACTOR_RANGE: tuple[float, float] = (0.05, 50.0)
 #: at these limits validates in seconds.
 MAX_POLYGON_POINTS = 20_000
 MAX_TOTAL_POINTS = 100_000
-MAX_ENTRIES: dict[str, int] = {"materials": 256, "bodies": 1000, "structures": 1000, "stages": 1000, "targets": 1000}
+MAX_ENTRIES: dict[str, int] = {"materials": 256, "bodies": 1000, "structures": 1000, "stages": 1000, "targets": 1000,
+                               "surcharges": 100}
 DAMPING_TYPES: tuple[str, ...] = ("local",)
 OUTPUT_FIELDS = sc.OUTPUT_FIELDS
 #: Material keys that only a Drucker-Prager material may have.
@@ -705,6 +706,55 @@ def _first_trial(value: Any) -> Any:
 
 
 FAILURE_CRITERIA: tuple[str, ...] = ("displacement", "kinetic-energy")
+#: The directions of a stage's horizontal seismic force (projects/loads.py).
+SEISMIC_DIRECTIONS: tuple[str, ...] = ("out-of-slope", "left", "right")
+
+
+def _pressure_input(value: Any) -> Any:
+    """A surcharge's pressure: one value, or a pair [at from_m, at to_m]; each a number of Pa or
+    text with a unit ("50 kPa"), >= 0."""
+    def one(v: Any) -> float:
+        if isinstance(v, str):
+            try:
+                number = parse_quantity(v, "Pa")
+            except QuantityError as err:
+                raise _fail(err.reason) from None
+        else:
+            number = _to_number(v)
+        if number < 0.0:
+            raise _fail("must be >= 0 (a surcharge presses on the ground; give a pair [at from_m, at to_m] "
+                        "for a load that varies along it)")
+        return number
+
+    if isinstance(value, (list, tuple)):
+        if len(value) != 2:
+            raise _fail("must be a pressure (Pa, or text such as \"50 kPa\") or a pair [at from_m, at to_m]")
+        return (one(value[0]), one(value[1]))
+    return one(value)
+
+
+class Surcharge(_Model):
+    """``[[stages.surcharges]]``: a distributed load on the ground surface between two x (projects/loads.py)."""
+
+    name: Name
+    from_m: Float
+    to_m: Float
+    pressure_pa: Annotated[float | tuple[float, float], BeforeValidator(_pressure_input)]
+    ramp: Annotated[bool | None, BeforeValidator(lambda v: v if v is None else _to_bool(v))] = None
+
+    @property
+    def pressures_pa(self) -> tuple[float, float]:
+        """The pressure at from_m and at to_m (Pa)."""
+        p = self.pressure_pa
+        return (float(p[0]), float(p[1])) if isinstance(p, tuple) else (float(p), float(p))
+
+
+class Seismic(_Model):
+    """``seismic = {k_h = .., k_v = .., towards = ..}``: a stage's pseudo-static coefficients."""
+
+    k_h: _number_type(ge=0.0, lt=1.0) = 0.0
+    k_v: _number_type(gt=-1.0, lt=1.0) = 0.0
+    towards: Annotated[Literal[SEISMIC_DIRECTIONS], _choice(SEISMIC_DIRECTIONS)] = "out-of-slope"
 
 
 class Failure(_Model):
@@ -748,6 +798,9 @@ class Stage(_Model):
     failure: Failure | None = None
     strength_factor: OptPositive = None
     water: StageWater | None = None
+    #: the surcharges in force from this stage on (None: those of the stage before; [] none)
+    surcharges: Annotated[list[Surcharge] | None, _at_most(MAX_ENTRIES["surcharges"], "surcharges")] = None
+    seismic: Seismic | None = None
 
     @property
     def label(self) -> str:
@@ -1097,6 +1150,9 @@ def _rule_problems(data: Mapping[str, Any]) -> list[Problem]:
     problems += _water_rules(data.get("water"), _array(data.get("stages")))
     problems += _monitor_rules(_array(data.get("stages")), domain)
     problems += _total_points_rule(data)
+    from projects.loads import load_rules  # the surcharges' and seismic coefficients' rules
+
+    problems += [Problem(*problem) for problem in load_rules(data)]
     return problems
 
 

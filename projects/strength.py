@@ -270,14 +270,56 @@ def crest_point(positions_m: np.ndarray, gravity_m_s2, spacing_m: float) -> np.n
     return point_u * across + point_h * up
 
 
-def limit_equilibrium(project: Project, gravity_m_s2=None, water: sc.Water | None = None) -> Any:
+def trial_loads(project: Project) -> tuple[tuple[sc.Surcharge, ...], sc.Seismic | None]:
+    """The loads a project's strength-reduction trials stand under: the surcharges in force in
+    the strength-reduction stage (at full value) and its seismic coefficients; ``((), None)``
+    without such a stage."""
+    settings = settings_of(project)
+    if settings is None:
+        return (), None
+    from projects.loads import stage_loads
+
+    surcharges, _start, seismic = stage_loads(project)[settings.stage_index]
+    return surcharges, seismic
+
+
+def _section_loads(project: Project, g: np.ndarray, surcharges, seismic):
+    """The loads in the frame where gravity points down (Bishop's section): each surcharge's
+    ends at the ground surface under them, rotated, its pressure per unit length of that frame's
+    horizontal (the same resultant); the seismic direction along that frame's horizontal."""
+    from projects.loads import ground_height
+    from stability.bishop import Seismic, Surcharge
+
+    across, up = _gravity_frame(g)
+    polygons = [np.asarray(b.polygon_m, dtype=float) for b in project.bodies]
+    out = []
+    for load in surcharges:
+        ends = np.array([load.from_m, load.to_m])
+        tops = ground_height(polygons, ends)
+        tops = np.where(np.isfinite(tops), tops, 0.0)
+        pts = np.c_[ends, tops]
+        u = pts @ across
+        stretch = (load.to_m - load.from_m) / abs(float(u[1] - u[0]))
+        end = load.pressure_pa if load.pressure_end_pa is None else load.pressure_end_pa
+        lo, hi = (0, 1) if u[1] > u[0] else (1, 0)
+        pressures = (load.pressure_pa * stretch, end * stretch)
+        out.append(Surcharge(float(u[lo]), float(u[hi]), pressures[lo], pressures[hi]))
+    quake = None
+    if seismic is not None:
+        quake = Seismic(seismic.k_h, seismic.k_v, 1.0 if seismic.direction > 0 else -1.0)
+    return out, quake
+
+
+def limit_equilibrium(project: Project, gravity_m_s2=None, water: sc.Water | None = None,
+                      surcharges: tuple[sc.Surcharge, ...] = (), seismic: sc.Seismic | None = None) -> Any:
     """Bishop's critical circle of the project's bodies (in model coordinates).
 
     Each body's material is a Mohr-Coulomb soil (``c'``, ``phi'``, ``rho |g|`` above the phreatic
     line, the saturated density below it, its ``ru``; a linear-elastic body is given a strength
     no slip circle will go through). ``water`` is the ground water in force (the phreatic and
-    free-water lines; None: dry). The section is rotated so that gravity points down; the
-    circle's centre is rotated back. An end of the section is a free face where the bodies stand
+    free-water lines; None: dry); ``surcharges`` and ``seismic`` the loads (projects.loads: vertical
+    loads on the slices' tops, ``k_h W`` at each slice's centroid and ``(1 - k_v) W``). The
+    section is rotated so that gravity points down; the circle's centre is rotated back. An end of the section is a free face where the bodies stand
     off that side of the domain or the side is open; else it is a wall no circle passes through.
 
     Returns
@@ -315,7 +357,9 @@ def limit_equilibrium(project: Project, gravity_m_s2=None, water: sc.Water | Non
         section_water = Water(rotated(water.phreatic_line_m), rotated(water.free_water),
                               unit_weight_n_m3=water.unit_weight_n_m3 * gn / math.hypot(*project.domain.gravity_m_s2),
                               inclined_correction=water.inclined_correction)
-    section = Section(polygons, soils, water=section_water, free_ends=_free_ends(project))
+    loads, quake = _section_loads(project, g, surcharges, seismic)
+    section = Section(polygons, soils, water=section_water, free_ends=_free_ends(project), surcharges=loads,
+                      seismic=quake)
     result = critical_circle(section)
     c = result.circle
     centre = c.centre_x_m * across + c.centre_y_m * up
@@ -417,9 +461,10 @@ class StrengthReduction:
         """Run the initial stress, the search and the run-out, yielding the frames to write."""
         s = self.settings
         cfg = sim.config
+        surcharges, seismic = trial_loads(self.project)
         if s.limit_equilibrium:
             try:
-                self.limit = limit_equilibrium(self.project, water=self.water)
+                self.limit = limit_equilibrium(self.project, water=self.water, surcharges=surcharges, seismic=seismic)
             except ValueError as err:
                 self.limit_error = str(err)
                 logger.warning("limit equilibrium: %s", err)
@@ -464,6 +509,9 @@ class StrengthReduction:
         self.equilibrium_wall_time_s = time.perf_counter() - wall
         self.equilibrium_steps = sim.steps - steps0
         checkpoint = sim.engine.state()
+        # the trials stand under the strength-reduction stage's loads, at full value from the start
+        if surcharges or seismic is not None:
+            sim.set_loads(surcharges, seismic)
         t0, label_index = sim.time_s, len(self.initial_stages)
         # the engine works relative to the grid's origin; the project's coordinates are origin + x
         origin = np.asarray(getattr(sim, "origin_m", (0.0, 0.0)), dtype=np.float64)
@@ -674,6 +722,15 @@ class StrengthReduction:
             "search_steps": int(sum(t.steps for t in self.trials)),
             "trials_file": TRIALS_NAME,
         }
+        surcharges, seismic = trial_loads(self.project)
+        if surcharges:  # the loads the trials stood under (and Bishop's slices)
+            fos["surcharges"] = [{"name": q.name, "from_m": q.from_m, "to_m": q.to_m,
+                                  "pressure_pa": [q.pressure_pa, q.pressure_pa if q.pressure_end_pa is None
+                                                  else q.pressure_end_pa], "force_n_per_m": q.force_n_per_m}
+                                 for q in surcharges]
+        if seismic is not None:
+            fos["seismic"] = {"k_h": seismic.k_h, "k_v": seismic.k_v,
+                              "direction": "right" if seismic.direction > 0 else "left"}
         out: dict[str, Any] = {"factor_of_safety": fos}
         if self.limit is not None:
             out["limit_equilibrium"] = self.limit.to_dict()
