@@ -9,7 +9,9 @@ exceeded, naming the project key that drives the size, the estimate and the limi
 - what the machine has: the memory available now (``MemAvailable`` of ``/proc/meminfo``) and
   the free disk where the results go.
 
-``force=True`` (the command line's ``--force``) skips the check, for the determined.
+``force=True`` (the command line's ``--force``) skips the check, for the determined; only a disk
+with less than :data:`MIN_FREE_DISK_BYTES` free where the results go is refused even then (a run
+with ``--force`` onto a full disk could not write its summary and left its lock file behind).
 """
 
 from __future__ import annotations
@@ -44,6 +46,11 @@ LIMITS: tuple[Limit, ...] = (
     Limit("frames", 1e5, "output.interval_s", "frames (simulated time / output.interval_s)"),
     Limit("hazard_cells", 2e8, "hazard.cell_size_m", "hazard raster cells (domain.size_m / hazard.cell_size_m)"),
 )
+
+
+#: Free disk a run needs to start at all, whatever ``--force`` says: the project, the marker, the
+#: reserve kept for the final summary (projects.results.RESERVE_BYTES) and the first frames.
+MIN_FREE_DISK_BYTES = 1_000_000
 
 
 def _fmt(value: float) -> str:
@@ -201,10 +208,28 @@ def check_limits(
         than the limit of M; --force runs it anyway``.
     """
     if force:
-        return
-    problems = limit_problems(estimate, out_dir=out_dir, memory_bytes=memory_bytes, disk_bytes=disk_bytes)
+        problems = start_problems(out_dir=out_dir, disk_bytes=disk_bytes)
+    else:
+        problems = limit_problems(estimate, out_dir=out_dir, memory_bytes=memory_bytes, disk_bytes=disk_bytes)
     if problems:
         raise ProjectError(problems)
 
 
-__all__ = ["LIMITS", "Limit", "available_memory_bytes", "check_limits", "free_disk_bytes", "limit_problems"]
+def start_problems(
+    *,
+    out_dir: str | os.PathLike[str] | None = None,
+    disk_bytes: int | None = None,
+) -> list[Problem]:
+    """What no ``--force`` gets past: less than :data:`MIN_FREE_DISK_BYTES` free where the results go."""
+    if disk_bytes is None and out_dir is not None:
+        disk_bytes = free_disk_bytes(out_dir)
+    if disk_bytes is None or disk_bytes >= MIN_FREE_DISK_BYTES:
+        return []
+    where = f" in {Path(out_dir).expanduser().absolute()}" if out_dir is not None else ""
+    return [Problem("", None, f"only {_bytes(disk_bytes)} of disk is free{where}, less than the "
+                    f"{_bytes(MIN_FREE_DISK_BYTES)} a run needs to start (its project, summary and first frames); "
+                    "--force cannot make room")]
+
+
+__all__ = ["LIMITS", "MIN_FREE_DISK_BYTES", "Limit", "available_memory_bytes", "check_limits", "free_disk_bytes",
+           "limit_problems", "start_problems"]

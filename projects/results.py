@@ -64,6 +64,7 @@ from projects.results_folder import (
     lock_folder,
     open_results_dir,
     read_marker,
+    remove_empty_folder,
     remove_temp_files,
     write_marker,
 )
@@ -701,6 +702,8 @@ class ResultsWriter:
                 with contextlib.suppress(OSError):  # folder behind, which the next run would refuse
                     clear_own_files(self.out_dir, [*self._patterns, MARKER_NAME])
             self._abandon()
+            if keep_frames is None and self._lock.created_folder:
+                remove_empty_folder(self.out_dir)
             raise ResultsError(f"cannot write results to {self.out_dir}: {err.strerror or err}") from err
         except BaseException:  # a Ctrl-C while the folder is set up: a new run leaves nothing either
             if keep_frames is None:

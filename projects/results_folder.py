@@ -192,10 +192,12 @@ def remove_temp_files(folder: str | os.PathLike[str], patterns: Iterable[str], p
 
 @dataclass
 class FolderLock:
-    """A held lock on a results folder; :meth:`release` it (idempotent)."""
+    """A held lock on a results folder; :meth:`release` it (idempotent). ``created_folder``: the
+    folder did not exist before this run made it (a run that cannot start removes it again)."""
 
     path: Path
     fd: int | None
+    created_folder: bool = False
 
     def release(self) -> None:
         if self.fd is None:
@@ -289,7 +291,9 @@ def lock_folder(folder: str | os.PathLike[str]) -> FolderLock:
             os.ftruncate(fd, 0)
             os.write(fd, f"{os.getpid()}\n".encode("ascii"))
         except OSError as err:
-            os.close(fd)
+            # a full disk: the empty file is no lock of anyone's (a run with --force onto a full
+            # disk left it behind, and no summary.json)
+            FolderLock(path, fd).release()
             raise ResultsError(f"cannot write results to {folder}: {err.strerror or err}") from None
         return FolderLock(path, fd)
     raise ResultsLockedError(_locked_message(folder, _read_pid(path)))
@@ -310,7 +314,11 @@ def _lock_exclusive(folder: Path, path: Path) -> FolderLock:
             continue
         except OSError as err:
             raise ResultsError(f"cannot write results to {folder}: {err.strerror or err}") from None
-        os.write(fd, f"{os.getpid()}\n".encode("ascii"))
+        try:
+            os.write(fd, f"{os.getpid()}\n".encode("ascii"))
+        except OSError as err:
+            FolderLock(path, fd).release()
+            raise ResultsError(f"cannot write results to {folder}: {err.strerror or err}") from None
         return FolderLock(path, fd)
     raise ResultsLockedError(_locked_message(folder, _read_pid(path)))
 
@@ -433,11 +441,18 @@ def open_results_dir(
         As :func:`check_results_dir`, and when the folder cannot be created or written.
     """
     folder = check_results_dir(path, overwrite=overwrite)
+    created = not folder.exists()
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise ResultsError(f"cannot write results to {folder}: {err.strerror or err}") from None
-    lock = lock_folder(folder)
+    try:
+        lock = lock_folder(folder)
+    except ResultsError:
+        if created:
+            remove_empty_folder(folder)
+        raise
+    lock.created_folder = created
     try:
         marker = _judge_contents(folder, overwrite)
         if marker is not None:
@@ -445,12 +460,22 @@ def open_results_dir(
             logger.info("replaced the earlier results in %s (%d files)", folder, removed)
         write_marker(folder, patterns)
     except OSError as err:
+        with contextlib.suppress(OSError):
+            clear_own_files(folder, [MARKER_NAME])
         lock.release()
+        if created:
+            remove_empty_folder(folder)
         raise ResultsError(f"cannot write results to {folder}: {err.strerror or err}") from None
     except BaseException:
         lock.release()
         raise
     return folder, lock
+
+
+def remove_empty_folder(folder: str | os.PathLike[str]) -> None:
+    """Remove ``folder`` when it is empty (a results folder a run made and could not start in)."""
+    with contextlib.suppress(OSError):
+        os.rmdir(folder)
 
 
 def export_path(results_dir: str | os.PathLike[str], label: str, suffix: str = ".png") -> Path:
