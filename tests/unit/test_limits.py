@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 
 from projects.build import MAX_COUNT, estimate
 from projects.document import apply_overrides, load_project
-from projects.limits import LIMITS, check_limits, limit_problems
+from projects.limits import LIMITS, MIN_FREE_DISK_BYTES, check_limits, limit_problems
 from projects.runner import check_project
 from projects.schema import ProjectError
 from tests.conftest import TINY_PROJECT
@@ -74,7 +74,10 @@ def test_runs_beyond_the_stated_limits_are_refused_naming_key_estimate_and_limit
     assert problems[0].path == key
     assert "more than the limit of" in problems[0].message and "--force" in problems[0].message
     assert all("\n" not in str(p) for p in info.value.problems)
-    check_limits(e, force=True, memory_bytes=1, disk_bytes=1)  # the determined may
+    # the determined may, on a disk with room to start (projects.limits.start_problems)
+    check_limits(e, force=True, memory_bytes=1, disk_bytes=MIN_FREE_DISK_BYTES)
+    with pytest.raises(ProjectError, match="--force cannot make room"):
+        check_limits(e, force=True, memory_bytes=1, disk_bytes=MIN_FREE_DISK_BYTES - 1)
 
 
 def test_a_huge_domain_is_refused_before_anything_is_built(tiny):
