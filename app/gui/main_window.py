@@ -1109,6 +1109,9 @@ class MainWindow(QMainWindow):
         arch = summary.get("arch")
         if outcome.status == "completed" and arch in ("cpu", "gpu"):
             self.settings.record_throughput(arch, float(summary.get("particle_steps_per_s") or 0.0))
+            # the step time at the run's size scales the estimate's cost model to this machine
+            self.settings.record_step_time(arch, int(summary.get("particles") or 0),
+                                           float(summary.get("step_time_s") or 0.0), bool(summary.get("structures")))
             self.settings.set("last_arch", arch)
             self.run_panel.update_estimate()
         if run is self.followed:

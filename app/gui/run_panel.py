@@ -28,10 +28,6 @@ from app.gui.settings import Settings
 
 logger = logging.getLogger(__name__)
 
-#: Seconds a run spends before its first step (Taichi compiles the kernels), added to estimates.
-SETUP_S = 3.0
-
-
 #: The colour of a run that completed with the mass still moving (its answer is provisional).
 PROVISIONAL_COLOR = "#e37400"
 
@@ -42,6 +38,16 @@ def outcome_state(status: str, summary: dict[str, Any] | None) -> str:
     from projects.motion import provisional
 
     return f"{status}, still moving" if status == "completed" and provisional(summary or {}) else status
+
+
+class _Counted:
+    """A resolved run whose particle count is the one the panel counted (the seeding it shares
+    with the particle preview) without holding the particles."""
+
+    def __init__(self, resolved: Any, particles: int) -> None:
+        self.project = resolved.project
+        self.estimate = resolved.estimate
+        self.particle_count = int(particles)
 
 
 def format_duration(seconds: float) -> str:
@@ -230,7 +236,7 @@ class RunPanel(QWidget):
         return arch
 
     def update_estimate(self) -> dict[str, Any] | None:
-        """Particles, grid, steps and run time of the current project (from the measured throughput)."""
+        """Particles, grid, steps and run time of the current project (from the measured cost per step)."""
         project = self.doc.project
         self.problems.clear()
         for p in self.doc.problems:
@@ -311,14 +317,36 @@ class RunPanel(QWidget):
             self.particles.setText(f"{e['particles']:,}")
         else:
             self.particles.setText(f"about {e['particles']:,}")
+        # the wall time from the measured cost of a step at this size (projects.cost): this
+        # project's own last run, else this machine's runs, else the development machine's
+        from projects.cost import estimate_run_time
+
         arch = self.arch()
-        rate, measured = self.settings.throughput(arch)
-        seconds = SETUP_S + e["particles"] * e["steps"] / rate
-        source = "measured on this machine" if measured else "assumed; the first run measures it"
-        self.runtime.setText(f"about {format_duration(seconds)} on {arch}")
-        self.rate_info.setText(f"{rate / 1e6:.3g} M particle-steps/s, {source}")
+        machine, _count = self.settings.step_cost(arch)
+        cost = estimate_run_time(_Counted(resolved, e["particles"]), arch=arch, machine=machine,
+                                 results_dir=self.results_dir())
+        seconds = cost["run_time_s"]
+        head = "at most" if cost["may_stop_early"] else "about"
+        self.runtime.setText(f"{head} {format_duration(seconds)} on {arch}")
+        self.rate_info.setText(
+            f"start-up {format_duration(cost['startup_s'])} + {cost['steps']:,} steps × {cost['step_time_s'] * 1e3:.3g} ms "
+            f"({cost['particle_step_s'] * 1e6:.3g} µs per particle-step at this size); {cost['source']}"
+            + (f"; each strength-reduction trial up to {format_duration(cost['trial_time_s'])} more"
+               if cost["trial_steps"] else ""))
         e["run_time_s"] = seconds
+        e["cost"] = cost
         return e
+
+    def results_dir(self) -> Path | None:
+        """Where the run will write: the folder typed, or the project's default folder."""
+        text = self.out_dir.text().strip()
+        if text:
+            return Path(text).expanduser()
+        if self.doc.path is not None:
+            from projects.runner import default_results_dir
+
+            return default_results_dir(self.doc.path)
+        return None
 
     def _build_problem(self, err: Exception) -> None:
         """A valid project the run could still not build (a body every particle of which a later

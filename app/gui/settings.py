@@ -25,6 +25,8 @@ MAX_RECENT = 8
 #: apic-affine on two CPU cores make 3.2e6 (3,200 particles) to 6.8e6 (20,000 particles) with
 #: set-up and compilation included (docs/validation); the paper's GPU run made 7.6e7 on an RTX 3060.
 ASSUMED_THROUGHPUT = {"cpu": 3.0e6, "gpu": 2.0e7}
+#: The completed runs whose step times the estimate scales the cost model by (the latest ones).
+STEP_TIMES_KEPT = 20
 
 
 def config_dir() -> Path:
@@ -104,6 +106,29 @@ class Settings:
         if isinstance(measured, (int, float)) and measured > 0:
             return float(measured), True
         return ASSUMED_THROUGHPUT.get(arch, ASSUMED_THROUGHPUT["cpu"]), False
+
+    def record_step_time(self, arch: str, particles: int, step_time_s: float, structures: bool) -> None:
+        """Remember a completed run's step time (``summary.json`` ``step_time_s``) at its size: the
+        estimates of later runs on ``arch`` scale the shipped cost model to this machine by them."""
+        if step_time_s > 0 and particles > 0 and arch in ("cpu", "gpu"):
+            table = dict(self._data.get("step_times", {}))
+            runs = [r for r in table.get(arch, []) if isinstance(r, list) and len(r) == 3][-(STEP_TIMES_KEPT - 1):]
+            table[arch] = [*runs, [int(particles), float(step_time_s), bool(structures)]]
+            self._data["step_times"] = table
+            self._save()
+
+    def step_cost(self, arch: str) -> Any:
+        """The cost model of ``arch`` scaled to this machine by its measured runs
+        (:func:`projects.cost.machine_step_cost`), or the shipped one (:data:`projects.cost.STEP_COSTS`)
+        before the first; and how many runs it rests on."""
+        from projects.cost import STEP_COSTS, machine_step_cost
+
+        base = STEP_COSTS.get(arch, STEP_COSTS["cpu"])
+        runs = [r for r in self._data.get("step_times", {}).get(arch, []) if isinstance(r, list) and len(r) == 3]
+        if not runs:
+            return base, 0
+        source = f"measured on this machine ({len(runs)} run{'s' if len(runs) != 1 else ''})"
+        return machine_step_cost([tuple(r) for r in runs], base, source), len(runs)
 
     def record_throughput(self, arch: str, particle_steps_per_s: float) -> None:
         """Remember the throughput of a completed run (the estimate of the next run uses it)."""

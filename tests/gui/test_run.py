@@ -59,7 +59,9 @@ def test_a_run_is_a_child_process_shown_live_from_its_folder(window, tiny_file, 
     # the throughput of this run feeds the next estimate
     rate, measured = window.settings.throughput("cpu")
     assert measured and rate == pytest.approx(result.summary["particle_steps_per_s"])
-    assert "measured on this machine" in window.run_panel.rate_info.text()
+    # and its step time the next estimate's cost: the project's own run, at its size
+    assert window.settings.step_cost("cpu")[1] == 1
+    assert "measured by this project's run (288 particles" in window.run_panel.rate_info.text()
     # the folder holds results now: a new run asks before replacing them
     asked = []
     window.ask_replace_results = lambda path: (asked.append(path), "cancel")[1]

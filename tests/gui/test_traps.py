@@ -507,3 +507,35 @@ def test_a_killed_run_is_resumed_from_the_workbench(window, tmp_path, qtbot):
     assert not window.run_panel.resume_button.isEnabled()  # complete: nothing to resume
     window.resume_run(run.out_dir)
     assert errors[-1][0] == "Cannot resume" and "complete: nothing to resume" in errors[-1][1]
+
+
+# -- the pre-run estimate ----------------------------------------------------------------------------
+
+def test_the_estimate_is_the_cost_of_a_step_at_this_size_and_the_projects_own_run(window, tmp_path):
+    import json
+
+    from projects.document import apply_overrides, load_project, save_project
+    from projects.runner import default_results_dir
+    from tests.gui.conftest import EXAMPLES
+
+    path = tmp_path / "barrier.toml"
+    save_project(apply_overrides(load_project(EXAMPLES / "debris_barrier.toml"), ["numerics.arch=cpu"]), path)
+    window.open_project(path)
+    panel = window.run_panel
+    e = panel.update_estimate()
+    # the shipped cost model: 0.22 ms + 0.061 us per particle + 0.82 ms for the structures a step
+    step = 2.2e-4 + 6.1e-8 * 998 + 8.2e-4
+    assert e["cost"]["step_time_s"] == pytest.approx(step)
+    assert e["run_time_s"] == pytest.approx(5.0 + 5251 * step)  # not 3 s + N x steps / 3e6 = 4.7 s
+    assert panel.runtime.text() == "at most 11 s on cpu"  # the run stops when the debris is at rest
+    assert "development machine's measurements" in panel.rate_info.text()
+    assert "µs per particle-step at this size" in panel.rate_info.text()
+    # a run of this project measured 4.5 ms a step: the next estimate is that run's own cost
+    folder = default_results_dir(path)
+    folder.mkdir()
+    (folder / "summary.json").write_text(json.dumps({"arch": "cpu", "particles": 998, "step_time_s": 4.5e-3,
+                                                     "startup_s": 6.0, "structures": [{"name": "dam"}]}))
+    e = panel.update_estimate()
+    assert e["run_time_s"] == pytest.approx(6.0 + 5251 * 4.5e-3)
+    assert panel.runtime.text() == "at most 30 s on cpu"
+    assert "measured by this project's run (998 particles, 4.5 ms a step)" in panel.rate_info.text()
