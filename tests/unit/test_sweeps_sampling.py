@@ -197,7 +197,10 @@ def test_command_line_reports_bad_sweep_files_in_one_line(tmp_path):
     assert res.stderr.strip().splitlines() == [
         "error: s.toml: materials.sand.friction_angl: unknown key; allowed: model, density_kg_m3, youngs_modulus_pa, "
         "poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, tensile_strength_pa, "
-        "mohr_coulomb_match, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru"]
+        "mohr_coulomb_match, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru, "
+        "softening_law, residual_cohesion_pa, residual_friction_angle_deg, residual_dilatancy_angle_deg, "
+        "peak_plastic_strain, residual_plastic_strain, softening_length_m, mu_i_friction_increase, "
+        "mu_i_reference_number, grain_diameter_m, grain_density_kg_m3"]
     assert not (tmp_path / "s.sweep").exists()
     res = _runout("calibrate", "s.toml", cwd=tmp_path)
     assert res.returncode == 1 and "this is a sweep file" in res.stderr
