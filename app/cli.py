@@ -468,29 +468,34 @@ def run(
                 events.emit("finished", status="error", message="stopped before the run started",
                             out_dir=str(events.out_dir))
             fail("stopped before the run started", EXIT_SIGINT)
-    if events is not None:
-        events.emit("finished", status=result.status, message=result.message, out_dir=str(result.out_dir),
-                    summary=result.summary)
-    _report_equilibrium(result, quiet or jsonl)
-    if result.status == "completed":
+        # the last lines are printed with the stop handler still installed: a Ctrl-C among them only
+        # repeats the request (outside it, one landed in rich's import and ended with an ImportError)
+        if events is not None:
+            events.emit("finished", status=result.status, message=result.message, out_dir=str(result.out_dir),
+                        summary=result.summary)
+        _report_equilibrium(result, quiet or jsonl)
         if not quiet and not jsonl:
-            out.print(_summary_line(result), markup=False)
-            if provisional(result.summary):
-                from projects.motion import REMEDY
+            for warning in result.summary.get("warnings") or ():  # what the run found (projects.runner)
+                err.print(f"warning: {warning}", markup=False)
+        if result.status == "completed":
+            if not quiet and not jsonl:
+                out.print(_summary_line(result), markup=False)
+                if provisional(result.summary):
+                    from projects.motion import REMEDY
 
-                err.print(f"warning: the run ended with the mass still moving: its measures are provisional; {REMEDY}",
-                          markup=False)
-            fos = _factor_line(result)
-            if fos:
-                out.print(fos, markup=False)
-        return
-    where = f"(results so far in {result.out_dir})"
-    if result.status == "stopped":
-        code = _stop_code(stop)
-        err.print(f"stopped: {result.message} {where}", markup=False)
-        raise typer.Exit(code)
-    err.print(f"failed: {result.message} {where}", markup=False)
-    raise typer.Exit(EXIT_FAILED)
+                    err.print(f"warning: the run ended with the mass still moving: its measures are provisional; {REMEDY}",
+                              markup=False)
+                fos = _factor_line(result)
+                if fos:
+                    out.print(fos, markup=False)
+            return
+        where = f"(results so far in {result.out_dir})"
+        if result.status == "stopped":
+            code = _stop_code(stop)
+            err.print(f"stopped: {result.message} {where}", markup=False)
+            raise typer.Exit(code)
+        err.print(f"failed: {result.message} {where}", markup=False)
+        raise typer.Exit(EXIT_FAILED)
 
 
 #: Environment variable a parent sets to its process id so that its ``runout run`` children stop

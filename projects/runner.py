@@ -653,6 +653,7 @@ def _run(
     interval = resolved.checkpoint_interval_s
     last_checkpoint_s = sim.time_s
     driver = hazard = watch = None
+    all_lost_at = None  # when every particle had left the grid (a body far too fast, a wrong gravity)
 
     def save_checkpoint() -> None:
         # frames first: a checkpoint on disk promises every frame up to its own
@@ -677,6 +678,8 @@ def _run(
                   else driver.run(sim, cancel=cancel, on_progress=on_progress))
         for frame in frames:
             watch.see(frame)
+            if all_lost_at is None and frame.diagnostics.lost_particles >= resolved.particle_count > 0:
+                all_lost_at = float(frame.diagnostics.time_s)
             if writer is not None:
                 writer.write_frame(frame)
                 hazard.write()  # the envelopes with every frame: a killed run keeps them
@@ -734,6 +737,11 @@ def _run(
                  # the stability limit at rest (material damping shortens it: docs/solver.md)
                  "critical_time_step_s": float(sim.critical_time_step()),
                  "time_step_shrink_by_damping": float(resolved.estimate["time_step_shrink_by_damping"])}
+        if all_lost_at is not None:
+            # the run "completed" while nothing was left in it (an initial velocity of 1e6 m/s): said
+            # in summary.json's warnings and on the command line
+            extra["warnings"] = [f"every particle had left the grid by t = {all_lost_at:.4g} s (lost_particles in "
+                                 "series.csv): the results after that hold nothing to measure"]
         if sim.first_step_at is not None and process_age_s() is not None:
             # process start to the end of its first step: what a run as a process costs to start
             extra["startup_s"] = process_age_s() - (time.perf_counter() - sim.first_step_at)
