@@ -558,12 +558,12 @@ class _Scene:
     def _cloud(self, arrays: Mapping[str, np.ndarray]) -> pyvista.PolyData:
         import pyvista as pv
 
-        active = np.asarray(arrays["active"], dtype=bool)
-        pos = np.asarray(arrays["positions"], dtype=np.float64)[active]
+        shown = drawable(arrays)
+        pos = np.asarray(arrays["positions"], dtype=np.float64)[shown]
         points = np.zeros((len(pos), 3), np.float32)
         points[:, :2] = pos - self._shift
         cloud = pv.PolyData(points)
-        cloud.point_data["values"] = field_values(arrays, self.info.name)[active]
+        cloud.point_data["values"] = field_values(arrays, self.info.name)[shown]
         return cloud
 
     def _add_static(self) -> None:
@@ -656,7 +656,7 @@ class _Scene:
         for name in ("water-fill", "water-line", "free-water-line"):
             self.plotter.remove_actor(name, render=False)
         arrays = self.results.frame(index, {"positions", "active"})
-        ground = particle_ground(np.asarray(arrays["positions"])[np.asarray(arrays["active"], bool)],
+        ground = particle_ground(np.asarray(arrays["positions"])[drawable(arrays)],
                                  self._spacing_m, box)
         shown = water_shown(water, ground, box)
         if shown is None:
@@ -791,6 +791,7 @@ def _scene_for(
     size: tuple[int, int],
     cmap: str | None,
     clim: tuple[float, float] | None,
+    on_warning: Callable[[str], None] | None = None,
 ) -> _Scene:
     info = field_info(field)
     first = results.frame(frames[0])
@@ -799,14 +800,52 @@ def _scene_for(
     values = []
     for i in frames:
         arrays = results.frame(i, {"positions", "active", info.source})
-        active = np.asarray(arrays["active"], bool)
-        boxes.append(_particle_box(np.asarray(arrays["positions"])[active]))
+        shown = drawable(arrays)
+        _say_undrawable(arrays, i, field, on_warning, alone=len(frames) == 1)
+        boxes.append(_particle_box(np.asarray(arrays["positions"])[shown]))
         if clim is None and not info.categorical:
-            values.append(field_values(arrays, field)[active])
+            values.append(field_values(arrays, field)[shown])
     if clim is None and values:
         clim = value_range(np.concatenate(values))
     view = _view(_union(*boxes), size)
     return _Scene(results, field, size, view, _particle_spacing(results, first), cmap, clim)
+
+
+def drawable(arrays: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The particles of a frame a picture shows: active, at finite positions, shape (N,) bool.
+
+    A frame of an unstable run can hold NaN or infinite positions; they are left out of the
+    picture, its bounds and its colour range (and said: :func:`_say_undrawable`)."""
+    active = np.asarray(arrays["active"], dtype=bool)
+    return active & np.isfinite(np.asarray(arrays["positions"], dtype=np.float64)).all(axis=1)
+
+
+def _say_undrawable(arrays: Mapping[str, np.ndarray], index: int, field: str,
+                    on_warning: Callable[[str], None] | None, alone: bool) -> None:
+    """One line about the particles of frame ``index`` a picture cannot show as they are; a single
+    frame none of whose active particles has a finite position is an error (nothing to draw)."""
+    active = np.asarray(arrays["active"], dtype=bool)
+    shown = drawable(arrays)
+    bad = int(active.sum() - shown.sum())
+    if bad and alone and not shown.any():
+        raise ValueError(f"frame {index}: all {bad:,} particle positions are NaN or inf, nothing to draw "
+                         "(the run went unstable: see its summary.json)")
+    lines = []
+    if bad:
+        lines.append(f"frame {index}: {bad:,} of {int(active.sum()):,} particles have positions that are NaN or inf "
+                     "(the run went unstable: see its summary.json); they are not drawn")
+    info = field_info(field)
+    if not info.categorical and info.source in arrays:
+        values = np.asarray(field_values(arrays, field), dtype=np.float64)[shown]
+        nan = int((~np.isfinite(values)).sum())
+        if nan:
+            lines.append(f"frame {index}: {nan:,} particles have a {field} that is NaN or inf; they are drawn in the "
+                         "no-data colour")
+    for line in lines:
+        if on_warning is not None:
+            on_warning(line)
+        else:
+            logger.warning(line)
 
 
 def _frame_index(results: Results, frame: int) -> int:
@@ -827,6 +866,7 @@ def render_frame(
     size: tuple[int, int] = (1600, 900),
     cmap: str | None = None,
     clim: tuple[float, float] | None = None,
+    on_warning: Callable[[str], None] | None = None,
 ) -> Path:
     """Render one frame of a results folder to a PNG, offscreen.
 
@@ -848,11 +888,20 @@ def render_frame(
         Matplotlib colour map (default per field).
     clim : (float, float), optional
         Colour range in the field's units (default: the frame's range).
+    on_warning : callable, optional
+        Called with one line about particles the picture cannot show as they are (positions or
+        values that are NaN or inf: left out, or drawn in the no-data colour).
 
     Returns
     -------
     Path
         The written image.
+
+    Raises
+    ------
+    ValueError
+        An unknown field, a frame out of range, or a frame with no active particle at a finite
+        position (an unstable run's last frame: nothing to draw).
     """
     res = _as_results(results)
     field_info(field)
@@ -860,7 +909,7 @@ def render_frame(
     from projects.results_folder import check_writable, export_path
 
     out = check_writable(Path(path) if path is not None else export_path(res.path, f"{field}_{j:05d}"))
-    scene = _scene_for(res, field, [j], size, cmap, clim)
+    scene = _scene_for(res, field, [j], size, cmap, clim, on_warning)
     try:
         scene.show(j)
         scene.plotter.screenshot(str(out))
@@ -879,11 +928,13 @@ def animate(
     cmap: str | None = None,
     clim: tuple[float, float] | None = None,
     on_frame: Callable[[int, int], None] | None = None,
+    on_warning: Callable[[str], None] | None = None,
 ) -> Path:
     """Write a movie of every frame: ``.mp4`` (H.264 via imageio-ffmpeg) or ``.gif`` (pillow).
 
     The camera and colour range are fixed over the whole movie (the range of all frames unless
-    ``clim`` is given). ``on_frame(done, total)`` reports progress.
+    ``clim`` is given). ``on_frame(done, total)`` reports progress; ``on_warning`` gets a line
+    per frame with particles at NaN or infinite positions (left out) or values (no-data colour).
 
     Returns
     -------
@@ -908,7 +959,7 @@ def animate(
     from projects.results_folder import check_writable
 
     out = check_writable(out)  # before the writer: ffmpeg on a read-only disk prints pages of noise
-    scene = _scene_for(res, field, frames, size, cmap, clim)
+    scene = _scene_for(res, field, frames, size, cmap, clim, on_warning)
     if suffix == ".mp4":
         writer = imageio.get_writer(out, format="FFMPEG", fps=fps, codec="libx264",
                                     quality=8, macro_block_size=1, pixelformat="yuv420p")
