@@ -40,7 +40,7 @@ import numpy as np
 from projects.atomic import write_atomic
 from sweeps import pages
 from sweeps.engine import FINAL_STATUSES, RUNS_DIR, RayEngine, RunRecord, resolve_runs
-from sweeps.folder import PROGRESS_NAME, REPORT_NAME, SweepProgress, read_table_and_json
+from sweeps.folder import PROGRESS_NAME, REPORT_NAME, SweepProgress, disk_problem, read_table_and_json
 from sweeps.spec import CalibrationSpec, Parameter
 
 CSV_NAME = "calibration.csv"
@@ -253,7 +253,6 @@ def run_calibration(
     observed = check_calibration(spec)
     # the sizes first, as `runout run` checks one run's: every trial about the size of the centre's
     from projects.schema import ProjectError
-    from sweeps.sweep import disk_problem
 
     centre = resolve_runs(spec.project_path, table.set, [{k: _centre(p) for k, p in spec.parameters.items()}],
                           spec.linked)[0]

@@ -181,3 +181,22 @@ def read_sweep(path: str | os.PathLike[str]) -> SweepData:
     measures = list((spec.get("spec") or {}).get("sweep", {}).get("measures") or [])
     params = [h for h in header[2:] if h not in measures and h not in FIXED_COLUMNS]
     return SweepData(out, params, measures, rows, spec, progress)
+
+
+def disk_problem(need: int, count: int, out_dir: str | os.PathLike[str], key: str, what: str) -> list[Any]:
+    """One Problem when ``need`` bytes of results (``count`` runs) exceed the free disk at ``out_dir``."""
+    from projects.limits import free_disk_bytes
+    from projects.schema import Problem
+
+    free = free_disk_bytes(out_dir)
+    if free is None or need <= free:
+        return []
+    return [Problem(key, count, f"the {count:,} {what} would write about {_bytes(need)} of results, more than "
+                    f"the {_bytes(free)} free in {Path(out_dir).expanduser().absolute()}")]
+
+
+def _bytes(value: float) -> str:
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if value >= size:
+            return f"{value / size:.3g} {unit}"
+    return f"{value:.0f} B"

@@ -23,7 +23,7 @@ from typing import Any
 
 from projects.atomic import write_atomic
 from sweeps.engine import FINAL_STATUSES, RUNS_DIR, RayEngine, RunPlan, RunRecord, resolve_runs
-from sweeps.folder import CSV_NAME, FIXED_COLUMNS, PROGRESS_NAME, SPEC_NAME, SweepProgress, read_sweep
+from sweeps.folder import CSV_NAME, FIXED_COLUMNS, PROGRESS_NAME, SPEC_NAME, SweepProgress, disk_problem, read_sweep
 from sweeps.sampling import sample
 from sweeps.spec import SweepSpec
 
@@ -80,25 +80,6 @@ def disk_problems(plans: Sequence[RunPlan], out_dir: str | os.PathLike[str]) -> 
             seen.add(plan.run_id)
             need += plan.disk_bytes
     return disk_problem(need, len(seen), out_dir, "sweep.runs", "runs")
-
-
-def disk_problem(need: int, count: int, out_dir: str | os.PathLike[str], key: str, what: str) -> list[Any]:
-    """One Problem when ``need`` bytes of results (``count`` runs) exceed the free disk at ``out_dir``."""
-    from projects.limits import free_disk_bytes
-    from projects.schema import Problem
-
-    free = free_disk_bytes(out_dir)
-    if free is None or need <= free:
-        return []
-    return [Problem(key, count, f"the {count:,} {what} would write about {_bytes(need)} of results, more than "
-                    f"the {_bytes(free)} free in {Path(out_dir).expanduser().absolute()}")]
-
-
-def _bytes(value: float) -> str:
-    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
-        if value >= size:
-            return f"{value / size:.3g} {unit}"
-    return f"{value:.0f} B"
 
 
 def _cell(value: Any) -> Any:
