@@ -42,6 +42,8 @@ def time_step_above_limit(project: Project) -> list[str]:
                 limit = solver_material(name, material).critical_time_step_s(dx)
             except (ArithmeticError, ValueError):
                 continue
+            if not 0.0 < limit < float("inf"):
+                continue  # a degenerate material (its own problem is reported elsewhere)
             if worst is None or limit < worst[0]:
                 worst = (limit, name, index)
     if worst is None or not dt > worst[0] * (1.0 + 1e-9):
