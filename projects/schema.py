@@ -993,6 +993,9 @@ def validate_project(data: Mapping[str, Any]) -> Project:
         # Other problems would be judged by the wrong schema; report the version alone.
         raise ProjectError([Problem("runout.schema_version", version, _VERSION_MESSAGE)])
     data = migrate(data)
+    too_many = _total_points_rule(data)
+    if too_many:  # before any point is read: a size limit, not one problem among others
+        raise ProjectError(too_many)
     problems: list[Problem] = []
     project = None
     try:
@@ -1149,7 +1152,6 @@ def _rule_problems(data: Mapping[str, Any]) -> list[Problem]:
     problems += _hazard_rules(_table(data.get("hazard")), _array(data.get("targets")), domain)
     problems += _water_rules(data.get("water"), _array(data.get("stages")))
     problems += _monitor_rules(_array(data.get("stages")), domain)
-    problems += _total_points_rule(data)
     from projects.loads import load_rules  # the surcharges' and seismic coefficients' rules
 
     problems += [Problem(*problem) for problem in load_rules(data)]
@@ -1509,6 +1511,8 @@ def _total_points_rule(data: Mapping[str, Any]) -> list[Problem]:
     for table in lines:
         for key in ("phreatic_line_m", "free_water_line_m"):
             if isinstance(table.get(key), (list, tuple)):
+                if len(table[key]) > MAX_POLYGON_POINTS:
+                    return []  # that line's own problem says it
                 counts["water"] = counts.get("water", 0) + len(table[key])
     total = sum(counts.values())
     if total <= MAX_TOTAL_POINTS:
