@@ -32,7 +32,7 @@ def time_step_above_limit(project: Project) -> list[str]:
     dt = project.numerics.time_step_s
     if dt is None:
         return []
-    from projects.build import damping_table, material_tables, solver_material
+    from projects.build import material_tables, solver_material
 
     dx = project.domain.cell_size_m
     worst = None  # (limit, material name, stage index)
@@ -52,9 +52,25 @@ def time_step_above_limit(project: Project) -> list[str]:
     ratio = dt / limit
     times = f"{ratio:,.0f}" if ratio >= 100 else f"{ratio:.3g}"
     return [f"numerics.time_step_s = {dt:g}: {times} times the stability limit {limit:.3g} s of "
-            f"{damping_table(project, name, index)} (cell_size_m / P-wave speed, shorter with damping): the run goes "
+            f"{_set_at(project, name, index)} (cell_size_m / P-wave speed, shorter with damping): the run goes "
             f"unstable within its first steps; use time_step_s <= {limit:.3g}, or remove it for cfl = {DEFAULT_CFL:g} "
             "(docs/solver.md, the time step)"]
+
+
+#: The material keys a stability limit depends on.
+_LIMIT_KEYS = ("youngs_modulus_pa", "poisson_ratio", "density_kg_m3", "damping_ratio", "damping_frequency_hz",
+               "damping_model")
+
+
+def _set_at(project: Project, name: str, stage_index: int) -> str:
+    """Where material ``name``'s stiffness, density and damping in force in stage ``stage_index``
+    are set: the last stage change up to it that sets one of them, else the material itself."""
+    path = f"materials.{name}"
+    for index, stage in enumerate(project.stages[: stage_index + 1]):
+        change = stage.material_changes.get(name)
+        if change is not None and any(getattr(change, key, None) is not None for key in _LIMIT_KEYS):
+            path = f"stages.{index}.material_changes.{name}"
+    return path
 
 
 def fast_bodies(project: Project) -> list[str]:
