@@ -36,6 +36,7 @@ from PySide6.QtWidgets import (
 
 from app.gui.curves import ContactCurves, HistoryCurve, MonitorCurves, ProfileCurve, SeriesCurves, write_curves_csv
 from app.gui.document import parse_number
+from app.display import SMOOTHED_SOURCES, display_spacing, shown_values
 from app.render import FIELDS, bar_format, field_info, field_values, structure_labels, value_range
 
 logger = logging.getLogger(__name__)
@@ -102,6 +103,10 @@ class ParticleScene(QWidget):
         self.picked_id: int | None = None
         self.structure_count = 0
         self._water_drawn: Any = False  # the water last drawn (False: none)
+        #: stresses and pore pressure averaged over cells of this size (None: as the particles carry them)
+        self.smooth_cell_m: float | None = None
+        #: the side of the squares that draw the particles in the frame shown (app.display.display_spacing)
+        self.shown_spacing_m = 0.0
         #: what is drawn is drawn less this (the grid's corner): VTK draws in float32, which
         #: resolves 0.25 m at y = 4e6 m (real-world coordinates); picking adds it back
         self.offset = np.zeros(2)
@@ -202,8 +207,10 @@ class ParticleScene(QWidget):
         self.positions = positions
         self.ids = np.flatnonzero(active)
         info = field_info(self.field)
+        self.shown_spacing_m = display_spacing(positions, self.spacing_m) if self.spacing_m > 0 else 0.0
         try:
-            values = np.asarray(field_values(arrays, self.field), dtype=float)[active]
+            origin = (self.domain[0], self.domain[2]) if self.domain is not None else (0.0, 0.0)
+            values = np.asarray(shown_values(arrays, self.field, self.smooth_cell_m, origin), dtype=float)[active]
             self.message = ""
         except ValueError as err:  # the run did not write this field
             values = np.zeros(len(positions))
@@ -292,7 +299,10 @@ class ParticleScene(QWidget):
         if self.actor is None or self.spacing_m <= 0:
             return
         scale = self.plotter.camera.parallel_scale
-        pixels = self.spacing_m * max(1, self.plotter.height()) / (2.0 * max(scale, 1e-12))
+        # the particles' spread in this frame, not only their spacing at the start: a flowing mass
+        # drawn at its initial spacing fell apart into separated columns of points
+        spacing = max(self.spacing_m, self.shown_spacing_m)
+        pixels = spacing * max(1, self.plotter.height()) / (2.0 * max(scale, 1e-12))
         self.actor.prop.point_size = float(min(40.0, max(2.0, math.ceil(pixels))))
 
     def resizeEvent(self, event: Any) -> None:  # noqa: N802 - Qt's name
@@ -391,6 +401,12 @@ class ParticleScene(QWidget):
             self.plotter.render()
 
 
+def _cell_of(summary: dict[str, Any]) -> float | None:
+    """The grid's cell size of a results folder's summary (None where it is not recorded)."""
+    size = (summary.get("domain") or {}).get("cell_size_m")
+    return float(size) if isinstance(size, (int, float)) and size > 0 else None
+
+
 def _domain_of(summary: dict[str, Any]) -> tuple[float, float, float, float] | None:
     domain = summary.get("domain") or {}
     try:
@@ -448,8 +464,14 @@ class _Controls(QWidget):
             edit.editingFinished.connect(self.styleChanged)
         self.unit = QLabel("")
         self.unit.setMinimumWidth(30)
+        self.smooth = QCheckBox("smooth")
+        self.smooth.setToolTip("Stresses and pore pressure averaged over the cells around each particle "
+                               "(app.display.smooth_values): the cell-scale checkerboard of a moving mass shown "
+                               "as its local mean. The frames keep their particle values.")
+        self.smooth.toggled.connect(lambda _on: self.styleChanged.emit())
         row2.addWidget(QLabel("Field"))
         row2.addWidget(self.field, 1)
+        row2.addWidget(self.smooth)
         row2.addWidget(QLabel("Colours"))
         row2.addWidget(self.cmap)
         row2.addWidget(self.auto)
@@ -494,6 +516,7 @@ class _Controls(QWidget):
     def _sync_unit(self) -> None:
         info = FIELDS[self.field_name]
         self.unit.setText("" if info.categorical else info.unit)
+        self.smooth.setEnabled(info.source in SMOOTHED_SOURCES)
         self.cmap.setEnabled(not info.categorical)
         self.auto.setEnabled(not info.categorical)
 
@@ -586,6 +609,10 @@ class ResultsView(QWidget):
         self.side.addTab(self.history_plot, "Particle history")
         self.side.addTab(self._with_inputs(self.monitor_plot, "monitor"), "Monitoring points")
         self.side.addTab(self._with_inputs(self.profile_plot, "section"), "Cross-section")
+        self.side.addTab(self._query_tab(), "Query")
+        #: the point whose value the Query tab shows (it follows the frame, field and smoothing)
+        self.query_point: tuple[float, float] | None = None
+        self.query_answer: Any = None
         # landslide domains are wide: the curves go below the view, in a row
         split = QSplitter(Qt.Orientation.Vertical)
         split.addWidget(self.scene)
@@ -661,10 +688,108 @@ class ResultsView(QWidget):
                             "spacing of it, in the frame shown")
             show.clicked.connect(self._section_typed)
             row.addWidget(show)
+            self.section_csv = QPushButton("Export CSV…")
+            self.section_csv.setToolTip("The shown field along the line at points every half particle spacing, "
+                                        "in the frame shown (as runout query --along), to a CSV file")
+            self.section_csv.clicked.connect(self._export_section_dialog)
+            row.addWidget(self.section_csv)
         row.addStretch(1)
         layout.addLayout(row)
         layout.addWidget(canvas, 1)
         return box
+
+    def _query_tab(self) -> QWidget:
+        """The value of the shown field at a typed point (``runout query --at``)."""
+        box = QWidget()
+        layout = QVBoxLayout(box)
+        layout.setContentsMargins(4, 4, 4, 4)
+        row = QHBoxLayout()
+        self.query_x, self.query_y = QLineEdit(), QLineEdit()
+        for edit, name in ((self.query_x, "x"), (self.query_y, "y")):
+            edit.setPlaceholderText(f"{name} (m)")
+            edit.setMaximumWidth(90)
+            edit.returnPressed.connect(self._query_typed)
+            row.addWidget(QLabel(name))
+            row.addWidget(edit)
+        ask = QPushButton("Value here")
+        ask.setToolTip("The shown field at this point in the frame shown: the mean of the particles within one "
+                       "particle spacing, nearest counting most (runout query --at)")
+        ask.clicked.connect(self._query_typed)
+        row.addWidget(ask)
+        row.addStretch(1)
+        layout.addLayout(row)
+        self.query_label = QLabel("Type a point and press Value here: the value follows the time slider, the "
+                                  "field and the smoothing.")
+        self.query_label.setWordWrap(True)
+        self.query_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        layout.addWidget(self.query_label)
+        layout.addStretch(1)
+        return box
+
+    def _query_typed(self) -> None:
+        x, y = parse_number(self.query_x.text()), parse_number(self.query_y.text())
+        if x is None or y is None:
+            self.message.emit("query: give x and y in metres")
+            return
+        self.query_at(x, y)
+
+    def query_at(self, x_m: float, y_m: float) -> Any:
+        """The shown field at (x_m, y_m) in the shown frame (:func:`app.query.values_at`); the
+        Query tab says it and follows the frame from now on. The :class:`app.query.PointValue`."""
+        self.query_point = (float(x_m), float(y_m))
+        self.query_x.setText(f"{x_m:g}")
+        self.query_y.setText(f"{y_m:g}")
+        self.side.setCurrentIndex(self.side.count() - 1)
+        return self.update_query()
+
+    def update_query(self) -> Any:
+        from app.query import point_text, values_at
+
+        if self.query_point is None or self.results is None:
+            return None
+        try:
+            answer = values_at(self.results, self.controls.field_name, [self.query_point], self.frame_index,
+                               smooth=self.controls.smooth.isChecked())
+        except ValueError as err:
+            self.query_label.setText(str(err))
+            self.query_answer = None
+            return None
+        self.query_answer = answer
+        self.query_label.setText(point_text(answer))
+        return answer.points[0]
+
+    def _export_section_dialog(self) -> None:
+        from PySide6.QtWidgets import QFileDialog
+
+        if self.section is None or self.results is None:
+            self.message.emit("cross-section: show a profile first")
+            return
+        path, _f = QFileDialog.getSaveFileName(self, "Export the section", str(self._section_csv_path()),
+                                               "CSV (*.csv)")
+        if path:
+            self.export_section(path)
+
+    def _section_csv_path(self) -> Path:
+        from projects.results_folder import export_path
+
+        return export_path(self.results.path, f"section_{self.controls.field_name}_{self.frame_index:05d}",
+                           ".csv")
+
+    def export_section(self, path: str | Path) -> Path:
+        """The shown field along the cross-section in the shown frame, as ``runout query --along``
+        writes it (:func:`app.query.csv_text`)."""
+        from app.query import csv_text, values_along
+        from projects.atomic import write_atomic
+
+        if self.section is None or self.results is None:
+            raise ValueError("show a cross-section first")
+        x0, y0, x1, y1 = self.section
+        answer = values_along(self.results, self.controls.field_name, (x0, y0), (x1, y1), self.frame_index,
+                              smooth=self.controls.smooth.isChecked())
+        out = Path(path)
+        write_atomic(out, csv_text(answer).encode("utf-8"))
+        self.message.emit(f"wrote {out}")
+        return out
 
     # -- monitoring points and cross-sections ---------------------------------------------------
 
@@ -737,7 +862,8 @@ class ResultsView(QWidget):
         x0, y0, x1, y1 = self.section
         arrays = self.results.frame(self.frame_index)
         field = self.controls.field_name
-        values = np.asarray(field_values(arrays, field), float)
+        origin = (_domain_of(self.results.summary) or (0.0, 0.0, 0.0, 0.0))[::2]
+        values = np.asarray(shown_values(arrays, field, self.smooth_cell_m(), origin), float)
         start, end = np.array([x0, y0]), np.array([x1, y1])
         length = float(np.linalg.norm(end - start))
         along = (end - start) / length
@@ -911,6 +1037,8 @@ class ResultsView(QWidget):
         self.contact_plot.set_time(time_s)
         if self.section is not None:
             self.update_section()
+        if self.query_point is not None:
+            self.update_query()
         self.message.emit(self.scene.message)
 
     @staticmethod
@@ -946,6 +1074,13 @@ class ResultsView(QWidget):
         self.scene.field = self.controls.field_name
         self.scene.cmap = self.controls.cmap.currentText()
         self.scene.clim = self.controls.clim()
+        self.scene.smooth_cell_m = self.smooth_cell_m()
+
+    def smooth_cell_m(self) -> float | None:
+        """The cell size the shown stresses are averaged over (None: not smoothed)."""
+        if self.results is None or not self.controls.smooth.isChecked():
+            return None
+        return _cell_of(self.results.summary)
 
     def _field_picked(self) -> None:
         self.controls.set_field(self.controls.field_name)
@@ -1127,6 +1262,7 @@ class CompareView(QWidget):
                 continue
             scene = self.scenes[side]
             scene.field, scene.cmap, scene.clim = field, self.controls.cmap.currentText(), clim
+            scene.smooth_cell_m = _cell_of(results.summary) if self.controls.smooth.isChecked() else None
             j = self._index_at(results, time_s)
             scene.show_arrays(arrays[side], float(results.times[j]), f"frame {j + 1}/{len(results)}")
         if clim is not None:

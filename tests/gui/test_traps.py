@@ -539,3 +539,76 @@ def test_the_estimate_is_the_cost_of_a_step_at_this_size_and_the_projects_own_ru
     assert e["run_time_s"] == pytest.approx(6.0 + 5251 * 4.5e-3)
     assert panel.runtime.text() == "at most 30 s on cpu"
     assert "measured by this project's run (998 particles, 4.5 ms a step)" in panel.rate_info.text()
+
+
+# -- particles of a spread mass, smoothed stress, the results query ------------------------------
+
+def _stretched_results(tmp_path, stretch: float = 1.4):
+    """A block of 40 x 20 particles (5 mm apart) whose second frame is drawn apart along x by
+    ``stretch`` (the columns of a flowing mass parting), with a cell-scale checkerboard on its
+    vertical stress (+-3 kPa from cell to cell of 1 cm)."""
+    from projects.results import ResultsWriter
+    from solver.config import Diagnostics, Frame
+    from tests.conftest import SYNTHETIC_META, SYNTHETIC_PROJECT
+
+    x, y = np.meshgrid((np.arange(40) + 0.5) * 0.005, (np.arange(20) + 0.5) * 0.005)
+    p0 = np.column_stack([x.ravel(), y.ravel()])
+    writer = ResultsWriter(tmp_path / "stretched.results", SYNTHETIC_PROJECT, dict(SYNTHETIC_META))
+    for i, s in enumerate((1.0, stretch)):
+        pos = p0 * [s, 1.0]
+        cell = (np.floor(pos[:, 0] / 0.01) + np.floor(pos[:, 1] / 0.01)) % 2
+        syy = -10_000.0 + np.where(cell == 0, 3000.0, -3000.0)
+        stress = np.column_stack([0.5 * syy, syy, np.zeros(len(p0)), 0.5 * syy])
+        diag = Diagnostics(time_s=0.1 * i, stage="run", stage_index=0, stage_time_s=0.1 * i, step=10 * i, dt_s=1e-3,
+                           kinetic_energy_J_per_m=0.0, momentum_x=0.0, momentum_y=0.0, max_speed_m_s=0.0,
+                           unstable_particles=0, lost_particles=0, total_mass_kg_per_m=1.0, yielding_particles=0)
+        writer.write_frame(Frame(diag, {"positions": pos, "active": np.ones(len(p0), bool), "displacement": pos - p0,
+                                        "velocity": np.zeros_like(p0), "stress": stress,
+                                        "plastic_strain": np.zeros(len(p0)), "material_id": np.zeros(len(p0), np.int32)}))
+    writer.close("completed", "")
+    return tmp_path / "stretched.results"
+
+
+def test_particles_of_a_spread_mass_are_drawn_without_gaps(window, tmp_path):
+    import math
+
+    assert window.open_results(_stretched_results(tmp_path))
+    view, scene = window.results_view, window.results_view.scene
+    view.show_frame(0)
+    pixels_per_m = scene.plotter.height() / (2.0 * scene.plotter.camera.parallel_scale)
+    assert scene.actor.prop.point_size == max(2.0, math.ceil(0.005 * pixels_per_m))
+    view.show_frame(1)  # the columns 7 mm apart: squares of 7 mm, not 5 mm with 2 mm gaps between
+    assert scene.shown_spacing_m == pytest.approx(0.007)
+    assert scene.actor.prop.point_size >= 0.007 * pixels_per_m
+
+
+def test_the_stress_may_be_shown_smoothed_over_the_cells(window, tmp_path):
+    assert window.open_results(_stretched_results(tmp_path, stretch=1.0))
+    view = window.results_view
+    view.set_field("stress_yy")
+    view.show_frame(1)
+    inside = (view.scene.positions[:, 0] > 0.03) & (view.scene.positions[:, 0] < 0.17) & \
+        (view.scene.positions[:, 1] > 0.02) & (view.scene.positions[:, 1] < 0.08)
+    assert np.ptp(view.scene.values[inside]) == pytest.approx(6.0)  # the checkerboard, +-3 kPa
+    assert view.controls.smooth.isEnabled()
+    view.controls.smooth.setChecked(True)
+    assert np.allclose(view.scene.values[inside], -10.0)  # its local mean
+    view.set_field("displacement")
+    assert not view.controls.smooth.isEnabled()  # only stresses and pore pressure are smoothed
+
+
+def test_the_results_view_answers_a_query_at_a_point_and_exports_a_section(window, tmp_path):
+    assert window.open_results(_stretched_results(tmp_path, stretch=1.0))
+    view = window.results_view
+    view.set_field("stress_yy")
+    view.show_frame(0)
+    value = view.query_at(0.1, 0.05)
+    assert value.value == pytest.approx(-10.0) and value.particles == 4  # two +3 and two -3 kPa around it
+    assert view.query_label.text().startswith("Stress yy at (0.1, 0.05), frame 0 (t = 0 s): -10 kPa")
+    view.set_field("displacement")  # the answer follows the field and the frame
+    assert view.query_label.text().startswith("Displacement at (0.1, 0.05), frame 0")
+    assert view.query_at(0.5, 0.05).particles == 0 and "no material" in view.query_label.text()
+    view.set_section(0.0, 0.05, 0.2, 0.05)
+    out = view.export_section(tmp_path / "section.csv")
+    lines = out.read_text().splitlines()
+    assert lines[0] == "distance_m,x_m,y_m,displacement_m,particles,nearest_particle" and len(lines) == 82

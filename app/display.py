@@ -1,0 +1,125 @@
+"""What the views draw of a frame beyond its raw particle values: the size of the squares that draw
+the particles where a moving mass has spread them apart (:func:`display_spacing`), and a field
+averaged over the cells around each particle (:func:`smooth_values`, :func:`shown_values`), the
+display of a stress that the material point method carries with cell-scale noise in a moving mass.
+Display choices only: the frames keep their particles and values. Used by :mod:`app.render`'s
+pictures and movies, the workbench's results view and ``runout query`` (numpy and scipy, no VTK).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+#: The frame arrays whose fields may be shown smoothed (:func:`smooth_values`): the stresses and
+#: the pore pressure, which a moving mass carries with cell-scale noise.
+SMOOTHED_SOURCES = frozenset({"stress", "pore_pressure"})
+#: Particles of a spread that counts for the point size: the median distance to the particle's
+#: DISPLAY_NEIGHBOUR-th nearest neighbour (the fourth: across a lattice of two spacings, the
+#: larger one).
+DISPLAY_NEIGHBOUR = 4
+#: The point size follows the spread of the particles up to this many initial spacings (a few
+#: particles thrown apart do not make the whole mass's points larger).
+DISPLAY_SPREAD_MAX = 2.0
+#: Above this many particles the spread is measured on a random sample of them (scaled back by
+#: the square root of the sample's share: the distances of a uniformly thinned cloud).
+DISPLAY_SAMPLE = 50_000
+
+
+def display_spacing(positions: np.ndarray, spacing_m: float) -> float:
+    """The side of the squares that draw a frame's particles (m): the particles' spacing at the
+    start, or more where the mass has spread.
+
+    A particle stands for the material around it; in a flowing mass the particles drift apart in
+    one direction and close up in another (a slide stretched along its bed, the material points of
+    a grid column keeping together while the columns part): drawn at their initial spacing they
+    leave gaps and the mass reads as separated columns. The squares are therefore as large as the
+    median distance to each particle's :data:`DISPLAY_NEIGHBOUR`-th nearest neighbour, at least the
+    initial spacing and at most :data:`DISPLAY_SPREAD_MAX` times it. A display choice: the frames'
+    positions are drawn as written.
+    """
+    spacing = float(spacing_m)
+    pts = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    if not spacing > 0 or len(pts) <= DISPLAY_NEIGHBOUR:
+        return spacing
+    from scipy.spatial import cKDTree
+
+    scale = 1.0
+    if len(pts) > DISPLAY_SAMPLE:
+        keep = np.random.default_rng(0).choice(len(pts), DISPLAY_SAMPLE, replace=False)
+        scale = math.sqrt(DISPLAY_SAMPLE / len(pts))
+        pts = pts[keep]
+    distance, _ = cKDTree(pts).query(pts, k=DISPLAY_NEIGHBOUR + 1)
+    spread = float(np.median(distance[:, DISPLAY_NEIGHBOUR])) * scale
+    return float(min(DISPLAY_SPREAD_MAX * spacing, max(spacing, spread)))
+
+
+def smooth_values(positions: np.ndarray, values: np.ndarray, cell_size_m: float,
+                  origin_m: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
+    """``values`` averaged over the grid cells around each particle, for display.
+
+    The particle values go to the grid's nodes with the linear weights of MPM's transfers (each
+    node the weighted mean of the particles in the four cells around it) and come back to each
+    particle from the four nodes of its cell: an average over about two cells in each direction.
+    A stress that alternates from cell to cell in a moving mass (the cell-crossing noise of the
+    material point method, a checkerboard at the cell scale) is shown as its local mean; a field
+    that varies over several cells keeps its shape (a linear field comes back unchanged inside
+    the mass). Particles without a finite value are left out and get NaN back only where no
+    neighbour has one. Used where the results view or a picture is asked to smooth
+    (:data:`SMOOTHED_SOURCES`); the frames keep their particle values.
+    """
+    pts = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+    vals = np.asarray(values, dtype=np.float64).reshape(-1)
+    h = float(cell_size_m)
+    out = np.full(len(vals), np.nan)
+    good = np.all(np.isfinite(pts), axis=1)
+    if not h > 0 or not good.any():
+        return vals.copy()
+    rel = (pts[good] - np.asarray(origin_m, dtype=np.float64)) / h
+    base = np.floor(rel).astype(np.int64)
+    frac = rel - base
+    lo = base.min(axis=0)
+    base -= lo
+    nx, ny = base.max(axis=0) + 2
+    have = np.isfinite(vals[good])
+    v = np.where(have, vals[good], 0.0)
+    w_sum = np.zeros(nx * ny)
+    v_sum = np.zeros(nx * ny)
+    corners = []
+    for dx in (0, 1):
+        for dy in (0, 1):
+            w = (frac[:, 0] if dx else 1.0 - frac[:, 0]) * (frac[:, 1] if dy else 1.0 - frac[:, 1])
+            node = (base[:, 0] + dx) * ny + (base[:, 1] + dy)
+            np.add.at(w_sum, node, w * have)
+            np.add.at(v_sum, node, w * v)
+            corners.append((node, w))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        node_value = v_sum / w_sum
+    back = np.zeros(len(rel))
+    weight = np.zeros(len(rel))
+    for node, w in corners:
+        ok = w_sum[node] > 0
+        back += np.where(ok, w * np.nan_to_num(node_value[node]), 0.0)
+        weight += np.where(ok, w, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out[good] = np.where(weight > 0, back / weight, np.nan)
+    return out
+
+
+def shown_values(arrays: Mapping[str, np.ndarray], field: str, smooth_cell_m: float | None = None,
+                 origin_m: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
+    """:func:`field_values`, smoothed (:func:`smooth_values` over cells of ``smooth_cell_m``,
+    active particles only) where asked and the field is a stress or the pore pressure."""
+    from app.render import field_info, field_values
+
+    values = field_values(arrays, field)
+    info = field_info(field)
+    if not smooth_cell_m or info.source not in SMOOTHED_SOURCES:
+        return values
+    active = np.asarray(arrays["active"], dtype=bool)
+    out = np.asarray(values, dtype=np.float64).copy()
+    out[active] = smooth_values(np.asarray(arrays["positions"])[active], out[active], smooth_cell_m, origin_m)
+    return out
