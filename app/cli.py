@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import io
 import logging
+import math
 import os
 import signal
 import sys
@@ -602,6 +603,66 @@ def validate(
 
     out.print(f"run time: {describe(estimate_run_time(resolved, results_dir=default_results_dir(project)))}",
               markup=False)
+
+
+def _parse_numbers(option: str, text: str, count: int) -> list[float]:
+    """``"2,0.5"`` -> [2.0, 0.5]: ``count`` numbers separated by commas, or one line naming the option."""
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        numbers = [float(p) for p in parts]
+    except ValueError:
+        numbers = []
+    if len(numbers) != count or not all(math.isfinite(v) for v in numbers):
+        shape = ",".join(("x", "y", "x1", "y1")[:count]) if count <= 2 else "x0,y0,x1,y1"
+        fail(f"{option} must be {count} numbers in metres, {shape}, got {text!r}")
+    return numbers
+
+
+@cli.command()
+def query(
+    results: Annotated[Path, typer.Argument(help="Results folder (or its project file).", show_default=False)],
+    field: Annotated[str, typer.Option("--field", help="Field (as runout render: displacement, velocity, "
+                                       "stress_yy, mean_stress, plastic_strain, pore_pressure, ...).")] = "displacement",
+    at: Annotated[list[str] | None, typer.Option("--at", metavar="X,Y", help="A point (m); repeatable.")] = None,
+    along: Annotated[str | None, typer.Option("--along", metavar="X0,Y0,X1,Y1",
+                                              help="A section from (x0, y0) to (x1, y1), m.")] = None,
+    frame: Annotated[str, typer.Option("--frame", "-f", help="Frame number or 'last'.")] = "last",
+    samples: Annotated[int | None, typer.Option("--samples", help="Points along the section (default: every "
+                                                "half particle spacing).")] = None,
+    smooth: Annotated[bool, typer.Option("--smooth", help="Stresses and pore pressure averaged over the cells "
+                                         "around each particle, as the views can show them.")] = False,
+    output: Annotated[Path | None, typer.Option("-o", "--output", help="Write the section as CSV to this file "
+                                                "(default: to the terminal).")] = None,
+) -> None:
+    """The value of a field at a point or along a section, at any frame."""
+    from app.query import csv_text, point_text, values_along, values_at
+    from projects.results import ResultsError
+
+    if (not at) == (along is None):
+        fail("give --at X,Y (one or more) or --along X0,Y0,X1,Y1")
+    index = _parse_frame(frame)
+    res = _open_results(results)
+    try:
+        if at:
+            answer = values_at(res, field, [_parse_numbers("--at", text, 2) for text in at], index, smooth)
+        else:
+            x0, y0, x1, y1 = _parse_numbers("--along", along or "", 4)
+            answer = values_along(res, field, (x0, y0), (x1, y1), index, samples, smooth)
+    except (ValueError, ResultsError) as err:
+        fail(str(err))
+    if at and output is None:
+        out.print(point_text(answer), markup=False)
+        return
+    text = csv_text(answer)
+    if output is None:
+        typer.echo(text, nl=False)
+        return
+    from projects.atomic import write_atomic
+
+    write_atomic(output, text.encode("utf-8"))
+    found = sum(1 for p in answer.points if math.isfinite(p.value))
+    out.print(f"wrote {output}: {len(answer.points)} points, {found} in the material, frame {answer.frame} "
+              f"(t = {answer.time_s:.4g} s)", markup=False)
 
 
 @cli.command()
