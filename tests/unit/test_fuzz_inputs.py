@@ -200,3 +200,145 @@ def test_markup_in_user_names_is_shown_as_typed(tmp_path, name):
     assert result.exit_code == 1
     assert result.exception is None or isinstance(result.exception, SystemExit), repr(result.exception)
     assert f'bodies.0.material = "{name}"' in result.stderr
+
+
+# --------------------------------------------------------------------------------------------
+# sweep and calibration files, fuzzed as the projects are: a spec or one ProjectError line per
+# problem, never another exception; a valid spec samples and checks its measures the same way
+
+
+SWEEP_BASE = {
+    "sweep": {"project": str(TINY_PROJECT), "sampling": "latin-hypercube", "runs": 4, "seed": 1,
+              "set": ["stages.1.duration_s=0.02"], "threads_per_run": 1, "timeout_s": 60.0,
+              "measures": ["hazard.runout_distance_m", "deposit.front_m", "summary.wall_time_s"]},
+    "parameters": {
+        "materials.sand.friction_angle_deg": {"distribution": "normal", "mean": 30.0, "std": 3.0, "low": 20.0,
+                                              "high": 40.0, "levels": 3},
+        "materials.sand.cohesion_pa": {"distribution": "range", "low": 0.0, "high": 100.0, "count": 3},
+        "numerics.scheme": ["apic", "apic-affine"],
+    },
+    "profile": {"field": "peak_flow_height_m", "thresholds": [0.01, 0.02]},
+}
+CALIBRATION_BASE = {
+    "calibration": {"project": str(TINY_PROJECT), "trials": 4, "seed": 2, "batch": 2, "optimizer": "tpe"},
+    "parameters": {"materials.sand.friction_angle_deg": {"distribution": "uniform", "low": 20.0, "high": 40.0}},
+    "observation": {"type": "measures", "values": {"hazard.runout_distance_m": 0.3, "deposit.front_m": 0.4},
+                    "scales": {"hazard.runout_distance_m": 0.01}},
+}
+SPEC_PATHS = sorted([("sweep", p) for p in _paths(SWEEP_BASE)] + [("calibration", p) for p in _paths(CALIBRATION_BASE)],
+                    key=str)
+#: samples and measure checks only for specs of at most this many runs (each run resolves a project)
+FEW_RUNS = 64
+
+
+def _spec_or_error(text: str):
+    from pathlib import Path
+
+    from sweeps.spec import parse_spec
+
+    try:
+        return parse_spec(parse_toml(text, source="s.toml"), Path("."), source="s.toml")
+    except ProjectError as err:
+        _check_one_line_each(err)
+        return None
+
+
+def _use_spec(spec) -> None:
+    """What `runout sweep` and `runout calibrate` do with a valid spec before Ray: sample, check
+    the measures against the base project. Only ProjectError, one line per problem."""
+    from sweeps.measures import measure_problems
+    from sweeps.sampling import sample
+    from sweeps.spec import MAX_RUNS, grid_runs
+
+    base = loads_project(TINY_PROJECT.read_text())
+    if hasattr(spec, "sweep"):
+        runs = spec.sweep.runs if spec.sweep.sampling != "grid" else grid_runs(spec.parameters)
+        assert runs is None or runs <= MAX_RUNS
+        if runs is not None and runs <= FEW_RUNS:
+            try:
+                values = sample(spec)
+            except ProjectError as err:
+                _check_one_line_each(err)
+            else:
+                assert len(values) == runs
+        keys = spec.sweep.measures
+    else:
+        assert spec.calibration.trials <= MAX_RUNS
+        keys = list(spec.observation.values or {})
+    for problem in measure_problems(keys, base, "measures"):
+        assert "\n" not in str(problem)
+
+
+@FUZZ
+@given(pick=st.sampled_from(SPEC_PATHS), value=VALUES, delete=st.booleans())
+def test_one_changed_value_of_a_sweep_file_is_a_spec_or_a_project_error(pick, value, delete):
+    kind, path = pick
+    data = _mutate(copy.deepcopy(SWEEP_BASE if kind == "sweep" else CALIBRATION_BASE), path, value, delete)
+    text = _toml(data)
+    if text is None:
+        return
+    spec = _spec_or_error(text)
+    if spec is not None:
+        _use_spec(spec)
+
+
+SPEC_NUMBER_PATHS = [(kind, path) for kind, path in SPEC_PATHS
+                     if isinstance(_get(SWEEP_BASE if kind == "sweep" else CALIBRATION_BASE, path), (int, float))
+                     and not isinstance(_get(SWEEP_BASE if kind == "sweep" else CALIBRATION_BASE, path), bool)]
+
+
+@pytest.mark.parametrize("value", (*SPECIAL_NUMBERS, 10**9, 2**70, -(2**70)), ids=repr)
+def test_every_number_of_a_sweep_file_set_to_extremes(value):
+    assert len(SPEC_NUMBER_PATHS) > 10
+    for kind, path in SPEC_NUMBER_PATHS:
+        data = _mutate(copy.deepcopy(SWEEP_BASE if kind == "sweep" else CALIBRATION_BASE), path, value, False)
+        text = _toml(data)
+        if text is None:
+            continue
+        spec = _spec_or_error(text)
+        if spec is not None:
+            _use_spec(spec)
+
+
+@FUZZ
+@given(text=st.one_of(
+    st.text(max_size=200),
+    st.builds(lambda cut, junk: tomlkit.dumps(SWEEP_BASE)[:cut] + junk, st.integers(0, 1200), st.text(max_size=20)),
+))
+def test_any_text_is_a_sweep_spec_or_a_project_error(text):
+    _spec_or_error(text)
+
+
+@settings(max_examples=15, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(pick=st.sampled_from(SPEC_PATHS), value=VALUES)
+def test_runout_sweep_and_calibrate_never_show_a_traceback(tmp_path, monkeypatch, pick, value):
+    from app.cli import cli
+
+    kind, path = pick
+    data = _mutate(copy.deepcopy(SWEEP_BASE if kind == "sweep" else CALIBRATION_BASE), path, value, False)
+    text = _toml(data)
+    if text is None:
+        return
+    spec = _spec_or_error(text)
+    if spec is not None and hasattr(spec, "sweep"):
+        from sweeps.spec import grid_runs
+
+        runs = spec.sweep.runs if spec.sweep.sampling != "grid" else grid_runs(spec.parameters)
+        if runs is not None and runs > FEW_RUNS:
+            return  # its check resolves every run: seconds per thousand
+    import typer
+
+    def stand_in(*args, **kwargs):  # the checks passed: what Ray would run is not this test's
+        raise typer.Exit(0)
+
+    monkeypatch.setattr("sweeps.sweep.run_sweep", stand_in)
+    monkeypatch.setattr("sweeps.calibrate.run_calibration", stand_in)
+    file = tmp_path / "fuzz.toml"
+    file.write_text(text, encoding="utf-8")
+    command = "sweep" if kind == "sweep" else "calibrate"
+    result = CliRunner().invoke(cli, [command, str(file)])
+    assert "Traceback" not in result.output
+    assert result.exception is None or isinstance(result.exception, SystemExit), repr(result.exception)
+    if result.exit_code == 1:
+        assert result.stderr.startswith("error: ") and len(result.stderr.strip().splitlines()) >= 1
