@@ -750,6 +750,9 @@ def test_three_ctrl_c_50_ms_apart_leave_a_final_status_and_no_lock(tmp_path):
     assert summary["status"] == "stopped" and ("SIGINT" in summary["message"] or "Ctrl-C" in summary["message"])
     assert not (out / ".runout-results.lock").exists()
     assert "Traceback" not in stderr and "Error" not in stderr, stderr
+    # the run had started: the second Ctrl-C stopped it, the third changed nothing (it was said to
+    # have stopped "before the run started")
+    assert stderr.strip().splitlines()[-1].startswith("stopped: "), stderr
 
 
 # --------------------------------------------------------------------------------------------
