@@ -129,6 +129,8 @@ class MainWindow(QMainWindow):
         self.bodies_panel = BodiesPanel(self.doc)
         self.numerics_panel = NumericsPanel(self.doc)
         self.stages_panel = StagesPanel(self.doc)
+        self.stages_panel.stageChosen.connect(self.scene.set_loads_stage)  # the scene draws its loads
+        self.scene.set_loads_stage(self.stages_panel.current)
         self.output_panel = OutputPanel(self.doc)
         for panel, title in ((self.domain_panel, "Domain"), (self.materials_panel, "Materials"),
                              (self.bodies_panel, "Bodies"), (self.numerics_panel, "Numerics"),

@@ -1037,7 +1037,15 @@ class NumericsPanel(Panel):
 
 
 class StagesPanel(Panel):
-    """The stages in order, the selected stage's settings and its material changes."""
+    """The stages in order, the selected stage's settings, its loads and its material changes.
+
+    Signals
+    -------
+    stageChosen(object)
+        The stage shown (its index, None: none), e.g. for the scene view to draw its loads.
+    """
+
+    stageChosen = Signal(object)
 
     def __init__(self, doc: ProjectDocument, parent: QWidget | None = None) -> None:
         super().__init__(doc, parent)
@@ -1118,6 +1126,11 @@ class StagesPanel(Panel):
         form.addRow("", self.limit_equilibrium)
         self.strength_box = box
         self.layout_.addWidget(box)
+
+        from app.gui.loads_panel import StageLoadsBox  # surcharges and seismic coefficients
+
+        self.loads = StageLoadsBox(doc)
+        self.layout_.addWidget(self.loads)
 
         box = QGroupBox("Material changes at the start of this stage")
         self.changes_box = box  # none on a strength-reduction stage: its trials reduce the strengths
@@ -1251,6 +1264,8 @@ class StagesPanel(Panel):
         for w in (self.change_material, self.change_key, self.change_value, self.change_set, self.change_remove,
                   self.remove_button, self.up_button, self.down_button):
             w.setEnabled(base is not None)
+        self.loads.bind(i)
+        self.stageChosen.emit(i)
 
     def _limit_equilibrium_toggled(self, on: bool) -> None:
         i = self._current
@@ -1288,6 +1303,8 @@ class StagesPanel(Panel):
             extra = f", {format_number(stage['duration_s'])} s" if "duration_s" in stage else ""
             changes = " + material changes" if stage.get("material_changes") else ""
             changes += " + water" if isinstance(stage.get("water"), dict) else ""
+            changes += " + surcharges" if stage.get("surcharges") else ""
+            changes += " + seismic" if isinstance(stage.get("seismic"), dict) else ""
             self.list.addItem(f"{i + 1}. {name}  ({stage.get('type', '?')}{extra}){changes}")
         if self._current is None or self._current >= len(stages):
             self._current = (len(stages) - 1) if stages else None

@@ -1,7 +1,8 @@
 """The 2D model view: background grid, domain box with its boundary conditions, bodies coloured
 by material, rigid structures (grey, hatched, labelled with their contact), targets (vertical
-lines or markers with their names), a preview of the seeded particles, and drawing and editing
-of body and structure polygons.
+lines or markers with their names), the loads of the chosen stage (surcharges as arrows onto the
+ground, seismic coefficients as a labelled arrow), a preview of the seeded particles, and drawing
+and editing of body and structure polygons.
 
 Mouse, in the *select* mode: click a body or structure to select it, drag one of its vertices
 (snapped to the grid when snapping is on), click and drag a target to move it, drag empty space
@@ -50,6 +51,8 @@ BOUNDARY_STYLE = {
     "periodic": ("#188038", 3),
 }
 PROBLEM_COLOR = "#d93025"
+#: surcharges and seismic forces in the model view
+LOAD_COLOR = "#9334e6"
 
 
 def _as_points(polygon: Any) -> np.ndarray | None:
@@ -211,6 +214,9 @@ class SceneView(QWidget):
         self.draw_kind = "bodies"
         #: the water line being drawn (a slot of app.gui.document.water_line_path)
         self.draw_slot = 0
+        #: the stage whose loads are drawn (None: none), and the names of those drawn
+        self.loads_stage: int | None = None
+        self.drawn_loads: list[str] = []
         self._cursor: np.ndarray | None = None
         self._drag: tuple[str, int, int | None] | None = None
         self._drag_count = 0
@@ -484,6 +490,7 @@ class SceneView(QWidget):
                                 render_points_as_spheres=True, name="vertex", render=False)
         self._draw_targets()
         self._draw_water()
+        self._draw_loads()
         self._update_legend()
         self._draw_draft()
 
@@ -615,6 +622,106 @@ class SceneView(QWidget):
 
         self.doc.edit(f"move vertex {vertex + 1} of the {water_line_noun(slot)}", mutate, merge_key)
 
+    # -- loads ---------------------------------------------------------------------------------
+
+    def set_loads_stage(self, index: int | None) -> None:
+        """Draw the loads in force in stage ``index`` (None: none)."""
+        if index != self.loads_stage:
+            self.loads_stage = index
+            if not self._closed:
+                self._draw_loads()
+                self._update_legend()
+                self.plotter.render()
+
+    def _draw_loads(self) -> None:
+        """The surcharges in force in the chosen stage as arrows along gravity onto the ground,
+        their lengths following the pressure (a line joins their tails), each named with its
+        pressure; the stage's seismic coefficients as a label with the horizontal force's arrow."""
+        from app.gui.loads_panel import loads_in_force, pressure_text, pressures
+        from projects.loads import ground_height, out_of_slope
+
+        pl = self.plotter
+        for name in ("load-arrows", "load-tails", "load-labels-labels", "seismic-arrow", "seismic-labels-labels"):
+            pl.remove_actor(name, render=False)
+        self.drawn_loads = []
+        box = self._domain_box()
+        if box is None or self.loads_stage is None:
+            return
+        polygons = [p for p in (_as_points(b.get("polygon_m")) for b in self._polygons("bodies"))
+                    if p is not None and len(p) >= 3]
+        g = get_path(self.doc.data, "domain.gravity_m_s2", [0.0, -9.81])
+        try:
+            down = np.asarray(g, dtype=float) / float(np.linalg.norm(np.asarray(g, dtype=float)))
+        except (TypeError, ValueError):
+            down = np.array([0.0, -1.0])
+        if not np.all(np.isfinite(down)):
+            down = np.array([0.0, -1.0])
+        size = max(box[1] - box[0], box[3] - box[2])
+        loads, _source = loads_in_force(self.doc.data, self.loads_stage)
+        peak = max([abs(v) for load in loads for v in pressures(load) if v is not None] + [0.0])
+        arrows, tails, labels, label_points = [], [], [], []
+        for load in loads:
+            a, b = load.get("from_m"), load.get("to_m")
+            p0, p1 = pressures(load)
+            if not all(isinstance(v, (int, float)) for v in (a, b)) or p0 is None or p1 is None or not b > a \
+                    or not polygons:
+                continue
+            count = int(min(25, max(3, round((b - a) / (0.02 * size)) + 1)))
+            xs = np.linspace(a, b, count)
+            ys = ground_height(polygons, xs)
+            ok = np.isfinite(ys)
+            if not ok.any():
+                continue
+            length = 0.02 * size + 0.06 * size * (np.interp(xs, [a, b], [p0, p1]) / peak if peak > 0 else 0.0)
+            heads, tops = np.c_[xs, ys], np.c_[xs, ys] - length[:, None] * down[None, :]
+            side = np.array([-down[1], down[0]]) * 0.006 * size
+            for head, top, good in zip(heads, tops, ok):
+                if good:
+                    arrows.append((top, head))
+                    back = head - down * 0.012 * size
+                    arrows.extend(((back + side, head), (back - side, head)))
+            good_tops = tops[ok]
+            tails.extend((good_tops[k], good_tops[k + 1]) for k in range(len(good_tops) - 1))
+            mid = good_tops[len(good_tops) // 2] - down * 0.015 * size
+            labels.append(f"{load.get('name', '?')}: {pressure_text(load)}")
+            label_points.append([float(mid[0]), float(mid[1]), 0.06])
+            self.drawn_loads.append(str(load.get("name", "?")))
+        if arrows:
+            self._add(_lines(arrows), color=LOAD_COLOR, line_width=2, name="load-arrows", render=False,
+                      lighting=False, pickable=False)
+        if tails:
+            self._add(_lines(tails), color=LOAD_COLOR, line_width=2, name="load-tails", render=False,
+                      lighting=False, pickable=False)
+        if labels:
+            pl.add_point_labels(np.array(label_points), labels, name="load-labels", font_size=10,
+                                text_color=LOAD_COLOR, shape=None, show_points=False, always_visible=True,
+                                render=False, reset_camera=False, justification_horizontal="center",
+                                justification_vertical="bottom")
+        seismic = get_path(self.doc.data, f"stages.{self.loads_stage}.seismic")
+        if isinstance(seismic, dict) and any(isinstance(seismic.get(k), (int, float)) for k in ("k_h", "k_v")):
+            k_h, k_v = seismic.get("k_h", 0.0), seismic.get("k_v", 0.0)
+            towards = seismic.get("towards", "out-of-slope")
+            sign = {"left": -1.0, "right": 1.0}.get(towards)
+            if sign is None and polygons:
+                try:
+                    sign = out_of_slope(polygons, down)
+                except ValueError:
+                    sign = None
+            across = np.array([-down[1], down[0]])
+            start = np.array([box[0] + 0.02 * size, box[3] + 0.05 * size])  # above the domain's top left
+            text = f"seismic k_h = {format_number(k_h)}, k_v = {format_number(k_v)} ({towards})"
+            if sign is not None and isinstance(k_h, (int, float)) and k_h > 0:
+                tip = start + sign * across * 0.08 * size
+                back = tip - sign * across * 0.015 * size
+                self._add(_lines([(start, tip), (back + down * 0.008 * size, tip), (back - down * 0.008 * size, tip)]),
+                          color=LOAD_COLOR, line_width=3, name="seismic-arrow", render=False, lighting=False,
+                          pickable=False)
+            pl.add_point_labels(np.array([[start[0], start[1] + 0.02 * size, 0.06]]), [text], name="seismic-labels",
+                                font_size=10, text_color=LOAD_COLOR, shape=None, show_points=False,
+                                always_visible=True, render=False, reset_camera=False,
+                                justification_horizontal="left", justification_vertical="bottom")
+            self.drawn_loads.append("seismic")
+
     def _hatch_step(self, poly: np.ndarray) -> float:
         """The spacing of a structure's hatching, m: about 1/60 of the domain's larger side, closer
         in a structure too thin for three lines at that spacing (down to 1/400 of the domain)."""
@@ -690,6 +797,9 @@ class SceneView(QWidget):
 
             extra += (f' &nbsp;<span style="color:{WATER_LINE_COLOR}">━</span>&nbsp;phreatic line'
                       f' &nbsp;<span style="color:{FREE_WATER_COLOR}; font-size:14px">■</span>&nbsp;free water')
+        if self.drawn_loads:
+            extra += (f' &nbsp;<span style="color:{LOAD_COLOR}">⇓</span>&nbsp;loads of stage '
+                      f'{(self.loads_stage or 0) + 1}')
         grid = f"&nbsp;&nbsp;&nbsp;&nbsp;grid lines every {self.grid_step} cells" if self.grid_step > 1 else ""
         self.legend.setText(f"<b>Materials</b>&nbsp; {'&nbsp;&nbsp;'.join(parts) or 'none'}"
                             f" &nbsp;&nbsp;&nbsp;<b>Boundaries</b>{sides}"
