@@ -623,6 +623,41 @@ def water_sentences(project: Any, summary: Mapping[str, Any]) -> list[str]:
     return out
 
 
+def load_rows(project: Any) -> list[list[str]]:
+    """The loads of each stage for the report's table (projects.loads.describe): stage, load, where,
+    pressure, resultant, how it is applied; one row per surcharge in force and one per stage's
+    seismic coefficients. Empty for a project without loads."""
+    if project is None:
+        return []
+    from projects.loads import describe
+
+    try:
+        stages = describe(project)
+    except ValueError:
+        return []
+    if not any(row["surcharges"] or row["seismic"] for row in stages):
+        return []
+    rows = []
+    for k, row in enumerate(stages):
+        label = f"{k + 1}. {row['stage']}"
+        kind = project.stages[k].type
+        for load in row["surcharges"]:
+            start, end = load["pressure_pa"]
+            pressure = _fmt(start / 1e3, "kPa") if start == end else \
+                f"{_fmt(start / 1e3)} to {_fmt(end / 1e3, 'kPa')}"
+            how = ("ramped up with gravity" if kind == "gravity" else
+                   "grows over the stage from the load in force before" if load["ramp"] else
+                   "full value in the trials" if kind == "strength-reduction" else "at once")
+            rows.append([label, f"surcharge {load['name']}", f"x = {_fmt(load['from_m'])} to {_fmt(load['to_m'], 'm')}",
+                         pressure, _fmt(load["force_n_per_m"] / 1e3, "kN/m"), how])
+        quake = row["seismic"]
+        if quake is not None:
+            rows.append([label, "seismic", f"k_h {_fmt(quake['k_h'])} towards {quake['direction']}"
+                         + (" (out of the slope)" if quake["towards"] == "out-of-slope" else ""),
+                         f"k_v {_fmt(quake['k_v'])}", "-", "this stage only"])
+    return rows
+
+
 def headline(doc: Mapping[str, Any], summary: Mapping[str, Any]) -> str:
     """The report's headline, whether its answer is final (HTML): provisional where the mass was
     still moving at the end of the run or the run did not complete (projects.motion), with the
@@ -746,6 +781,15 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
         parts.append("<p class='note'>The phreatic line is drawn blue in the pictures (dashed: at the end of the "
                      "run, dash-dotted: at the failure), the free water shaded light blue where it stands above "
                      "the ground; the scene pictures show the water of their frame's time.</p>")
+
+    loads = load_rows(project)
+    if loads:
+        parts.append("<h2>Loads</h2>")
+        parts.append(_table(["stage", "load", "where", "pressure / k_v", "resultant", "applied"], loads))
+        parts.append("<p class='note'>Surcharges act along gravity on the ground's top particles under them, per "
+                     "unit length of x, and stay in force until a stage changes them; seismic coefficients act in "
+                     "their stage only: a horizontal force k_h W and a weight (1 - k_v) W on every mass "
+                     "(docs/project-format.md, loads).</p>")
 
     parts.append("<h2>Scene before and after</h2><div class='scene'>")
     parts.append(_img(pictures.get("scene_before"), "the scene at the first frame"))
