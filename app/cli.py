@@ -675,6 +675,8 @@ def render(
     size: Annotated[str, typer.Option("--size", help="Image size WIDTHxHEIGHT in pixels.")] = "1600x900",
     mechanism: Annotated[bool, typer.Option(
         "--mechanism", help="A strength-reduction run's mechanism with Bishop's circle and the trials.")] = False,
+    smooth: Annotated[bool, typer.Option("--smooth", help="Stresses and pore pressure averaged over the grid cells "
+                                         "around each particle (a display option; the frames are unchanged).")] = False,
 ) -> None:
     """Render one frame to a PNG (offscreen)."""
     from app.render import render_frame, render_mechanism
@@ -687,7 +689,7 @@ def render(
         if mechanism:
             path = render_mechanism(res, output, size=width_height)
         else:
-            path = render_frame(res, index, field, output, size=width_height,
+            path = render_frame(res, index, field, output, size=width_height, smooth=smooth,
                                 on_warning=lambda line: err.print(f"warning: {line}", markup=False))
     except (ValueError, ResultsError, OSError) as exc:  # OSError: a read-only or full disk
         fail(str(exc))
@@ -728,6 +730,8 @@ def animate(
     size: Annotated[
         str | None, typer.Option("--size", help="Image size WIDTHxHEIGHT (default 1280x720, gif 800x450).")
     ] = None,
+    smooth: Annotated[bool, typer.Option("--smooth", help="Stresses and pore pressure averaged over the grid cells "
+                                         "around each particle (a display option; the frames are unchanged).")] = False,
 ) -> None:
     """Write a movie of all frames (mp4 or gif)."""
     from rich.progress import Progress
@@ -746,7 +750,7 @@ def animate(
             path = make_movie(
                 res, output, field, fps, size=width_height,
                 on_frame=lambda done, total: bar.update(task, completed=done, total=total),
-                on_warning=lambda line: err.print(f"warning: {line}", markup=False),
+                on_warning=lambda line: err.print(f"warning: {line}", markup=False), smooth=smooth,
             )
     except (ValueError, ResultsError, OSError) as exc:
         fail(str(exc))

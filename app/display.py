@@ -16,15 +16,14 @@ import numpy as np
 #: The frame arrays whose fields may be shown smoothed (:func:`smooth_values`): the stresses and
 #: the pore pressure, which a moving mass carries with cell-scale noise.
 SMOOTHED_SOURCES = frozenset({"stress", "pore_pressure"})
-#: Particles of a spread that counts for the point size: the median distance to the particle's
-#: DISPLAY_NEIGHBOUR-th nearest neighbour (the fourth: across a lattice of two spacings, the
-#: larger one).
-DISPLAY_NEIGHBOUR = 4
+#: The neighbours of a particle whose halfway points tell how far the particles have spread
+#: (display_spacing), and the percentile over the particles that sets the squares' size.
+DISPLAY_NEIGHBOURS = 6
+DISPLAY_PERCENTILE = 90
 #: The point size follows the spread of the particles up to this many initial spacings (a few
 #: particles thrown apart do not make the whole mass's points larger).
 DISPLAY_SPREAD_MAX = 2.0
-#: Above this many particles the spread is measured on a random sample of them (scaled back by
-#: the square root of the sample's share: the distances of a uniformly thinned cloud).
+#: Above this many particles the spread is measured around a random sample of them.
 DISPLAY_SAMPLE = 50_000
 
 
@@ -33,27 +32,34 @@ def display_spacing(positions: np.ndarray, spacing_m: float) -> float:
     start, or more where the mass has spread.
 
     A particle stands for the material around it; in a flowing mass the particles drift apart in
-    one direction and close up in another (a slide stretched along its bed, the material points of
-    a grid column keeping together while the columns part): drawn at their initial spacing they
-    leave gaps and the mass reads as separated columns. The squares are therefore as large as the
-    median distance to each particle's :data:`DISPLAY_NEIGHBOUR`-th nearest neighbour, at least the
-    initial spacing and at most :data:`DISPLAY_SPREAD_MAX` times it. A display choice: the frames'
-    positions are drawn as written.
+    one direction and close up in another (the material points of a grid column keeping together
+    while the columns part): squares of the initial spacing then leave gaps, and the mass reads as
+    separated columns. Squares of side ``L`` cover the material where every point of it lies within
+    ``L / 2`` of a particle along x and y: for each particle the points halfway to its
+    :data:`DISPLAY_NEIGHBOURS` nearest neighbours (those within 2.5 spacings) are measured to
+    their nearest particle (in that metric) and the largest counts; ``L`` is twice the
+    :data:`DISPLAY_PERCENTILE`-th percentile of those over the particles, at least the initial
+    spacing and at most :data:`DISPLAY_SPREAD_MAX` times it. On a regular lattice ``L`` is its
+    spacing; where columns ``a`` apart hold particles ``b < a`` apart, ``a``. A display choice: the
+    frames' positions are drawn as written.
     """
     spacing = float(spacing_m)
     pts = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
     pts = pts[np.all(np.isfinite(pts), axis=1)]
-    if not spacing > 0 or len(pts) <= DISPLAY_NEIGHBOUR:
+    if not spacing > 0 or len(pts) <= DISPLAY_NEIGHBOURS:
         return spacing
     from scipy.spatial import cKDTree
 
-    scale = 1.0
+    tree = cKDTree(pts)
+    centres = pts
     if len(pts) > DISPLAY_SAMPLE:
-        keep = np.random.default_rng(0).choice(len(pts), DISPLAY_SAMPLE, replace=False)
-        scale = math.sqrt(DISPLAY_SAMPLE / len(pts))
-        pts = pts[keep]
-    distance, _ = cKDTree(pts).query(pts, k=DISPLAY_NEIGHBOUR + 1)
-    spread = float(np.median(distance[:, DISPLAY_NEIGHBOUR])) * scale
+        centres = pts[np.random.default_rng(0).choice(len(pts), DISPLAY_SAMPLE, replace=False)]
+    distance, index = tree.query(centres, k=DISPLAY_NEIGHBOURS + 1)
+    near = distance[:, 1:] < 2.5 * spacing
+    halfway = 0.5 * (centres[:, None, :] + pts[index[:, 1:]])
+    gap, _ = tree.query(halfway.reshape(-1, 2), k=1, p=np.inf)
+    gap = np.where(near, gap.reshape(near.shape), 0.0).max(axis=1)
+    spread = 2.0 * float(np.percentile(gap, DISPLAY_PERCENTILE))
     return float(min(DISPLAY_SPREAD_MAX * spacing, max(spacing, spread)))
 
 

@@ -1,8 +1,11 @@
 """Offscreen pictures and movies of results folders (no display, no Qt).
 
 Particles are drawn as square points in the xy plane, coloured by one of :data:`FIELDS`, with a
-colour bar in engineering units, the simulated time, axes in metres and the grid box outline.
-The point size follows the particle spacing, so a body looks continuous at any image size.
+colour bar in engineering units, the simulated time, axes in metres, the grid box outline and
+the structures. The point size follows the particles' spacing, and their spread where a moving
+mass has drawn them apart (:func:`app.display.display_spacing`), so a body looks continuous at
+any image size; stresses may be shown averaged over the cells around each particle (``smooth``,
+:func:`app.display.smooth_values`).
 
 VTK tries an X server first and logs "bad X server connection" when there is none; on Linux
 without ``DISPLAY`` this module asks VTK for its EGL (headless) window instead.
@@ -503,6 +506,12 @@ def _view(bounds: tuple[float, float, float, float], size: tuple[int, int]) -> _
     return _View((x0, x1, y0, y1), (nx, ny), _label_format(xstep, ystep), ppm)
 
 
+def _cell_size(results: Results) -> float | None:
+    """The grid's cell size from ``summary.json`` (None where it is not recorded)."""
+    size = (results.summary.get("domain") or {}).get("cell_size_m")
+    return float(size) if isinstance(size, (int, float)) and size > 0 else None
+
+
 def _particle_spacing(results: Results, arrays: Mapping[str, np.ndarray]) -> float:
     spacing = results.summary.get("particle_spacing_m")
     if isinstance(spacing, (int, float)) and spacing > 0:
@@ -534,6 +543,10 @@ class _Scene:
 
         self.results = results
         self.info = field_info(field)
+        #: stresses and pore pressure averaged over cells of this size (app.display.smooth_values;
+        #: None: as the particles carry them); render_frame and animate set it with ``smooth``
+        self.smooth_cell_m: float | None = None
+        self._point_px = max(1.0, math.ceil(spacing_m * view.pixels_per_m))
         self.size = (int(size[0]), int(size[1]))
         self.clim = clim
         self.plotter = pv.Plotter(off_screen=True, window_size=list(self.size))
@@ -563,7 +576,13 @@ class _Scene:
         points = np.zeros((len(pos), 3), np.float32)
         points[:, :2] = pos - self._shift
         cloud = pv.PolyData(points)
-        cloud.point_data["values"] = field_values(arrays, self.info.name)[shown]
+        from app.display import display_spacing, shown_values
+
+        origin = (_domain_box(self.results) or (0.0, 0.0, 0.0, 0.0))[::2]
+        cloud.point_data["values"] = shown_values(arrays, self.info.name, self.smooth_cell_m, origin)[shown]
+        # squares as large as the particles' spread in this frame: a flowing mass whose columns
+        # have parted drawn at its initial spacing showed as separated columns of points
+        self._point_px = max(1.0, math.ceil(display_spacing(pos, self._spacing_m) * self._view.pixels_per_m))
         return cloud
 
     def _add_static(self) -> None:
@@ -634,6 +653,7 @@ class _Scene:
             self._place_camera()
         else:
             self.cloud.copy_from(cloud)
+            self._actor.prop.point_size = self._point_px
         self._draw_water(index)
         time_s = float(self.results.times[index])
         label = f"t = {time_s:.3f} s"
@@ -670,7 +690,7 @@ class _Scene:
 
     def _add_points(self) -> None:
         info = self.info
-        point_px = max(1.0, math.ceil(self._spacing_m * self._view.pixels_per_m))
+        point_px = self._point_px
         common: dict[str, Any] = dict(
             scalars="values",
             style="points",
@@ -867,6 +887,7 @@ def render_frame(
     cmap: str | None = None,
     clim: tuple[float, float] | None = None,
     on_warning: Callable[[str], None] | None = None,
+    smooth: bool = False,
 ) -> Path:
     """Render one frame of a results folder to a PNG, offscreen.
 
@@ -891,6 +912,9 @@ def render_frame(
     on_warning : callable, optional
         Called with one line about particles the picture cannot show as they are (positions or
         values that are NaN or inf: left out, or drawn in the no-data colour).
+    smooth : bool
+        Show a stress or the pore pressure averaged over the grid cells around each particle
+        (:func:`app.display.smooth_values`; other fields as they are).
 
     Returns
     -------
@@ -910,6 +934,7 @@ def render_frame(
 
     out = check_writable(Path(path) if path is not None else export_path(res.path, f"{field}_{j:05d}"))
     scene = _scene_for(res, field, [j], size, cmap, clim, on_warning)
+    scene.smooth_cell_m = _cell_size(res) if smooth else None
     try:
         scene.show(j)
         scene.plotter.screenshot(str(out))
@@ -929,12 +954,15 @@ def animate(
     clim: tuple[float, float] | None = None,
     on_frame: Callable[[int, int], None] | None = None,
     on_warning: Callable[[str], None] | None = None,
+    smooth: bool = False,
 ) -> Path:
     """Write a movie of every frame: ``.mp4`` (H.264 via imageio-ffmpeg) or ``.gif`` (pillow).
 
     The camera and colour range are fixed over the whole movie (the range of all frames unless
     ``clim`` is given). ``on_frame(done, total)`` reports progress; ``on_warning`` gets a line
     per frame with particles at NaN or infinite positions (left out) or values (no-data colour).
+    ``smooth``: stresses and pore pressure averaged over the cells around each particle, as
+    :func:`render_frame`.
 
     Returns
     -------
@@ -960,6 +988,7 @@ def animate(
 
     out = check_writable(out)  # before the writer: ffmpeg on a read-only disk prints pages of noise
     scene = _scene_for(res, field, frames, size, cmap, clim, on_warning)
+    scene.smooth_cell_m = _cell_size(res) if smooth else None
     if suffix == ".mp4":
         writer = imageio.get_writer(out, format="FFMPEG", fps=fps, codec="libx264",
                                     quality=8, macro_block_size=1, pixelformat="yuv420p")
