@@ -212,8 +212,10 @@ class SweepDialog(QDialog):
         self.sweep_box = QGroupBox("Sweep")
         self.sampling = QComboBox()
         self.sampling.addItems(["latin-hypercube", "random", "grid"])
+        from sweeps.spec import MAX_RUNS
+
         self.runs = QSpinBox()
-        self.runs.setRange(1, 100000)
+        self.runs.setRange(1, MAX_RUNS)  # a sweep file's limit (sweeps.spec)
         self.runs.setValue(8)
         self.seed = QSpinBox()
         self.seed.setRange(0, 2**31 - 1)
