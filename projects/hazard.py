@@ -182,7 +182,11 @@ def profile(snap: Mapping[str, Any]) -> dict[str, np.ndarray]:
     x0 = snap["origin_m"][0]
     lo = x0 + c * np.arange(nx)
     floor = snap["floor_m"]
-    surface = np.where(np.isnan(snap["surface_m"]), floor, snap["surface_m"])
+    # the surface now, never below the rigid floor: where a structure stands on the vertical
+    # through a column's centre, particles whose centres lie in the column beside it (against a
+    # check dam's face) are no ground under its top, and the deposit there is measured on the
+    # structure's top, not as a pit of its height (2.5 m under a 2.5 m dam)
+    surface = np.where(np.isnan(snap["surface_m"]), floor, np.maximum(snap["surface_m"], floor))
     return {
         "x_m": lo + 0.5 * c,
         "x_lo_m": lo,
@@ -549,7 +553,13 @@ def read_hazard(results_dir: str | Path) -> dict[str, Any]:
     ``hazard.json``'s time) added."""
     path = Path(results_dir)
     doc = json.loads((path / HAZARD_JSON).read_text(encoding="utf-8"))
-    doc["profile"] = _read_csv(path / PROFILE_CSV)
+    profile = _read_csv(path / PROFILE_CSV)
+    if all(k in profile for k in ("floor_m", "ground_m", "surface_m")):
+        # files written before the surface was held at the floor: the same rule on reading
+        surface = np.fmax(profile["surface_m"], profile["floor_m"])
+        profile["surface_m"] = surface
+        profile["deposit_m"] = surface - profile["ground_m"]
+    doc["profile"] = profile
     series = _read_csv(path / TARGETS_CSV)
     # hazard.json is written last: a run killed between the files leaves targets.csv a frame
     # ahead of it. The rows hazard.json was made from are its first `sampling.updates`.
