@@ -1,6 +1,6 @@
 """What the views draw of a frame beyond its raw particle values: the size of the squares that draw
 the particles where a moving mass has spread them apart (:func:`display_spacing`), and a field
-averaged over the cells around each particle (:func:`smooth_values`, :func:`shown_values`), the
+averaged over the cells around each particle (:func:`smooth_values`; app.render.shown_values shows them), the
 display of a stress that the material point method carries with cell-scale noise in a moving mass.
 Display choices only: the frames keep their particles and values. Used by :mod:`app.render`'s
 pictures and movies, the workbench's results view and ``runout query`` (numpy and scipy, no VTK).
@@ -112,20 +112,4 @@ def smooth_values(positions: np.ndarray, values: np.ndarray, cell_size_m: float,
         weight += np.where(ok, w, 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         out[good] = np.where(weight > 0, back / weight, np.nan)
-    return out
-
-
-def shown_values(arrays: Mapping[str, np.ndarray], field: str, smooth_cell_m: float | None = None,
-                 origin_m: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
-    """:func:`field_values`, smoothed (:func:`smooth_values` over cells of ``smooth_cell_m``,
-    active particles only) where asked and the field is a stress or the pore pressure."""
-    from app.render import field_info, field_values
-
-    values = field_values(arrays, field)
-    info = field_info(field)
-    if not smooth_cell_m or info.source not in SMOOTHED_SOURCES:
-        return values
-    active = np.asarray(arrays["active"], dtype=bool)
-    out = np.asarray(values, dtype=np.float64).copy()
-    out[active] = smooth_values(np.asarray(arrays["positions"])[active], out[active], smooth_cell_m, origin_m)
     return out

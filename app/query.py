@@ -92,7 +92,7 @@ def values_at(results: Any, field: str, points: Sequence[Sequence[float]], frame
     ValueError
         An unknown field, a field the run did not write, a frame out of range.
     """
-    from app.display import shown_values
+    from app.render import shown_values
     from app.render import field_info
 
     info = field_info(field)

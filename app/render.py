@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from app.display import SMOOTHED_SOURCES, smooth_values
 from projects.results import Results, ResultsError
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -154,6 +155,20 @@ def field_values(arrays: Mapping[str, np.ndarray], field: str) -> np.ndarray:
 WATER_LINE_COLOR = "#1565c0"
 FREE_WATER_LINE_COLOR = "#0b8fd6"
 FREE_WATER_COLOR = "#a9d8f7"
+
+
+def shown_values(arrays: Mapping[str, np.ndarray], field: str, smooth_cell_m: float | None = None,
+                 origin_m: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
+    """:func:`field_values`, smoothed (:func:`smooth_values` over cells of ``smooth_cell_m``,
+    active particles only) where asked and the field is a stress or the pore pressure."""
+    values = field_values(arrays, field)
+    info = field_info(field)
+    if not smooth_cell_m or info.source not in SMOOTHED_SOURCES:
+        return values
+    active = np.asarray(arrays["active"], dtype=bool)
+    out = np.asarray(values, dtype=np.float64).copy()
+    out[active] = smooth_values(np.asarray(arrays["positions"])[active], out[active], smooth_cell_m, origin_m)
+    return out
 
 
 def water_line_across(line: Any, x0: float, x1: float) -> np.ndarray:
@@ -576,7 +591,7 @@ class _Scene:
         points = np.zeros((len(pos), 3), np.float32)
         points[:, :2] = pos - self._shift
         cloud = pv.PolyData(points)
-        from app.display import display_spacing, shown_values
+        from app.display import display_spacing
 
         origin = (_domain_box(self.results) or (0.0, 0.0, 0.0, 0.0))[::2]
         cloud.point_data["values"] = shown_values(arrays, self.info.name, self.smooth_cell_m, origin)[shown]

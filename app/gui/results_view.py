@@ -36,7 +36,8 @@ from PySide6.QtWidgets import (
 
 from app.gui.curves import ContactCurves, HistoryCurve, MonitorCurves, ProfileCurve, SeriesCurves, write_curves_csv
 from app.gui.document import parse_number
-from app.display import SMOOTHED_SOURCES, display_spacing, shown_values
+from app.display import SMOOTHED_SOURCES, display_spacing
+from app.render import shown_values
 from app.render import FIELDS, bar_format, field_info, field_values, structure_labels, value_range
 
 logger = logging.getLogger(__name__)
