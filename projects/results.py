@@ -101,7 +101,8 @@ SERIES_COLUMNS: tuple[str, ...] = (
 #: Columns of ``contacts.csv``, in order: one row per contact and output time. The forces are what the
 #: material exerts on the contact (N per metre out of plane): the mean over the output interval that
 #: ends at ``time_s`` and the largest of one step in it (magnitude and components); normal and
-#: tangential for sides only (empty for structures); the mean force's moment about the grid origin
+#: tangential (a side's along its axes, a structure's on the face that carries the force,
+#: projects.structure_forces); the mean force's moment about the grid origin
 #: (``domain.origin_m``; N m per metre, counter-clockwise positive; older files lack it).
 #: See :class:`solver.config.ContactForce`.
 CONTACT_COLUMNS: tuple[str, ...] = (
@@ -993,6 +994,8 @@ class ResultsWriter:
         if not contacts:
             return
         for c in contacts:
+            c, peak_parts = self._split(c)
+
             def num(v: float | None) -> str:
                 return "" if v is None else repr(float(v) + 0.0)  # + 0.0: no "-0.0"
 
@@ -1000,22 +1003,60 @@ class ResultsWriter:
                                          num(c.force_normal_N_per_m), num(c.force_tangential_N_per_m),
                                          num(c.peak_force_N_per_m), num(c.peak_force_x_N_per_m),
                                          num(c.peak_force_y_N_per_m), num(c.moment_N_m_per_m)])
-            self._add_peaks(time_s, c)
+            self._add_peaks(time_s, c, peak_parts)
         self._contacts.flush()
 
-    def _add_peaks(self, time_s: float, c: ContactForce) -> None:
+    def _split(self, c: ContactForce) -> tuple[ContactForce, tuple[float, float]]:
+        """``c`` with a structure's normal and tangential parts on its loaded face
+        (:mod:`projects.structure_forces`), and the normal and tangential parts of the interval's
+        peak step (on the same face; along the side's axes for a side)."""
+        from dataclasses import replace
+
+        peak = (c.peak_force_x_N_per_m, c.peak_force_y_N_per_m)
+        side = {"left": (-1, 0), "right": (1, 0), "bottom": (0, -1), "top": (0, 1)}.get(c.contact)
+        if side is not None:
+            normal = side[0] * peak[0] + side[1] * peak[1]
+            return c, (normal, peak[1] if side[0] else peak[0])
+        polygon = next((st.get("polygon_m") for st in self.summary.get("structures") or []
+                        if st.get("name") == c.contact), None)
+        if polygon is None or c.force_normal_N_per_m is not None:
+            return c, (math.nan, math.nan)
+        from projects.structure_forces import components
+
+        origin = (self.summary.get("domain") or {}).get("origin_m") or (0.0, 0.0)
+        normal, tangential, face = components(polygon, (c.force_x_N_per_m, c.force_y_N_per_m),
+                                              c.moment_N_m_per_m, origin)
+        if face is None:  # nothing touched it in this interval: no force, no parts
+            return replace(c, force_normal_N_per_m=0.0, force_tangential_N_per_m=0.0), (0.0, 0.0)
+        pn, pt, _ = components(polygon, peak, math.nan, origin, face=face)
+        return replace(c, force_normal_N_per_m=normal, force_tangential_N_per_m=tangential), (pn, pt)
+
+    def _add_peaks(self, time_s: float, c: ContactForce, peak_parts: tuple[float, float] = (math.nan, math.nan)) -> None:
         """Count one row of ``contacts.csv`` into the run's peaks (``summary["contacts"]``): the
-        largest single-step force, and the largest interval mean with its time and a point of its
-        line of action (on a side, where it meets the side: the centre of pressure; on a structure,
-        the point nearest the structure's vertex mean)."""
+        largest single-step force (with its normal and tangential parts ``peak_parts``), the
+        largest interval mean with its time and a point of its line of action (on a side, where it
+        meets the side: the centre of pressure; on a structure, the point nearest the structure's
+        vertex mean), and the largest interval-mean normal and tangential (by size, signed) forces
+        with their times."""
         entry = self.summary.setdefault("contacts", {}).setdefault(
             c.contact, {"peak_force_N_per_m": 0.0, "peak_force_x_N_per_m": 0.0, "peak_force_y_N_per_m": 0.0,
+                        "peak_force_normal_N_per_m": 0.0, "peak_force_tangential_N_per_m": 0.0,
                         "peak_time_s": 0.0, "max_mean_force_N_per_m": 0.0, "max_mean_force_time_s": 0.0,
-                        "max_mean_force_point_m": None})
+                        "max_mean_force_point_m": None, "max_normal_force_N_per_m": 0.0,
+                        "max_normal_force_time_s": 0.0, "max_tangential_force_N_per_m": 0.0,
+                        "max_tangential_force_time_s": 0.0})
         peak = c.peak_force_N_per_m
         if math.isfinite(peak) and peak > entry["peak_force_N_per_m"]:
             entry.update(peak_force_N_per_m=float(peak), peak_force_x_N_per_m=float(c.peak_force_x_N_per_m),
-                         peak_force_y_N_per_m=float(c.peak_force_y_N_per_m), peak_time_s=float(time_s))
+                         peak_force_y_N_per_m=float(c.peak_force_y_N_per_m), peak_time_s=float(time_s),
+                         peak_force_normal_N_per_m=_json_float(peak_parts[0]),
+                         peak_force_tangential_N_per_m=_json_float(peak_parts[1]))
+        normal, tangential = c.force_normal_N_per_m, c.force_tangential_N_per_m
+        if normal is not None and math.isfinite(normal) and normal > (entry.get("max_normal_force_N_per_m") or 0.0):
+            entry.update(max_normal_force_N_per_m=float(normal), max_normal_force_time_s=float(time_s))
+        if tangential is not None and math.isfinite(tangential) and \
+                abs(tangential) > abs(entry.get("max_tangential_force_N_per_m") or 0.0):
+            entry.update(max_tangential_force_N_per_m=float(tangential), max_tangential_force_time_s=float(time_s))
         mean = math.hypot(c.force_x_N_per_m, c.force_y_N_per_m)
         if math.isfinite(mean) and mean > entry["max_mean_force_N_per_m"]:
             entry.update(max_mean_force_N_per_m=mean, max_mean_force_time_s=float(time_s),
@@ -1106,9 +1147,10 @@ def _read_series(path: Path) -> dict[str, np.ndarray]:
 
 def read_contacts(path: str | os.PathLike[str]) -> dict[str, dict[str, np.ndarray]]:
     """``contacts.csv`` of a results folder (or the file itself) as contact name -> column -> array
-    (time order; an empty cell, the normal and tangential force of a structure, is NaN; rows cut off
-    by a kill are dropped; a file written before the moment column has no ``moment_N_m_per_m``).
-    Empty when the folder has no such file."""
+    (time order; an empty cell is NaN; rows cut off by a kill are dropped; a file written before the
+    moment column has no ``moment_N_m_per_m``). A structure's normal and tangential force, which
+    files written before they were recorded leave empty, is worked out on reading from its polygon
+    in ``summary.json`` (:mod:`projects.structure_forces`). Empty when the folder has no such file."""
     path = Path(path)
     if path.is_dir():
         path = path / CONTACTS_NAME
@@ -1133,7 +1175,31 @@ def read_contacts(path: str | os.PathLike[str]) -> dict[str, dict[str, np.ndarra
         columns = out.setdefault(row[1], {k: [] for k in names})
         for key, value in zip(names, values):
             columns[key].append(value)
-    return {name: {k: np.asarray(v) for k, v in cols.items()} for name, cols in out.items()}
+    table = {name: {k: np.asarray(v) for k, v in cols.items()} for name, cols in out.items()}
+    _fill_structure_parts(path.parent, table)
+    return table
+
+
+def _fill_structure_parts(folder: Path, table: dict[str, dict[str, np.ndarray]]) -> None:
+    """The normal and tangential force of the structures whose rows have none (older files)."""
+    try:
+        summary = json.loads((folder / SUMMARY_NAME).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return
+    if not isinstance(summary, dict):
+        return
+    from projects.structure_forces import components
+
+    origin = (summary.get("domain") or {}).get("origin_m") or (0.0, 0.0)
+    for structure in summary.get("structures") or []:
+        columns = table.get(structure.get("name")) if isinstance(structure, dict) else None
+        if columns is None or np.isfinite(columns["force_normal_N_per_m"]).any():
+            continue
+        moment = columns.get("moment_N_m_per_m", np.full(len(columns["time_s"]), np.nan))
+        parts = [components(structure.get("polygon_m") or [], (fx, fy), m, origin)[:2] if math.hypot(fx, fy) > 0
+                 else (0.0, 0.0) for fx, fy, m in zip(columns["force_x_N_per_m"], columns["force_y_N_per_m"], moment)]
+        columns["force_normal_N_per_m"] = np.array([p[0] for p in parts], dtype=float)
+        columns["force_tangential_N_per_m"] = np.array([p[1] for p in parts], dtype=float)
 
 
 #: The force components :func:`contact_curves` gives: key -> (label, mean column, peak column).
@@ -1143,8 +1209,8 @@ CONTACT_COMPONENTS = {
     "magnitude": ("|F|", None, "peak_force_N_per_m"),
     "x": ("F x", "force_x_N_per_m", "peak_force_x_N_per_m"),
     "y": ("F y", "force_y_N_per_m", "peak_force_y_N_per_m"),
-    "normal": ("F normal (sides)", "force_normal_N_per_m", "peak_force_N_per_m"),
-    "tangential": ("F tangential (sides)", "force_tangential_N_per_m", "peak_force_N_per_m"),
+    "normal": ("F normal", "force_normal_N_per_m", "peak_force_N_per_m"),
+    "tangential": ("F tangential", "force_tangential_N_per_m", "peak_force_N_per_m"),
 }
 
 
@@ -1155,9 +1221,10 @@ def contact_curves(contacts: dict[str, dict[str, np.ndarray]],
     ``component`` (:data:`CONTACT_COMPONENTS`): ``"magnitude"``, the magnitude of the interval's
     mean components ``hypot(force_x, force_y)`` (N per metre out of plane) and the largest
     single-step force in it (``peak_force_N_per_m``); ``"x"`` or ``"y"``, that signed component of
-    both (a force that reverses shows as one); ``"normal"`` or ``"tangential"``, the closed sides'
-    components (structures have none: left out) and the peak magnitude. Each value belongs to the
-    interval that *ends* at its time.
+    both (a force that reverses shows as one); ``"normal"`` or ``"tangential"``, those parts of the
+    mean (a side's along its axes, a structure's on the face that carries it; a contact without
+    them is left out) and the peak magnitude. Each value belongs to the interval that *ends* at its
+    time.
     """
     if component not in CONTACT_COMPONENTS:
         raise ValueError(f"component {component!r}: one of {', '.join(CONTACT_COMPONENTS)}")
@@ -1172,7 +1239,7 @@ def contact_curves(contacts: dict[str, dict[str, np.ndarray]],
         else:
             mean = np.asarray(columns.get(mean_key, nan), dtype=float)
             if component in ("normal", "tangential") and not np.isfinite(mean).any():
-                continue  # a structure: no normal or tangential
+                continue  # none recorded (nothing to split them with)
         peak = np.asarray(columns.get(peak_key, nan), dtype=float)
         if not (len(t) == len(mean) == len(peak)):
             continue

@@ -42,3 +42,81 @@ def test_old_profile_files_read_with_the_same_rule(tmp_path):
         "x_m,floor_m,ground_m,surface_m,deposit_m\n20.9,0,0,1.0,1.0\n21.1,2.5,2.5,0.2,-2.3\n")
     prof = read_hazard(tmp_path)["profile"]
     assert np.allclose(prof["deposit_m"], [1.0, 0.0]) and np.allclose(prof["surface_m"], [1.0, 2.5])
+
+
+DAM = [[21.0, 0.0], [21.5, 0.0], [21.5, 2.5], [21.0, 2.5]]
+BEDROCK = [[0.0, 0.0], [16.0, 0.0], [0.0, 13.4]]
+
+
+def test_a_dams_force_is_split_on_its_loaded_face():
+    from projects.structure_forces import components, faces
+
+    # debris pushing on the upstream face at 0.9 m, dragging it down a little: the moment about the
+    # origin of a force (fx, fy) acting at (21, 0.9) is 21 fy - 0.9 fx
+    fx, fy = 100e3, -2e3
+    normal, tangential, face = components(DAM, (fx, fy), 21.0 * fy - 0.9 * fx)
+    assert (normal, tangential) == (pytest.approx(100e3), pytest.approx(-2e3))
+    a, b, n, t = faces(DAM)[face]
+    assert np.allclose(n, [-1, 0]) and np.allclose(t, [0, 1])  # the upstream face, t up along it
+    # the same force with its line through the crest (weight on the dam's top): the crest carries it
+    down = (0.0, -50e3)
+    normal, tangential, face = components(DAM, down, 21.25 * down[1])
+    assert np.allclose(faces(DAM)[face][2], [0, 1]) and normal == pytest.approx(50e3) and tangential == 0.0
+    # a slide on a 40-degree bedrock face: pressed on and dragged down the slope (t along +x)
+    f = (-117.7e3, -295.5e3)
+    normal, tangential, face = components(BEDROCK, f, math.nan)
+    n = np.array([13.4, 16.0]) / math.hypot(13.4, 16.0)
+    assert normal == pytest.approx(-np.dot(f, n)) and normal > 0 and tangential > 0
+    assert math.hypot(normal, tangential) == pytest.approx(math.hypot(*f))
+
+
+def _write_dam_run(folder, with_parts=True):
+    from projects.results import ResultsWriter
+    from solver.config import ContactForce, Diagnostics, Frame
+
+    meta = {"particles": 1, "domain": {"origin_m": [0.0, 0.0], "size_m": [32.0, 14.5], "cell_size_m": 0.25},
+            "structures": [{"name": "check-dam", "polygon_m": DAM}]}
+    writer = ResultsWriter(folder, "", meta)
+    pos = np.zeros((1, 2), np.float32)
+    rows = [(0.0, 0.0, 0.0, 0.0, 0.0), (60e3, -1e3, 70e3, 69e3, -2e3), (100e3, -3e3, 104e3, 103e3, -4e3),
+            (90e3, -5e3, 95e3, 94e3, -6e3)]
+    for i, (fx, fy, peak, px, py) in enumerate(rows):
+        diag = Diagnostics(0.5 * i, "s", 0, 0.5 * i, i, 1e-3, 0, 0, 0, 0, 0, 0, 1.0, 0)
+        contacts = (ContactForce("check-dam", fx, fy, None, None, peak, px, py, 21.0 * fy - 0.9 * fx),
+                    ContactForce("bottom", 0.0, -2e6, 2e6, 0.0, 2.9e6, 0.0, -2.9e6))
+        writer.write_frame(Frame(diag, {"positions": pos, "active": np.ones(1, bool)}, contacts))
+    return writer.close("completed")
+
+
+def test_contacts_csv_and_the_summary_hold_a_structures_normal_and_tangential_peaks(tmp_path):
+    import json
+
+    from projects.results import read_contacts
+
+    summary = _write_dam_run(tmp_path / "r")
+    dam = read_contacts(tmp_path / "r")["check-dam"]
+    np.testing.assert_allclose(dam["force_normal_N_per_m"], [0.0, 60e3, 100e3, 90e3])
+    np.testing.assert_allclose(dam["force_tangential_N_per_m"], [0.0, -1e3, -3e3, -5e3])
+    peaks = json.loads((tmp_path / "r" / "summary.json").read_text())["contacts"]["check-dam"]
+    assert peaks == summary["contacts"]["check-dam"]
+    assert peaks["peak_force_N_per_m"] == 104e3 and peaks["peak_time_s"] == pytest.approx(1.0)
+    assert peaks["peak_force_normal_N_per_m"] == pytest.approx(103e3)
+    assert peaks["peak_force_tangential_N_per_m"] == pytest.approx(-4e3)
+    assert peaks["max_normal_force_N_per_m"] == pytest.approx(100e3) and peaks["max_normal_force_time_s"] == 1.0
+    assert peaks["max_tangential_force_N_per_m"] == pytest.approx(-5e3)
+    assert peaks["max_tangential_force_time_s"] == 1.5
+    base = summary["contacts"]["bottom"]  # a side: its own axes
+    assert base["peak_force_normal_N_per_m"] == pytest.approx(2.9e6) and base["max_normal_force_N_per_m"] == 2e6
+
+
+def test_older_contacts_files_get_a_structures_parts_on_reading(tmp_path):
+    from projects.results import read_contacts
+
+    _write_dam_run(tmp_path / "r")
+    path = tmp_path / "r" / "contacts.csv"
+    lines = path.read_text().splitlines()
+    old = [lines[0]] + [",".join(cells[:4] + ["", ""] + cells[6:]) if cells[1] == "check-dam" else line
+                        for line, cells in ((line, line.split(",")) for line in lines[1:])]
+    path.write_text("\n".join(old) + "\n")
+    dam = read_contacts(tmp_path / "r")["check-dam"]
+    np.testing.assert_allclose(dam["force_normal_N_per_m"], [0.0, 60e3, 100e3, 90e3])
