@@ -11,10 +11,14 @@ sand-column    paper section 2.4: stable particles against step for the three sc
                largest stable time step (:mod:`studies.sand_column`)
 bui2008        paper section 2.5: final surface against the experiment, energy curves, apic
                against apic-affine wall time (:mod:`studies.bui2008`)
+bui2008-choices what each model choice (base, cone match, damping, initial stress, mu(I)) does
+               to toe, reach, centroid, failure line and surface (:mod:`studies.bui2008_choices`)
 slope          paper section 3: initial stress, energy peak, speeds, displacement, final
                angle beside the paper's (:mod:`studies.slope`)
 tradeoff       error against cost over schemes, cell sizes, particles per cell and time steps;
                Pareto front and the presets (:mod:`studies.tradeoff`)
+presets        the part of the tradeoff sweep the presets are chosen from, on the shipped scene,
+               against a 1.25 mm reference (:mod:`studies.presets`)
 extremes       runs at the edges of the parameter space: stable or stopped with a message,
                never NaN, hang or traceback (:mod:`studies.extremes`)
 fos            factor of safety by strength reduction against the cell size and Bishop's
@@ -37,8 +41,10 @@ from studies.common import Note, StudyError, StudyResult, quiet
 STUDIES: dict[str, str] = {
     "sand-column": "sand_column",
     "bui2008": "bui2008",
+    "bui2008-choices": "bui2008_choices",
     "slope": "slope",
     "tradeoff": "tradeoff",
+    "presets": "presets",
     "extremes": "extremes",
     "fos": "fos",
     "softening": "softening",

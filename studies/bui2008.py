@@ -8,6 +8,11 @@ Figure 7 and its Table 2 timing ratio. Deposit measures are defined in :mod:`stu
 Full: the paper's resolution (2 mm cells, 4 particles per cell, 20000 particles, dt = 20 us,
 1 s). Quick: 5 mm cells (3200 particles) with the time step scaled with the cell (50 us, the same
 fraction of the critical step), judged against the coarse tolerances of :data:`COARSE_TARGETS`.
+
+The scene is the paper's (K0 stage, slip back wall, frictional base delta = phi = 19.8 deg,
+Drucker-Prager with psi = 0) with two model choices of its own: the mu(I) law of dense granular
+flow (Jop, Forterre and Pouliquen 2006's parameters) and the cone matched to tan(phi) in simple
+shear, the form in which that law reads phi. :mod:`studies.bui2008_choices` measures each choice.
 """
 
 from __future__ import annotations
@@ -27,7 +32,11 @@ from studies.common import (
     Report,
     RunRecord,
     StudyResult,
+    FAILURE_HEIGHTS_M,
     bui_experiment,
+    bui_failure_line,
+    experiment_centroid,
+    experiment_failure_x,
     experiment_toe,
     fmt,
     load_scene,
@@ -52,13 +61,15 @@ BLOCK_HEIGHT_M = 0.1
 
 @dataclass(frozen=True)
 class Targets:
-    """Acceptance bounds of the deposit (m): RMS deviation, toe range, crest range."""
+    """Acceptance bounds of the deposit (m): RMS deviation, toe range, crest range; optionally the
+    reach and the deposit's centroid (:func:`studies.common.profile_centroid`)."""
 
     rms_max_m: float
     toe_m: tuple[float, float]
     crest_m: tuple[float, float]
     why: str
     reach_m: tuple[float, float] | None = None
+    centroid_m: tuple[float, float] | None = None
 
     def check(self, dep: Deposit) -> dict[str, bool]:
         out = {
@@ -68,23 +79,26 @@ class Targets:
         }
         if self.reach_m is not None:
             out["reach"] = bool(self.reach_m[0] <= dep.reach_m <= self.reach_m[1])
+        if self.centroid_m is not None:
+            out["centroid"] = bool(self.centroid_m[0] <= dep.centroid_m <= self.centroid_m[1])
         return out
 
 
-#: The validation targets at the standard resolution (2 mm cells, 4 particles per cell).
-TARGETS = Targets(0.006, (0.40, 0.48), (0.095, 0.101), "the validation targets at 2 mm cells, 4 particles per cell")
-#: Coarse targets at 5 mm cells, 4 particles per cell (quick study, regression test). The RMS and
-#: crest targets of the standard resolution already hold at 5 mm (measured 1.9-2.6 mm and
-#: 0.0993-0.0998 m for cfl 0.1-0.8), so they are kept. The toe's upper bound is raised from 0.48 to
-#: 0.56 m: at 2.5 mm particle spacing a single particle layer counts as "2 mm thick", so the toe is
-#: the front of the deposit's thin tail (measured 0.46 m since the wall-reaction change of the fused
-#: scheme, 0.52-0.53 m before). The reach (5 mm thickness, measured 0.399 m, before 0.43-0.46 m;
-#: experiment 0.396 m) must lie in [0.38, 0.47] m: the experiment less about three 5 mm cells to
-#: a little under 0.48 m; it catches a changed run-out that the ill-conditioned toe would not.
-#: (The lower bound was 0.40 m, above the experiment's own 0.396 m, until the run reached it.)
-COARSE_TARGETS = Targets(0.006, (0.40, 0.56), (0.095, 0.101),
-                         "coarse tolerances at 5 mm cells (toe upper bound 0.56 m: a single 2.5 mm particle layer "
-                         "counts as 2 mm thick)", reach_m=(0.38, 0.47))
+#: The experimental deposit's centroid (studies.common.experiment_centroid) and the allowed distance (m).
+EXPERIMENT_CENTROID_M = 0.1322
+CENTROID_TOLERANCE_M = 0.005
+#: The validation targets at the standard resolution (2 mm cells, 4 particles per cell): the
+#: surface within 6 mm RMS, the toe (2 mm thickness) in 0.40-0.48 m about the experiment's
+#: 0.429 m, the crest, and the deposit's centroid within 5 mm of the experiment's.
+TARGETS = Targets(0.006, (0.40, 0.48), (0.095, 0.101), "the validation targets at 2 mm cells, 4 particles per cell",
+                  centroid_m=(EXPERIMENT_CENTROID_M - CENTROID_TOLERANCE_M, EXPERIMENT_CENTROID_M + CENTROID_TOLERANCE_M))
+#: Targets at 5 mm cells, 4 particles per cell (quick study, regression test): the same toe window,
+#: RMS, crest and centroid as at 2 mm (measured 0.449 m, 1.8 mm, 0.0999 m, 0.1300 m; the source
+#: paper's rate-independent model gives a toe of 0.495 m and a centroid of 0.1388 m at 4 mm,
+#: 0.517 m and 0.1432 m at 2 mm), and the reach (5 mm thickness) in [0.38, 0.42] m about the
+#: experiment's 0.396 m (measured 0.404 m; the paper's model 0.429 m at 4 mm).
+COARSE_TARGETS = Targets(0.006, (0.40, 0.48), (0.095, 0.101), "the validation targets at 5 mm cells", reach_m=(0.38, 0.42),
+                         centroid_m=TARGETS.centroid_m)
 
 #: The paper's reported numbers (section 2.5, Figure 7, Table 2).
 PAPER = {
@@ -98,7 +112,7 @@ PAPER = {
 
 def bui_overrides(cell_m: float, per_cell: int, scheme: str, *, time_step_s: float | None = None,
                   cfl: float | None = None, duration_s: float = 1.0, interval_s: float = 0.01,
-                  fields: tuple[str, ...] = ("velocity",)) -> list[str]:
+                  fields: tuple[str, ...] = ("velocity", "displacement")) -> list[str]:
     """``--set`` overrides of the aluminium-bar example for one run.
 
     Parameters
@@ -115,7 +129,7 @@ def bui_overrides(cell_m: float, per_cell: int, scheme: str, *, time_step_s: flo
     interval_s : float
         Output interval, s.
     fields : tuple of str
-        Output fields (positions are always written).
+        Output fields (positions are always written; the failure line needs ``displacement``).
     """
     sets = [f"domain.cell_size_m={cell_m!r}", f"particles.per_cell={int(per_cell)}", f"numerics.scheme={scheme}",
             f"stages.1.duration_s={duration_s!r}", f"output.interval_s={interval_s!r}",
@@ -128,15 +142,21 @@ def bui_overrides(cell_m: float, per_cell: int, scheme: str, *, time_step_s: flo
 
 
 def run_bui(out_dir: Path, label: str, cell_m: float, per_cell: int, scheme: str, experiment: np.ndarray, *,
-            keep_frames: bool = False, time_limit_s: float | None = None, **kwargs: Any) -> tuple[RunRecord, Deposit | None]:
+            keep_frames: bool = False, time_limit_s: float | None = None, sets: tuple[str, ...] = (),
+            change: Any = None, **kwargs: Any) -> tuple[RunRecord, Deposit | None]:
     """Run the aluminium-bar scene once and measure its deposit.
+
+    ``sets``: further ``--set`` overrides; ``change``: a callable that returns the loaded project
+    changed (a model choice a ``--set`` cannot make, such as removing a key).
 
     Returns
     -------
     (RunRecord, Deposit or None)
         The deposit is None when the run produced no final frame.
     """
-    project = load_scene(SCENE, bui_overrides(cell_m, per_cell, scheme, **kwargs))
+    project = load_scene(SCENE, [*bui_overrides(cell_m, per_cell, scheme, **kwargs), *sets])
+    if change is not None:
+        project = change(project)
     params = {"scheme": scheme, "cell_mm": 1e3 * cell_m, "per_cell": per_cell,
               "particles_per_cell": per_cell * per_cell}
     if kwargs.get("cfl") is not None:
@@ -144,7 +164,8 @@ def run_bui(out_dir: Path, label: str, cell_m: float, per_cell: int, scheme: str
     rec = run_project_measured(project, out_dir, label, params, keep_frames=keep_frames, time_limit_s=time_limit_s)
     dep = None
     if rec.positions is not None and rec.status == "completed":
-        dep = measure_deposit(rec.positions, rec.active, rec.spacing_m, experiment)
+        dep = measure_deposit(rec.positions, rec.active, rec.spacing_m, experiment,
+                              displacement=rec.displacement, failure_line=bui_failure_line())
         rec.extra.update(dep.as_dict())
     ke, t_ke = peak(rec.series, "kinetic_energy_J_per_m")
     vmax, t_v = peak(rec.series, "max_speed_m_s")
@@ -184,7 +205,7 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet,
     for scheme in schemes:
         note(f"bui2008: {scheme}, {cell * 1e3:g} mm cells")
         rec, dep = run_bui(out_dir / "runs" / scheme, scheme, cell, 2, scheme, experiment,
-                           keep_frames=False, interval_s=0.005, fields=("velocity", "stress"))
+                           keep_frames=False, interval_s=0.005, fields=("velocity", "stress", "displacement"))
         records.append(rec)
         deposits[scheme] = dep
         note(f"  {rec.status} in {rec.wall_s:.0f} s: " + ", ".join(
@@ -193,7 +214,7 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet,
     main = records[0]
     main_dep = deposits[main.label]
     checks = targets.check(main_dep) if main_dep is not None else {"rms": False, "toe": False, "crest": False,
-                                                                     "reach": False}
+                                                                     "reach": False, "centroid": False}
     passed = main.ok and all(checks.values())
     by = {r.label: r for r in records}
     ratio_wall = (by["apic"].wall_s / by["apic-affine"].wall_s) if {"apic", "apic-affine"} <= by.keys() else math.nan
@@ -211,9 +232,13 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet,
             surf[f"y_{label}_m"] = dep.surface_y
     if surf:
         write_series(out_dir / "surface.csv", surf)
+    failure = bui_failure_line()
+    exp_failure = (experiment_failure_x(failure, FAILURE_HEIGHTS_M) if failure is not None
+                   else np.full(len(FAILURE_HEIGHTS_M), math.nan))
     data = {
         "quick": quick, "cell_size_m": cell, "targets": dict(vars(targets)), "checks": checks, "passed": passed,
-        "experiment_toe_m": experiment_toe(experiment),
+        "experiment_toe_m": experiment_toe(experiment), "experiment_centroid_m": experiment_centroid(experiment),
+        "experiment_failure_x_m": dict(zip((f"{1e3 * h:.0f}mm" for h in FAILURE_HEIGHTS_M), exp_failure.tolist())),
         "experiment_reach_m": experiment_toe(experiment, REACH_THICKNESS_M), "paper": PAPER,
         "runs": [r.row() for r in records],
         "timing": {"apic_over_apic_affine_wall": ratio_wall, "apic_over_apic_affine_cpu": ratio_cpu,
@@ -231,7 +256,9 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet,
             "**full**: the paper's set-up, 2 mm cells, 2 x 2 particles per cell (20000 particles), dt = 20 us, 1 s")
     report.text(
         f"Size: {size}. Scene: `projects/examples/{SCENE}.toml` (K0 initial stress, slip back wall, "
-        "frictional base with delta = phi = 19.8 deg). Each scheme runs through `projects.runner.run_project`.",
+        "frictional base with delta = phi = 19.8 deg, the cone matched in simple shear, the mu(I) law with "
+        "Jop et al.'s (2006) parameters). Each scheme runs through `projects.runner.run_project`; "
+        "`runout study bui2008-choices` measures what each of these choices does.",
         f"Machine: {machine_line()}. Study wall time {data['study_wall_s']:.0f} s.",
     )
     report.heading("Verdict")
@@ -245,7 +272,9 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet,
          ["crest height near the wall (m)", f"{targets.crest_m[0]:g} .. {targets.crest_m[1]:g}",
           fmt(main.extra.get("crest_m"), 4), checks["crest"]]]
         + ([["reach, furthest x with >= 5 mm of deposit (m)", f"{targets.reach_m[0]:g} .. {targets.reach_m[1]:g}",
-             fmt(main.extra.get("reach_m")), checks["reach"]]] if targets.reach_m else []),
+             fmt(main.extra.get("reach_m")), checks["reach"]]] if targets.reach_m else [])
+        + ([["deposit centroid (m)", f"{targets.centroid_m[0]:g} .. {targets.centroid_m[1]:g}",
+             fmt(main.extra.get("centroid_m"), 4), checks["centroid"]]] if targets.centroid_m else []),
     )
     report.heading("Deposit and dynamics by scheme")
     report.text(f"Experiment: crest {experiment[0, 1]:.4f} m, toe (2 mm) {data['experiment_toe_m']:.3f} m, "
@@ -267,6 +296,16 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet,
                  "0.16", "", "about 1.5", "about 0.8"])
     report.table(["scheme", "status", "RMS (mm)", "toe (m)", "reach (m)", "front (m)", "crest (m)", "KE peak at (s)",
                   "KE peak (J/m)", "max speed (m/s)", "KE < 1 % of peak at (s)"], rows)
+    report.text("Deposit centroid: the horizontal centroid of the area under the surface. Failure line: the edge "
+                "of the undisturbed wedge, where the row of particles that started at that height first holds "
+                f"particles that moved more than 1 mm horizontally; its RMS: horizontal distance from the "
+                "experiment's line at the experiment's points 5-95 mm high (`studies/common.py`).")
+    heights = [f"failure line at {1e3 * h:.0f} mm (m)" for h in FAILURE_HEIGHTS_M]
+    report.table(["scheme", "centroid (m)", *heights, "failure line RMS (mm)"],
+                 [[r.label, fmt(r.extra.get("centroid_m"), 4),
+                   *(fmt(r.extra.get(f"failure_x_{1e3 * h:.0f}mm_m")) for h in FAILURE_HEIGHTS_M),
+                   fmt(r.extra.get("failure_rms_mm"))] for r in records]
+                 + [["experiment", f"{data['experiment_centroid_m']:.4f}", *(fmt(x) for x in exp_failure), ""]])
     report.heading("Cost (paper Table 2)")
     report.text("Wall time of the whole run (set-up, compilation, 200 frames written) and process CPU time, "
                 "measured one after the other in this study on a shared CPU; particle-steps per second from "
@@ -277,7 +316,7 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet,
     report.table(["ratio apic / apic-affine", "measured", "paper Table 2"],
                  [["wall time", fmt(ratio_wall), f"{data['timing']['paper_table2_ratio']:.2f} (28.66 s / 13.18 s)"],
                   ["CPU time", fmt(ratio_cpu), ""], ["particle-steps/s (inverse)", fmt(ratio_rate), ""]])
-    _plots(report, records, deposits, experiment, cell)
+    _plots(report, records, deposits, experiment, cell, failure)
     report.text("Raw data: `runs.csv` (one row per run), `series_SCHEME.csv` (kinetic energy, momentum, "
                 "speed every 5 ms), `surface.csv` (surfaces on a 1 mm grid), `bui2008.json` (everything "
                 "above); the results folders are under `runs/` (frames removed, final positions in `final.npz`).")
@@ -294,26 +333,48 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet,
     return StudyResult("bui2008", passed, verdict, path, time.perf_counter() - t0, data)
 
 
-def _plots(report: Report, records: list[RunRecord], deposits: dict[str, Deposit | None],
-           experiment: np.ndarray, cell: float) -> None:
-    colours = {"apic-affine": "tab:blue", "apic": "tab:orange", "mpm": "tab:green"}
-    fig, ax = new_figure(8.0, 3.2)
-    main = records[0]
-    if main.positions is not None:
-        act = main.active if main.active is not None else np.ones(len(main.positions), bool)
-        ax.scatter(main.positions[act, 0], main.positions[act, 1], s=0.3, c="0.75", label=f"{main.label} particles")
-    for label, dep in deposits.items():
-        if dep is not None:
-            ax.plot(dep.surface_x, dep.surface_y, color=colours.get(label), lw=1.2, label=f"{label} surface")
-    ax.plot(experiment[:, 0], experiment[:, 1], "k^", ms=4, label="experiment (Bui et al. 2008)")
+def plot_particles(ax: Any, rec: RunRecord, label: str) -> None:
+    """A run's final particles: grey where they moved more than 1 mm horizontally, blue in the
+    undisturbed wedge (grey everywhere without the displacements)."""
+    if rec.positions is None:
+        return
+    act = rec.active if rec.active is not None else np.ones(len(rec.positions), bool)
+    still = np.zeros(len(rec.positions), bool)
+    if rec.displacement is not None:
+        still = np.abs(rec.displacement[:, 0]) <= 1e-3
+    ax.scatter(rec.positions[act & ~still, 0], rec.positions[act & ~still, 1], s=0.3, c="0.75",
+               label=f"{label} particles")
+    if still.any():
+        ax.scatter(rec.positions[act & still, 0], rec.positions[act & still, 1], s=0.3, c="lightsteelblue",
+                   label=f"{label}: undisturbed wedge (moved <= 1 mm)")
+
+
+def plot_experiment(ax: Any, experiment: np.ndarray, failure: np.ndarray | None) -> None:
+    """The experiment's surface and failure line (Bui et al. 2008) and the initial block."""
+    ax.plot(experiment[:, 0], experiment[:, 1], "k^", ms=4, label="experiment: surface (Bui et al. 2008)")
+    if failure is not None:
+        ax.plot(failure[:, 0], failure[:, 1], "kv--", ms=4, lw=0.8, label="experiment: failure line")
     ax.plot([0, 0.2, 0.2], [0.1, 0.1, 0.0], "k:", lw=0.8, label="initial block")
     ax.set_xlim(0, 0.55)
     ax.set_ylim(0, 0.11)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_aspect("equal")
+
+
+def _plots(report: Report, records: list[RunRecord], deposits: dict[str, Deposit | None],
+           experiment: np.ndarray, cell: float, failure: np.ndarray | None = None) -> None:
+    colours = {"apic-affine": "tab:blue", "apic": "tab:orange", "mpm": "tab:green"}
+    fig, ax = new_figure(8.0, 3.2)
+    main = records[0]
+    plot_particles(ax, main, main.label)
+    for label, dep in deposits.items():
+        if dep is not None:
+            ax.plot(dep.surface_x, dep.surface_y, color=colours.get(label), lw=1.2, label=f"{label} surface")
+    plot_experiment(ax, experiment, failure)
     ax.legend(fontsize=7, loc="upper right")
-    report.figure(fig, "surface", f"Final free surface at t = 1 s against the experiment ({cell * 1e3:g} mm cells).")
+    report.figure(fig, "surface", f"Final free surface and failure line at t = 1 s against the experiment "
+                  f"({cell * 1e3:g} mm cells).")
 
     fig, axes = new_figure(8.0, 6.0, ncols=1, nrows=3)
     for r in records:

@@ -50,6 +50,16 @@ BUI_SURFACE_CSV_CANDIDATES = (
     REPO.parent / "shared" / "data" / "bui2008_final_surface.csv",
 )
 
+#: The experimental failure line of Bui et al. (2008): the edge of the undisturbed wedge.
+BUI_FAILURE_CSV_CANDIDATES = (
+    REPO / "projects" / "examples" / "bui2008_failure_line.csv",
+    REPO.parent / "shared" / "data" / "bui2008_failure_line.csv",
+)
+#: Heights (m) at which the failure line is compared (the wedge's top, middle and foot).
+FAILURE_HEIGHTS_M = (0.08, 0.05, 0.02)
+#: A particle has left the undisturbed wedge when it moved more than this horizontally (m).
+FAILURE_THRESHOLD_M = 0.001
+
 Note = Callable[[str], None]
 
 
@@ -110,6 +120,61 @@ def bui_experiment() -> np.ndarray:
                      + " or ".join(str(p.parent) for p in BUI_SURFACE_CSV_CANDIDATES))
 
 
+def bui_failure_line() -> np.ndarray | None:
+    """The experimental failure line of Bui et al. (2008) (``x, y`` in m, from the wall's top down
+    to the base), None where its file is not found."""
+    for path in BUI_FAILURE_CSV_CANDIDATES:
+        if path.is_file():
+            try:
+                return read_xy_csv(path)
+            except ValueError as exc:
+                raise StudyError(str(exc)) from None
+    return None
+
+
+def failure_line_x(initial: np.ndarray, final: np.ndarray, active: np.ndarray | None, spacing_m: float,
+                   heights_m: Sequence[float], threshold_m: float = FAILURE_THRESHOLD_M) -> np.ndarray:
+    """Where the failure line crosses each height: the edge of the undisturbed wedge.
+
+    In the row of particles that started within half a spacing of the height, the smallest initial
+    ``x`` of a particle that moved more than ``threshold_m`` horizontally (the wedge's particles
+    did not; those beyond its edge all did). NaN where no particle of the row moved.
+    """
+    x0, y0 = np.asarray(initial, dtype=float)[:, 0], np.asarray(initial, dtype=float)[:, 1]
+    ux = np.asarray(final, dtype=float)[:, 0] - x0
+    ok = np.ones(len(x0), bool) if active is None else np.asarray(active, dtype=bool)
+    out = []
+    for h in heights_m:
+        moved = ok & (np.abs(y0 - h) <= 0.5 * spacing_m + 1e-9) & (np.abs(ux) > threshold_m)
+        out.append(float(x0[moved].min()) if moved.any() else math.nan)
+    return np.asarray(out)
+
+
+def experiment_failure_x(line: np.ndarray, heights_m: Sequence[float]) -> np.ndarray:
+    """The experimental failure line's ``x`` at each height (linear between its points)."""
+    f = np.asarray(line, dtype=float)
+    f = f[np.argsort(f[:, 1])]
+    return np.interp(np.asarray(heights_m, dtype=float), f[:, 1], f[:, 0])
+
+
+def profile_centroid(x: np.ndarray, h: np.ndarray) -> float:
+    """The horizontal centroid of the area under a surface ``h(x)`` (m): where the deposit's
+    cross-section balances."""
+    x = np.asarray(x, dtype=float)
+    h = np.asarray(h, dtype=float)
+    area = np.trapezoid(h, x)
+    return float(np.trapezoid(x * h, x) / area) if area > 0 else math.nan
+
+
+def experiment_centroid(experiment: np.ndarray, step_m: float = 0.001) -> float:
+    """The experimental deposit's centroid: of the area under its surface, linear between the
+    points and zero beyond the last one, on the grid the runs' surfaces use."""
+    exp = np.asarray(experiment, dtype=float)
+    exp = exp[np.argsort(exp[:, 0])]
+    grid = np.arange(0.0, 0.8 + 1e-9, step_m)
+    return profile_centroid(grid, np.interp(grid, exp[:, 0], exp[:, 1], right=0.0))
+
+
 # --------------------------------------------------------------------------------------------
 # running
 
@@ -139,6 +204,8 @@ class RunRecord:
     positions : numpy.ndarray, shape (N, 2)
         Final positions, m.
     active : numpy.ndarray, shape (N,), bool
+    displacement : numpy.ndarray, shape (N, 2), optional
+        Final displacements, m, where the run wrote them (the failure line needs them).
     spacing_m : float
         Initial particle spacing ``sqrt(median volume)``, m.
     extra : dict
@@ -160,6 +227,7 @@ class RunRecord:
     active: np.ndarray | None = None
     spacing_m: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict)
+    displacement: np.ndarray | None = None
 
     @property
     def ok(self) -> bool:
@@ -247,12 +315,16 @@ def run_project_measured(
     status, message = result.status, result.message
     if limit.fired:
         status, message = "stopped", f"wall-clock limit of {time_limit_s:g} s reached: {message}"
-    positions = active = None
+    positions = active = displacement = None
     if len(res):
-        last = res.frame(-1, {"positions", "active"})
+        wanted = {"positions", "active"} | ({"displacement"} if "displacement" in project.output.fields else set())
+        last = res.frame(-1, wanted)
         positions = np.array(last["positions"], dtype=float)
         active = np.array(last["active"], dtype=bool)
-        np.savez_compressed(Path(out_dir) / "final.npz", positions=positions, active=active)
+        if "displacement" in last:
+            displacement = np.array(last["displacement"], dtype=float)[:, :2]
+        np.savez_compressed(Path(out_dir) / "final.npz", positions=positions, active=active,
+                            **({} if displacement is None else {"displacement": displacement}))
     record = RunRecord(
         label=label, params=dict(params or {}), status=status, message=message, wall_s=wall, cpu_s=cpu,
         steps=int(summary.get("steps", 0)), particles=int(summary.get("particles", 0)),
@@ -260,6 +332,7 @@ def run_project_measured(
         particle_steps_per_s=float(summary.get("particle_steps_per_s") or 0.0),
         series={k: np.asarray(v) for k, v in res.series.items()},
         positions=positions, active=active, spacing_m=float(summary.get("particle_spacing_m") or 0.0),
+        displacement=displacement,
     )
     if not keep_frames:
         for name in ("frames",):
@@ -350,6 +423,14 @@ class Deposit:
     toe_m, front_m, crest_m, reach_m : float
     surface_x, surface_y : numpy.ndarray
         The surface on a 1 mm grid (for plots and run-to-run comparison).
+    centroid_m : float
+        Horizontal centroid of the area under the surface (:func:`profile_centroid`).
+    failure_x_m : numpy.ndarray
+        Where the failure line crosses :data:`FAILURE_HEIGHTS_M` (:func:`failure_line_x`); NaN
+        without the displacements.
+    failure_rms_m : float
+        RMS horizontal distance of the failure line from the experiment's at the experiment's
+        points between 5 mm and 95 mm high; NaN without the displacements or the experiment's line.
     """
 
     rms_m: float
@@ -359,10 +440,16 @@ class Deposit:
     surface_x: np.ndarray
     surface_y: np.ndarray
     reach_m: float = math.nan
+    centroid_m: float = math.nan
+    failure_x_m: np.ndarray = field(default_factory=lambda: np.full(len(FAILURE_HEIGHTS_M), math.nan))
+    failure_rms_m: float = math.nan
 
     def as_dict(self) -> dict[str, float]:
-        return {"rms_mm": 1e3 * self.rms_m, "toe_m": self.toe_m, "reach_m": self.reach_m, "front_m": self.front_m,
-                "crest_m": self.crest_m}
+        out = {"rms_mm": 1e3 * self.rms_m, "toe_m": self.toe_m, "reach_m": self.reach_m, "front_m": self.front_m,
+               "crest_m": self.crest_m, "centroid_m": self.centroid_m, "failure_rms_mm": 1e3 * self.failure_rms_m}
+        for h, x in zip(FAILURE_HEIGHTS_M, self.failure_x_m):
+            out[f"failure_x_{1e3 * h:.0f}mm_m"] = float(x)
+        return out
 
 
 #: The issue's range of the RMS comparison, m.
@@ -370,8 +457,9 @@ RMS_RANGE_M = (0.0, 0.42)
 
 
 def measure_deposit(positions: np.ndarray, active: np.ndarray | None, spacing_m: float,
-                    experiment: np.ndarray, x_range: tuple[float, float] = RMS_RANGE_M) -> Deposit:
-    """All deposit measures of a final frame against the experimental surface.
+                    experiment: np.ndarray, x_range: tuple[float, float] = RMS_RANGE_M,
+                    displacement: np.ndarray | None = None, failure_line: np.ndarray | None = None) -> Deposit:
+    """All deposit measures of a final frame against the experimental surface (and failure line).
 
     Parameters
     ----------
@@ -382,6 +470,10 @@ def measure_deposit(positions: np.ndarray, active: np.ndarray | None, spacing_m:
         Experimental surface points, m.
     x_range : (float, float)
         Range of the RMS comparison, m.
+    displacement : numpy.ndarray, shape (N, 2), optional
+        The final displacements (the failure line needs them).
+    failure_line : numpy.ndarray, shape (K, 2), optional
+        The experimental failure line (for its RMS distance).
 
     Returns
     -------
@@ -391,14 +483,28 @@ def measure_deposit(positions: np.ndarray, active: np.ndarray | None, spacing_m:
     sel = (exp[:, 0] >= x_range[0]) & (exp[:, 0] <= x_range[1])
     h = surface_heights(positions, active, spacing_m, exp[sel, 0])
     grid = np.arange(0.0, 0.8 + 1e-9, 0.001)
+    surface = surface_heights(positions, active, spacing_m, grid)
+    failure_x = np.full(len(FAILURE_HEIGHTS_M), math.nan)
+    failure_rms = math.nan
+    if displacement is not None:
+        initial = np.asarray(positions, dtype=float) - np.asarray(displacement, dtype=float)[:, :2]
+        failure_x = failure_line_x(initial, positions, active, spacing_m, FAILURE_HEIGHTS_M)
+        if failure_line is not None:
+            line = np.asarray(failure_line, dtype=float)
+            inner = line[(line[:, 1] >= 0.005) & (line[:, 1] <= 0.095)]
+            xs = failure_line_x(initial, positions, active, spacing_m, inner[:, 1])
+            failure_rms = rms_deviation(xs, inner[:, 0])
     return Deposit(
         rms_m=rms_deviation(h, exp[sel, 1]),
         toe_m=toe_position(positions, active, spacing_m),
         front_m=front_position(positions, active, spacing_m),
         crest_m=crest_height(positions, active, spacing_m),
         surface_x=grid,
-        surface_y=surface_heights(positions, active, spacing_m, grid),
+        surface_y=surface,
         reach_m=toe_position(positions, active, spacing_m, REACH_THICKNESS_M),
+        centroid_m=profile_centroid(grid, surface),
+        failure_x_m=failure_x,
+        failure_rms_m=failure_rms,
     )
 
 

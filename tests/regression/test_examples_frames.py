@@ -35,8 +35,8 @@ FLOAT_RTOL = {"plastic_strain": 2e-4}
 SHORT = {
     "tiny_column": ["stages.1.duration_s=0.04", "output.interval_s=0.01"],
     "sand_column": ["stages.0.duration_s=0.004", "output.interval_s=0.001"],
-    "slope_sun_song_2015": ["stages.0.duration_s=0.02", "stages.1.duration_s=0.01", "stages.2.duration_s=0.01",
-                            "output.interval_s=0.01"],
+    "slope_sun_song_2015": ["stages.0.duration_s=0.2", "stages.1.duration_s=0.1", "stages.2.duration_s=0.1",
+                            "output.interval_s=0.1"],
     "bui2008_aluminium_bars": ["stages.1.duration_s=0.004", "output.interval_s=0.002"],
     "debris_barrier": ["stages.0.duration_s=0.3", "stages.0.min_duration_s=0.1", "output.interval_s=0.1"],
 }
