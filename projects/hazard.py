@@ -494,21 +494,23 @@ def structure_forces(out_dir: Path) -> dict[str, dict[str, Any]]:
     Read from the run's ``contacts.csv`` (the history itself, one row per output interval):
     per structure ``peak_force_N_per_m`` (largest single-step force magnitude) and its
     ``peak_time_s`` (the end of the interval that held it), ``max_mean_force_N_per_m`` (largest
-    interval mean, magnitude) and ``history`` (the file). The closed sides are left out (their
-    forces are in ``contacts.csv`` and ``summary.json``).
+    interval mean, magnitude), ``max_normal_force_N_per_m`` and ``max_tangential_force_N_per_m``
+    (the largest interval-mean parts on the loaded face, :mod:`projects.structure_forces`) with
+    their times, and ``history`` (the file). The closed sides are left out (their forces are in
+    ``contacts.csv`` and ``summary.json``).
     """
     from projects.results import CONTACTS_NAME, read_contacts
+    from projects.structure_forces import contact_peaks
     from solver.config import SIDES
 
     out: dict[str, dict[str, Any]] = {}
+    keys = ("peak_force_N_per_m", "peak_time_s", "max_mean_force_N_per_m", "max_normal_force_N_per_m",
+            "max_normal_force_time_s", "max_tangential_force_N_per_m", "max_tangential_force_time_s")
     for name, cols in read_contacts(out_dir).items():
         if name in SIDES or not len(cols["time_s"]):
             continue
-        peak = np.nan_to_num(cols["peak_force_N_per_m"])
-        mean = np.hypot(np.nan_to_num(cols["force_x_N_per_m"]), np.nan_to_num(cols["force_y_N_per_m"]))
-        i = int(np.argmax(peak))
-        out[name] = {"peak_force_N_per_m": float(peak[i]), "peak_time_s": float(cols["time_s"][i]),
-                     "max_mean_force_N_per_m": float(mean.max()), "history": CONTACTS_NAME}
+        peaks = contact_peaks(cols)
+        out[name] = {**{k: peaks[k] for k in keys}, "history": CONTACTS_NAME}
     return out
 
 

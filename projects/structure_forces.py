@@ -97,3 +97,38 @@ def components(polygon_m: Sequence[Sequence[float]], force: tuple[float, float],
     _a, _b, n, t = fs[k]
     f = np.asarray(force, dtype=float)
     return float(-np.dot(f, n)) + 0.0, float(np.dot(f, t)) + 0.0, int(k)
+
+
+def contact_peaks(columns: dict[str, np.ndarray]) -> dict[str, float | None]:
+    """The peaks of one contact's rows of :func:`projects.results.read_contacts`: the largest
+    single-step force ``peak_force_N_per_m`` with its components and ``peak_time_s`` (the end of
+    the interval that held it); the largest interval mean ``max_mean_force_N_per_m`` and its
+    time; the largest interval-mean normal force ``max_normal_force_N_per_m`` and the largest
+    tangential one by size (signed) ``max_tangential_force_N_per_m``, each with its time (None
+    where the rows have no normal or tangential part). N per metre, s."""
+    t = np.asarray(columns.get("time_s", []), dtype=float)
+    if not len(t):
+        return {}
+    nan = np.full(len(t), np.nan)
+
+    def col(key: str) -> np.ndarray:
+        return np.asarray(columns.get(key, nan), dtype=float)
+
+    peak = np.nan_to_num(col("peak_force_N_per_m"))
+    mean = np.hypot(np.nan_to_num(col("force_x_N_per_m")), np.nan_to_num(col("force_y_N_per_m")))
+    i, j = int(np.argmax(peak)), int(np.argmax(mean))
+    out: dict[str, float | None] = {
+        "peak_force_N_per_m": float(peak[i]), "peak_force_x_N_per_m": float(np.nan_to_num(col("peak_force_x_N_per_m")[i])),
+        "peak_force_y_N_per_m": float(np.nan_to_num(col("peak_force_y_N_per_m")[i])), "peak_time_s": float(t[i]),
+        "max_mean_force_N_per_m": float(mean[j]), "max_mean_force_time_s": float(t[j]),
+        "max_normal_force_N_per_m": None, "max_normal_force_time_s": None,
+        "max_tangential_force_N_per_m": None, "max_tangential_force_time_s": None,
+    }
+    normal, tangential = col("force_normal_N_per_m"), col("force_tangential_N_per_m")
+    if np.isfinite(normal).any():
+        k = int(np.nanargmax(normal))
+        out.update(max_normal_force_N_per_m=float(normal[k]), max_normal_force_time_s=float(t[k]))
+    if np.isfinite(tangential).any():
+        k = int(np.nanargmax(np.abs(tangential)))
+        out.update(max_tangential_force_N_per_m=float(tangential[k]) + 0.0, max_tangential_force_time_s=float(t[k]))
+    return out

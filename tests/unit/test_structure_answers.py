@@ -120,3 +120,14 @@ def test_older_contacts_files_get_a_structures_parts_on_reading(tmp_path):
     path.write_text("\n".join(old) + "\n")
     dam = read_contacts(tmp_path / "r")["check-dam"]
     np.testing.assert_allclose(dam["force_normal_N_per_m"], [0.0, 60e3, 100e3, 90e3])
+
+
+def test_hazard_json_structures_have_their_normal_and_tangential_peaks(tmp_path):
+    from projects.hazard import structure_forces
+
+    _write_dam_run(tmp_path / "r")
+    dam = structure_forces(tmp_path / "r")["check-dam"]
+    assert dam["peak_force_N_per_m"] == 104e3 and dam["peak_time_s"] == 1.0
+    assert dam["max_normal_force_N_per_m"] == pytest.approx(100e3) and dam["max_normal_force_time_s"] == 1.0
+    assert dam["max_tangential_force_N_per_m"] == pytest.approx(-5e3) and dam["max_tangential_force_time_s"] == 1.5
+    assert "bottom" not in structure_forces(tmp_path / "r")
