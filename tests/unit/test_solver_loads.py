@@ -13,6 +13,7 @@
   particles, the MPM surface layer). Measured at 10 cells: gravity stage (the load ramped with
   gravity) at most 0.35 %, then a dynamic stage that ramps it to 2 q, at most 0.4 %; mpm's
   six-stage force scatter the same.
+- A run under loads restored from a checkpoint in the middle of a ramp goes on bit for bit.
 """
 
 from __future__ import annotations
@@ -174,3 +175,31 @@ def test_a_confined_column_under_a_surcharge_carries_it_in_one_dimensional_compr
     if scheme == "apic-affine":
         errors = _cell_rows(ends[1], -(2.0 * q + weight))
         assert np.abs(errors).max() < 0.02, errors
+
+
+def test_a_run_under_loads_restored_from_a_checkpoint_goes_on_bit_for_bit():
+    """The tiny column with a surcharge on its gravity stage, growing to twice over the dynamic stage
+    that also has seismic coefficients: restored from a checkpoint in the middle of that stage's
+    ramp, the run gives the same frames (the forces and how far they have grown are in the
+    checkpoint; the stage's body force is the stage's again)."""
+    from projects.build import resolve
+    from projects.document import load_project
+    from solver.simulation import Simulation
+    from tests.conftest import TINY_PROJECT
+    from tests.unit.test_solver_checkpoint import SETS, _frames_and_checkpoints, _same
+
+    loads = ['stages.0.surcharges=[{name="top", from_m=0.0, to_m=0.12, pressure_pa=500.0}]',
+             'stages.1.surcharges=[{name="top", from_m=0.0, to_m=0.12, pressure_pa=1000.0, ramp=true}]',
+             'stages.1.seismic={k_h=0.1, towards="right"}']
+    resolved = resolve(load_project(TINY_PROJECT, [*SETS, *loads]))
+    assert resolved.config.stages[1].surcharges_from is not None and resolved.config.stages[1].seismic is not None
+    frames, checkpoints, message = _frames_and_checkpoints(resolved)
+    inside = [i for i, (_, phase) in sorted(checkpoints.items()) if phase == "loop" and frames[i].diagnostics.stage_index == 1]
+    index = inside[len(inside) // 2]
+    with Simulation(resolved.config, resolved.particles) as sim:
+        sim.restore(checkpoints[index][0])
+        rest = list(sim.run())
+        assert sim.message == message
+    assert len(rest) == len(frames) - index - 1
+    for a, b in zip(frames[index + 1:], rest):
+        _same(a, b)
