@@ -127,10 +127,33 @@ def envelope_config(project: Project) -> sc.EnvelopeConfig | None:
     if not s.enabled:
         return None
     targets = tuple(sc.Target(t.name, *t.xy) for t in project.targets)
+    if project.structures and not _raster_cells(project, s.cell_size_m) <= _raster_limit():
+        # a raster past the size limits (projects.limits: hazard raster cells), which refuse the run
+        # unless forced: its floor, one value per column, is not built while a live estimate or a
+        # refused run resolves the project (1e-9 m cells took minutes and gigabytes)
+        logger.warning("a hazard raster past the size limits: the floor of the structures under it is left out")
+        return sc.EnvelopeConfig(cell_size_m=s.cell_size_m, every_steps=s.update_every_steps,
+                                 flow_height_threshold_m=s.flow_height_threshold_m, targets=targets, ground_m=None)
     floor = structure_floor_m(project, s.cell_size_m)
     return sc.EnvelopeConfig(cell_size_m=s.cell_size_m, every_steps=s.update_every_steps,
                              flow_height_threshold_m=s.flow_height_threshold_m, targets=targets,
                              ground_m=None if floor is None else tuple(float(v) for v in floor))
+
+
+def _raster_cells(project: Project, cell_size_m: float) -> float:
+    """Cells of the hazard raster at ``cell_size_m`` over the grid (as solver.envelopes.Envelopes)."""
+    d = project.domain
+    grid = sc.Grid(tuple(d.origin_m), tuple(d.size_m), d.cell_size_m)
+    try:
+        return math.prod(math.ceil(n * d.cell_size_m / cell_size_m - 1e-9) for n in grid.cells)
+    except (OverflowError, ValueError):
+        return math.inf
+
+
+def _raster_limit() -> float:
+    from projects.limits import LIMITS
+
+    return next(limit.maximum for limit in LIMITS if limit.estimate_key == "hazard_cells")
 
 
 def structure_floor_m(project: Project, cell_size_m: float) -> np.ndarray | None:

@@ -184,10 +184,16 @@ def check_project(
         For problems of the project, runs beyond the size limits and runs the solver would
         refuse (particles outside the grid, inconsistent stages, ...).
     """
-    from projects.build import ResolvedRun, resolve
+    from projects.build import ResolvedRun, estimate, resolve
     from projects.limits import check_limits
+    from projects.presets import apply_preset
     from solver.simulation import validate
 
+    if not isinstance(project, ResolvedRun):
+        # the limits before the configuration is built: it holds the hazard raster's floor under
+        # the structures, one value per raster column (1e-9 m cells over a 0.6 m domain with a
+        # structure took minutes and gigabytes in validate before any limit was looked at)
+        check_limits(estimate(apply_preset(project)), force=force, out_dir=out_dir)
     resolved = project if isinstance(project, ResolvedRun) else resolve(project, arch=arch, seed=False)
     if resolved.particles is None:
         check_limits(resolved.estimate, force=force, out_dir=out_dir)
