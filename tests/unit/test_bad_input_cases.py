@@ -466,6 +466,21 @@ def test_a_hazard_raster_is_counted_by_the_size_limits(cell, key, what):
 
 
 @QUICK
+def test_a_hazard_raster_past_the_limits_over_a_structure_is_refused_before_its_floor_is_built():
+    from projects.runner import check_project
+
+    data = _tiny(hazard={"cell_size_m": 1e-9})
+    data["structures"] = [{"name": "wall", "polygon_m": _circle(5000, (0.45, 0.1), 0.05)}]
+    project = validate_project(data)
+    with pytest.raises(ProjectError) as info:  # the floor: one value per column, 6e8 of them
+        check_project(project, out_dir=Path("/nonexistent/r.results"))
+    assert "hazard raster cells" in _one_line(info.value)
+    assert resolve(project, seed=False).config.envelopes.ground_m is None  # a live estimate resolves it too
+    fine = validate_project(_tiny(structures=data["structures"]))
+    assert len(resolve(fine, seed=False).config.envelopes.ground_m) == 30  # one per grid column
+
+
+@QUICK
 def test_a_hazard_raster_finer_than_the_particles_is_warned_about():
     (line,) = [w for w in _warnings(_tiny(hazard={"cell_size_m": 2e-4})) if w.startswith("hazard.cell_size_m")]
     assert "finer than the particle spacing (0.01 m)" in line
