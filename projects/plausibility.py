@@ -50,7 +50,7 @@ def time_step_above_limit(project: Project) -> list[str]:
         return []
     limit, name, index = worst
     ratio = dt / limit
-    times = f"{ratio:,.0f}" if ratio >= 100 else f"{ratio:.3g}"
+    times = f"{ratio:,.0f}" if 100 <= ratio < 1e9 else f"{ratio:.3g}"
     return [f"numerics.time_step_s = {dt:g}: {times} times the stability limit {limit:.3g} s of "
             f"{_set_at(project, name, index)} (cell_size_m / P-wave speed, shorter with damping): the run goes "
             f"unstable within its first steps; use time_step_s <= {limit:.3g}, or remove it for cfl = {DEFAULT_CFL:g} "
