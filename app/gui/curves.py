@@ -238,8 +238,8 @@ class ContactCurves(_Canvas):
     line per contact, drawn as steps over the interval each value belongs to.
 
     Above the plots, the component to show (:data:`projects.results.CONTACT_COMPONENTS`: the
-    magnitude, the signed x or y component, which shows a force that reverses, or the sides'
-    normal and tangential force); the legend stands beside the plots, not over the curves, and a
+    magnitude, the signed x or y component, which shows a force that reverses, or the normal and
+    tangential parts: a side's along its axes, a structure's on the face that carries it); the legend stands beside the plots, not over the curves, and a
     click on a contact's entry hides or shows it (a large base force flattened the curves of the
     walls and dams beside it)."""
 
@@ -255,7 +255,8 @@ class ContactCurves(_Canvas):
             self.component.addItem(label, key)
         self.component.setAccessibleName("Contact force component")
         self.component.setToolTip("The force shown: its magnitude, its signed x or y component (a force that "
-                                  "reverses shows as one), or the sides' normal and tangential parts")
+                                  "reverses shows as one), or its normal and tangential parts (a side's along "
+                                  "its axes, a structure's on the face that carries it)")
         self.component.currentIndexChanged.connect(lambda _i: self.set_contacts(self.contacts))
         row = QHBoxLayout()
         row.addWidget(QLabel("Force"))

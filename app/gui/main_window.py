@@ -306,6 +306,8 @@ class MainWindow(QMainWindow):
         self.bodies_panel.templateRequested.connect(self.slope_dialog)
         self.run_panel.runRequested.connect(self.start_run)
         self.run_panel.resumeRequested.connect(lambda: self.resume_run())
+        # each structure's peak force from the results shown, in the Structures list
+        self.results_view.forcesShown.connect(lambda rows, path: self.structures_panel.set_forces(rows, path))
         self.run_panel.cancelRequested.connect(self.cancel_run)
         self.run_panel.problemActivated.connect(self.go_to_problem)
         self.run_panel.runSelected.connect(self._select_run)

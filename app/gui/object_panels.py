@@ -58,6 +58,21 @@ def surface_at(polygons: list[Any], x: float) -> float | None:
     return top
 
 
+def _kn(value: Any) -> str:
+    return "–" if value is None or not isinstance(value, (int, float)) or value != value else f"{value / 1e3:.3g}"
+
+
+def force_text(row: dict[str, Any]) -> str:
+    """``peak 104 kN/m (N 104, T -1.71) at 3.55 s; mean N up to 103 kN/m at 3.55 s`` for a row of
+    :func:`projects.structure_forces.force_table`."""
+    text = (f"peak {_kn(row.get('peak_force_N_per_m'))} kN/m (N {_kn(row.get('peak_force_normal_N_per_m'))}, "
+            f"T {_kn(row.get('peak_force_tangential_N_per_m'))}) at {row.get('peak_time_s', 0.0):.3g} s")
+    if row.get("max_normal_force_N_per_m") is not None:
+        text += (f"; mean N up to {_kn(row['max_normal_force_N_per_m'])} kN/m at "
+                 f"{row.get('max_normal_force_time_s') or 0.0:.3g} s")
+    return text
+
+
 def contact_kind(contact: Any) -> str:
     """``"fixed"``, ``"slip"`` or ``"friction"`` of a contact as written (a string or a table)."""
     if isinstance(contact, dict):
@@ -107,7 +122,20 @@ class StructuresPanel(PolygonPanel):
         self.watch(self.angle)
 
     def _label(self, item: dict[str, Any]) -> tuple[QIcon | None, str]:
-        return swatch(STRUCTURE_COLOR), f"{item.get('name', '?')}   ({contact_text(item.get('contact'))})"
+        text = f"{item.get('name', '?')}   ({contact_text(item.get('contact'))})"
+        force = getattr(self, "forces", {}).get(item.get("name"))
+        if force:
+            text += f"\n    {force}"
+        return swatch(STRUCTURE_COLOR), text
+
+    def set_forces(self, rows: list[dict[str, Any]], source: str = "") -> None:
+        """Show each structure's peak force from the results shown (``rows``:
+        :func:`projects.structure_forces.force_table`) under its name in the list: the peak of a
+        step with its normal and tangential parts and when, and the largest interval-mean normal
+        force and when. ``source`` names the results folder (the list's tooltip)."""
+        self.forces = {str(r["contact"]): force_text(r) for r in rows if r.get("kind") == "structure"}
+        self.list.setToolTip(f"Peak forces from {source}" if self.forces and source else "")
+        self._fill()
 
     def _bind_item(self, base: str | None) -> None:
         self.contact.setEnabled(base is not None)

@@ -22,12 +22,15 @@ from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
     QHBoxLayout,
+    QHeaderView,
     QLabel,
     QLineEdit,
     QPushButton,
     QSlider,
     QSplitter,
     QStyle,
+    QTableWidget,
+    QTableWidgetItem,
     QTabWidget,
     QToolButton,
     QVBoxLayout,
@@ -42,6 +45,18 @@ from app.render import FIELDS, bar_format, field_info, field_values, structure_l
 
 logger = logging.getLogger(__name__)
 
+#: The peak-force table's columns: key of projects.structure_forces.force_table's rows, header.
+FORCE_COLUMNS: tuple[tuple[str, str], ...] = (
+    ("contact", "Contact"),
+    ("peak_force_N_per_m", "Peak |F|\n(kN/m)"),
+    ("peak_force_normal_N_per_m", "its normal\n(kN/m)"),
+    ("peak_force_tangential_N_per_m", "its tangential\n(kN/m)"),
+    ("peak_time_s", "at\n(s)"),
+    ("max_normal_force_N_per_m", "largest mean\nnormal (kN/m)"),
+    ("max_normal_force_time_s", "at\n(s)"),
+    ("max_tangential_force_N_per_m", "largest mean\ntangential (kN/m)"),
+    ("max_tangential_force_time_s", "at\n(s)"),
+)
 COLORMAPS: tuple[str, ...] = ("viridis", "plasma", "magma_r", "turbo", "coolwarm", "cividis", "Greys")
 PLAY_INTERVAL_MS = 120
 CLICK_PIXELS = 4
@@ -572,6 +587,8 @@ class ResultsView(QWidget):
 
     message = Signal(str)
     resultsShown = Signal()
+    #: the rows of the peak-force table (projects.structure_forces.force_table) and the folder
+    forcesShown = Signal(list, str)
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -607,10 +624,23 @@ class ResultsView(QWidget):
         self.side = QTabWidget()
         self.side.addTab(self.curves, "Run curves")
         self.side.addTab(self.contact_plot, "Contact forces")
+        self.forces_table = QTableWidget(0, len(FORCE_COLUMNS))
+        self.forces_table.setHorizontalHeaderLabels([h for _k, h in FORCE_COLUMNS])
+        self.forces_table.verticalHeader().setVisible(False)
+        self.forces_table.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
+        self.forces_table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
+        self.forces_table.setToolTip("Per structure (then per closed side): the largest force of one step with its "
+                                     "normal and tangential parts on the face that carried it and when, and the "
+                                     "largest interval-mean normal and tangential forces and when (contacts.csv)")
+        self.force_rows: list[dict[str, Any]] = []
+        self.side.addTab(self.forces_table, "Peak forces")
         self.side.addTab(self.history_plot, "Particle history")
-        self.side.addTab(self._with_inputs(self.monitor_plot, "monitor"), "Monitoring points")
-        self.side.addTab(self._with_inputs(self.profile_plot, "section"), "Cross-section")
-        self.side.addTab(self._query_tab(), "Query")
+        self.monitor_tab = self._with_inputs(self.monitor_plot, "monitor")
+        self.section_tab = self._with_inputs(self.profile_plot, "section")
+        self.query_tab = self._query_tab()
+        self.side.addTab(self.monitor_tab, "Monitoring points")
+        self.side.addTab(self.section_tab, "Cross-section")
+        self.side.addTab(self.query_tab, "Query")
         #: the point whose value the Query tab shows (it follows the frame, field and smoothing)
         self.query_point: tuple[float, float] | None = None
         self.query_answer: Any = None
@@ -740,7 +770,7 @@ class ResultsView(QWidget):
         self.query_point = (float(x_m), float(y_m))
         self.query_x.setText(f"{x_m:g}")
         self.query_y.setText(f"{y_m:g}")
-        self.side.setCurrentIndex(self.side.count() - 1)
+        self.side.setCurrentWidget(self.query_tab)
         return self.update_query()
 
     def update_query(self) -> Any:
@@ -806,7 +836,7 @@ class ResultsView(QWidget):
         without results). The point is kept for the next results shown (a re-run, say)."""
         self.monitors.append((label or f"P{len(self.monitors) + 1} ({x_m:g}, {y_m:g})", float(x_m), float(y_m)))
         self.update_monitors()
-        self.side.setCurrentIndex(2)
+        self.side.setCurrentWidget(self.monitor_tab)
         return self.monitor_ids[-1] if len(self.monitor_ids) == len(self.monitors) else None
 
     def clear_monitors(self) -> None:
@@ -854,7 +884,7 @@ class ResultsView(QWidget):
         self.section = (float(x0), float(y0), float(x1), float(y1))
         for edit, v in zip(self.section_edits, self.section, strict=True):
             edit.setText(f"{v:g}")
-        self.side.setCurrentIndex(3)
+        self.side.setCurrentWidget(self.section_tab)
         return self.update_section()
 
     def update_section(self) -> int:
@@ -1012,6 +1042,29 @@ class ResultsView(QWidget):
             logger.debug("contacts.csv not readable: %s", err)
             contacts = {}
         self.contact_plot.set_contacts(contacts, now=not live)
+        from projects.structure_forces import force_table
+
+        try:
+            rows = force_table(path) if contacts else []
+        except (OSError, ValueError) as err:
+            logger.debug("no force table: %s", err)
+            rows = []
+        self.force_rows = rows
+        self.forces_table.setRowCount(len(rows))
+        for r, row in enumerate(rows):
+            for c, (key, _h) in enumerate(FORCE_COLUMNS):
+                value = row.get(key)
+                if key == "contact":
+                    text = f"{value}" + ("" if row.get("kind") == "structure" else " (side)")
+                elif key.endswith("_s"):
+                    text = "–" if value is None else f"{value:.3g}"
+                else:
+                    text = "–" if value is None or value != value else f"{value / 1e3:.4g}"
+                item = QTableWidgetItem(text)
+                if key != "contact":
+                    item.setTextAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+                self.forces_table.setItem(r, c, item)
+        self.forcesShown.emit(rows, str(path))
 
     def show_frame(self, index: int) -> None:
         """Show frame ``index`` of the open results folder (also while its run goes on)."""

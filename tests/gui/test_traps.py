@@ -612,3 +612,25 @@ def test_the_results_view_answers_a_query_at_a_point_and_exports_a_section(windo
     out = view.export_section(tmp_path / "section.csv")
     lines = out.read_text().splitlines()
     assert lines[0] == "distance_m,x_m,y_m,displacement_m,particles,nearest_particle" and len(lines) == 82
+
+
+# -- structures read as numbers ------------------------------------------------------------------------
+
+def test_each_structures_peak_force_is_a_number_in_the_list_and_a_table(window, tmp_path):
+    from tests.gui.conftest import EXAMPLES
+    from tests.unit.test_structure_answers import _write_dam_run
+
+    window.open_project(EXAMPLES / "debris_barrier.toml")
+    _write_dam_run(tmp_path / "dam.results")
+    assert window.open_results(tmp_path / "dam.results")
+    view = window.results_view
+    table = view.forces_table
+    cells = [[table.item(r, c).text() for c in range(table.columnCount())] for r in range(table.rowCount())]
+    assert cells[0] == ["check-dam", "104", "103", "-4", "1", "100", "1", "-5", "1.5"]
+    assert cells[1][0] == "bottom (side)" and cells[1][1] == "2900" and cells[1][2] == "2900"
+    # the Structures list: the dam's peak under its name (the bedrock, which carried nothing here, bare)
+    panel = window.structures_panel
+    texts = [panel.list.item(i).text() for i in range(panel.list.count())]
+    dam = next(t for t in texts if t.startswith("check-dam"))
+    assert dam.splitlines()[1].strip() == "peak 104 kN/m (N 103, T -4) at 1 s; mean N up to 100 kN/m at 1 s"
+    assert next(t for t in texts if t.startswith("bedrock")).count("\n") == 0
