@@ -67,9 +67,10 @@ def quantile(p: Parameter, u: np.ndarray) -> np.ndarray | list[Any]:
     dist = _scipy_dist(p)
     if p.distribution == "uniform":
         return float(p.low) + u * (float(p.high) - float(p.low))
-    lo = dist.cdf(float(p.low)) if p.low is not None else 0.0
-    hi = dist.cdf(float(p.high)) if p.high is not None else 1.0
-    values = dist.ppf(lo + u * (hi - lo))
+    with np.errstate(all="ignore"):  # a std of 5e-324 overflows (x - mean) / std to inf: cdf 0 or 1, as meant
+        lo = dist.cdf(float(p.low)) if p.low is not None else 0.0
+        hi = dist.cdf(float(p.high)) if p.high is not None else 1.0
+        values = dist.ppf(lo + u * (hi - lo))
     # ppf round-off may step a hair outside the truncation
     if p.low is not None:
         values = np.maximum(values, float(p.low))
