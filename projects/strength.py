@@ -510,8 +510,8 @@ class StrengthReduction:
         self.equilibrium_steps = sim.steps - steps0
         checkpoint = sim.engine.state()
         # the trials stand under the strength-reduction stage's loads, at full value from the start
-        if surcharges or seismic is not None:
-            sim.set_loads(surcharges, seismic)
+        # (none where it removes them: the settling above kept those of the stages before)
+        sim.set_loads(surcharges, seismic)
         t0, label_index = sim.time_s, len(self.initial_stages)
         # the engine works relative to the grid's origin; the project's coordinates are origin + x
         origin = np.asarray(getattr(sim, "origin_m", (0.0, 0.0)), dtype=np.float64)
