@@ -202,7 +202,8 @@ def load_rules(data: Mapping[str, Any]) -> list[tuple[str, Any, str]]:
                     pts = np.vstack(polygons)
                     side = "to_m" if bare > 0.5 * (lo + hi) else "from_m"
                     problems.append((f"{here}.{side}", load.get(side),
-                                            f"the segment x = {lo:g} to {hi:g} m runs off the ground at x = {bare:.4g} m "
+                                            f"the segment x = {lo:g} to {hi:g} m runs off the ground at "
+                                            f"x = {bare:.4g} m "
                                             f"(no body under it; the bodies span x = {pts[:, 0].min():g} to "
                                             f"{pts[:, 0].max():g} m)"))
         seismic = stage.get("seismic")

@@ -16,9 +16,10 @@ wide (``h = sqrt(V)``, the lattice's columns, aligned on the grid's origin) and 
 particle of each column (highest y) is the surface there. Each surface particle stands for the
 stretch of x from half-way to its left neighbour to half-way to its right one (the first and the
 last to their columns' outer edges, or ``h / 2`` beyond themselves where that is farther); its
-force is the load's pressure integrated over that stretch's part of the segment, along gravity. So the forces sum to the load's resultant wherever the ground
-runs under the whole segment (a column without particles inside it is bridged by its
-neighbours); a load beyond the ground's end falls on nothing and is reported.
+force is the load's pressure integrated over that stretch's part of the segment, along gravity.
+So the forces sum to the load's resultant wherever the ground runs under the whole segment (a
+column without particles inside it is bridged by its neighbours); a load beyond the ground's end
+falls on nothing and is reported.
 """
 
 from __future__ import annotations

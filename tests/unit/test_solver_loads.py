@@ -194,7 +194,8 @@ def test_a_run_under_loads_restored_from_a_checkpoint_goes_on_bit_for_bit():
     resolved = resolve(load_project(TINY_PROJECT, [*SETS, *loads]))
     assert resolved.config.stages[1].surcharges_from is not None and resolved.config.stages[1].seismic is not None
     frames, checkpoints, message = _frames_and_checkpoints(resolved)
-    inside = [i for i, (_, phase) in sorted(checkpoints.items()) if phase == "loop" and frames[i].diagnostics.stage_index == 1]
+    inside = [i for i, (_, phase) in sorted(checkpoints.items())
+              if phase == "loop" and frames[i].diagnostics.stage_index == 1]
     index = inside[len(inside) // 2]
     with Simulation(resolved.config, resolved.particles) as sim:
         sim.restore(checkpoints[index][0])

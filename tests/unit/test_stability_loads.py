@@ -73,7 +73,8 @@ SLOPES = [(30.0, 2.0, 5e3, 30.0, 20e3), (25.0, 3.0, 0.0, 35.0, 19e3), (35.0, 3.0
 def test_the_closed_form_is_the_textbook_one():
     b, phi = math.radians(30.0), math.radians(30.0)
     gamma, z, c, q = 20e3, 2.0, 5e3, 30e3
-    surcharged = (c + (gamma * z + q) * math.cos(b) ** 2 * math.tan(phi)) / ((gamma * z + q) * math.sin(b) * math.cos(b))
+    surcharged = (c + (gamma * z + q) * math.cos(b) ** 2 * math.tan(phi)) / (
+        (gamma * z + q) * math.sin(b) * math.cos(b))
     assert infinite_slope_factor(30.0, z, c, 30.0, gamma, q=q) == pytest.approx(surcharged, rel=1e-12)
     k_h = 0.15
     seismic = (c + (gamma * z * math.cos(b) ** 2 - k_h * gamma * z * math.sin(b) * math.cos(b)) * math.tan(phi)) / (
