@@ -383,28 +383,51 @@ def targets_png(doc: Mapping[str, Any], path: Path) -> Path | None:
     return path
 
 
-def contacts_png(contacts: Mapping[str, Mapping[str, np.ndarray]], path: Path) -> Path | None:
-    """The force on each contact that took any against time: the mean over each output interval
-    and the largest single-step force in it (the workbench's *Contact forces* curves), kN/m."""
+def contacts_png(contacts: Mapping[str, Mapping[str, np.ndarray]], path: Path,
+                 structures: Sequence[str] = ()) -> Path | None:
+    """The forces against time, one plot per structure that took any (in ``structures``' order)
+    and one for the closed sides together, each with its own scale (a base carrying the whole
+    weight, MN per metre, no longer flattens a dam's kN): the interval-mean normal and tangential
+    parts (on the face that carries the force; a side's along its axes) and the largest force of
+    a step in each interval, kN/m, drawn as steps over the interval each value belongs to."""
     from app.render import CONTACT_COLORS
-    from projects.results import contact_curves
+    from solver.config import SIDES
 
-    curves = {name: c for name, c in contact_curves(dict(contacts)).items()
-              if len(c[0]) and np.nanmax(np.abs(c[2]), initial=0.0) > 0.0}
-    if not curves:
+    def took(cols: Mapping[str, np.ndarray]) -> bool:
+        peak = np.nan_to_num(np.asarray(cols.get("peak_force_N_per_m", []), dtype=float))
+        return len(peak) > 0 and float(np.abs(peak).max(initial=0.0)) > 0.0
+
+    names = [n for n in structures if n in contacts and took(contacts[n])]
+    names += [n for n in contacts if n not in SIDES and n not in names and took(contacts[n])]
+    sides = [n for n in SIDES if n in contacts and took(contacts[n])]
+    panels = [(n, [n]) for n in names] + ([("closed sides: " + ", ".join(sides), sides)] if sides else [])
+    if not panels:
         return None
-    fig = _figure(9.0, 4.6)
-    axes = fig.subplots(2, 1, sharex=True)
-    for i, (name, (t, mean, peak)) in enumerate(curves.items()):
-        color = CONTACT_COLORS[i % len(CONTACT_COLORS)]
-        axes[0].plot(t, mean * 1e-3, color=color, lw=1.4, drawstyle="steps-pre", label=name)
-        axes[1].plot(t, peak * 1e-3, color=color, lw=1.2, drawstyle="steps-pre", label=name)
-    axes[0].set_ylabel("mean over interval (kN/m)")
-    axes[1].set_ylabel("peak of a step (kN/m)")
-    axes[1].set_xlabel("time (s)")
-    axes[0].legend(fontsize=8, loc="best")
-    for ax in axes:
+    fig = _figure(9.0, 1.0 + 2.1 * len(panels))
+    axes = np.atleast_1d(fig.subplots(len(panels), 1, sharex=True))
+    colours = {n: CONTACT_COLORS[i % len(CONTACT_COLORS)] for i, n in enumerate(contacts)}
+    for ax, (title, group) in zip(axes, panels, strict=True):
+        for name in group:
+            cols = contacts[name]
+            t = np.asarray(cols["time_s"], dtype=float)
+            colour = colours[name]
+            label = name if len(group) > 1 else ""
+            normal = np.asarray(cols.get("force_normal_N_per_m", np.full(len(t), np.nan)), dtype=float)
+            tangential = np.asarray(cols.get("force_tangential_N_per_m", np.full(len(t), np.nan)), dtype=float)
+            peak = np.asarray(cols["peak_force_N_per_m"], dtype=float)
+            ax.plot(t, peak * 1e-3, color=colour, lw=0.8, alpha=0.45, drawstyle="steps-pre",
+                    label=f"{label + ': ' if label else ''}peak |F| of a step")
+            if np.isfinite(normal).any():
+                ax.plot(t, normal * 1e-3, color=colour, lw=1.5, drawstyle="steps-pre",
+                        label=f"{label + ': ' if label else ''}mean normal")
+                ax.plot(t, tangential * 1e-3, color=colour, lw=1.2, ls="--", drawstyle="steps-pre",
+                        label=f"{label + ': ' if label else ''}mean tangential")
+        ax.set_title(title, fontsize=9, loc="left")
+        ax.set_ylabel("kN/m")
+        ax.axhline(0.0, color="#9aa0a6", lw=0.6)
         ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="upper left", ncol=3 if len(group) == 1 else 2, framealpha=0.8)
+    axes[-1].set_xlabel("time (s)")
     fig.savefig(path)
     return path
 
@@ -489,24 +512,43 @@ def _read_contacts(path: Path) -> dict[str, dict[str, np.ndarray]]:
         return {}
 
 
-def _contacts(table: Mapping[str, Mapping[str, np.ndarray]],
-              peaks: Mapping[str, Mapping[str, Any]]) -> list[list[str]]:
-    """Per contact of ``contacts.csv`` (a side or a structure): the largest single-step force with
-    its components and time, the largest mean force of an output interval with its time, and a
-    point of that mean force's line of action (``summary.json``, where the run wrote one)."""
+def _contacts(results_dir: Path, peaks: Mapping[str, Mapping[str, Any]]) -> list[list[str]]:
+    """Per contact that took any force, the structures first (:func:`projects.structure_forces.
+    force_table`): the largest single-step force with its normal and tangential parts and time,
+    the largest interval-mean normal and tangential forces with their times, and a point of the
+    largest mean force's line of action (``summary.json``, where the run wrote one)."""
+    from projects.structure_forces import force_table
+
+    try:
+        rows = force_table(results_dir)
+    except (OSError, ValueError, KeyError, IndexError) as err:
+        logger.warning("contacts.csv not read: %s", err)
+        return []
+    def scale(value: Any) -> tuple[float, str]:  # kN/m from 1 kN/m up, else N/m (a laboratory's forces)
+        v = float(value) if value is not None else math.nan
+        return (1e3, "kN/m") if math.isfinite(v) and abs(v) >= 1e3 else (1.0, "N/m")
+
+    def number(value: Any, factor: float) -> str:
+        return "-" if value is None or not math.isfinite(float(value)) else f"{float(value) / factor:.3g}"
+
+    def force(value: Any) -> str:
+        factor, unit = scale(value)
+        text = number(value, factor)
+        return text if text == "-" else f"{text} {unit}"
+
     out = []
-    for name, cols in table.items():
-        t = np.asarray(cols["time_s"], float)
-        if not len(t):
-            continue
-        peak = np.nan_to_num(np.asarray(cols["peak_force_N_per_m"], float), nan=-1.0)
-        mean = np.hypot(np.asarray(cols["force_x_N_per_m"], float), np.asarray(cols["force_y_N_per_m"], float))
-        mean = np.nan_to_num(mean, nan=-1.0)
-        i, j = int(np.argmax(peak)), int(np.argmax(mean))
-        px, py = float(cols["peak_force_x_N_per_m"][i]), float(cols["peak_force_y_N_per_m"][i])
+    for r in rows:
+        name = str(r["contact"])
         point = (peaks.get(name) or {}).get("max_mean_force_point_m")
-        out.append([name, f"{_fmt(float(peak[i]), 'N/m')} ({_fmt(px)}, {_fmt(py)})", _fmt(float(t[i]), "s"),
-                    _fmt(float(mean[j]), "N/m"), _fmt(float(t[j]), "s"), _fmt(point, "m") if point else "-"])
+        factor, _unit = scale(r["peak_force_N_per_m"])
+        out.append([name if r["kind"] == "structure" else f"{name} (side)",
+                    f"{force(r['peak_force_N_per_m'])} (N {number(r['peak_force_normal_N_per_m'], factor)}, "
+                    f"T {number(r['peak_force_tangential_N_per_m'], factor)})", _fmt(r["peak_time_s"], "s", 3),
+                    force(r["max_normal_force_N_per_m"]),
+                    _fmt(r["max_normal_force_time_s"], "s", 3) if r["max_normal_force_N_per_m"] is not None else "-",
+                    force(r["max_tangential_force_N_per_m"]),
+                    _fmt(r["max_tangential_force_time_s"], "s", 3) if r["max_tangential_force_N_per_m"] is not None
+                    else "-", _fmt(point, "m") if point else "-"])
     return out
 
 
@@ -738,7 +780,9 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
     pictures["energy"] = energy_png(res.series, doc, out / "energy.png")
     pictures["targets"] = targets_png(doc, out / "targets.png")
     contact_table = _read_contacts(res.path / CONTACTS_CSV)
-    pictures["contacts"] = contacts_png(contact_table, out / "contacts.png")
+    pictures["contacts"] = contacts_png(contact_table, out / "contacts.png",
+                                        [st.get("name") for st in summary.get("structures") or []
+                                         if isinstance(st, dict)])
     ctx = context(doc, project, summary)
     pictures["context"] = context_png(ctx, doc, out / "context.png")
 
@@ -811,18 +855,20 @@ def write_report(results: str | os.PathLike[str], out_dir: str | os.PathLike[str
         parts.append(_img(pictures.get("targets"), "the targets' time series (targets.csv)"))
     else:
         parts.append("<p class='note'>No targets in the project ([[targets]]).</p>")
-    contacts = _contacts(contact_table, summary.get("contacts") or {})
+    contacts = _contacts(res.path, summary.get("contacts") or {}) if contact_table else []
     if contacts:
-        parts.append("<h3>Forces on the sides and structures (contacts.csv)</h3>")
-        parts.append("<p class='note'>The force the material exerts on each closed side and structure, N per "
-                     "metre out of plane: the largest of a single step (x, y) and the largest mean over an "
-                     "output interval (the impulse over the interval divided by its length), with the point of "
-                     "that mean force's line of action where it meets a side (the centre of pressure) or "
-                     "nearest a structure's vertex mean (from its moment in contacts.csv).</p>")
-        parts.append(_table(["contact", "peak force (x, y)", "at", "largest interval mean", "at", "acts through"],
-                            contacts))
-        parts.append(_img(pictures.get("contacts"), "the force on each contact that took any against time "
-                                                    "(contacts.csv)"))
+        parts.append("<h3>Forces on the structures and sides (contacts.csv)</h3>")
+        parts.append("<p class='note'>The force the material exerts on each structure and closed side, N per "
+                     "metre out of plane, as its normal part N (pressing on the face that carries it, positive) "
+                     "and tangential part T (along that face: up a steep face, along +x a flat one; a side's along "
+                     "its axes): the largest force of a single step with its parts, and the largest mean over an "
+                     "output interval (the impulse over the interval divided by its length) of each part, with "
+                     "the point of the largest mean force's line of action where it meets a side (the centre of "
+                     "pressure) or nearest a structure's vertex mean (from its moment in contacts.csv).</p>")
+        parts.append(_table(["contact", "peak force of a step (N, T)", "at", "largest mean normal", "at",
+                             "largest mean tangential", "at", "acts through"], contacts))
+        parts.append(_img(pictures.get("contacts"), "the forces against time, each structure on its own scale, "
+                                                    "the closed sides together (contacts.csv)"))
 
     parts.append("<h2>Energy</h2>")
     parts.append(_img(pictures["energy"], "kinetic energy and the fastest particle (series.csv and the envelope "

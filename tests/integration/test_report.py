@@ -97,14 +97,16 @@ def test_report_lists_the_contact_forces_of_contacts_csv(collapse, tmp_path):
             "0.2,bottom,2.0,-49.0,49.0,2.0,70.0,1.0,-69.9", "0.2,wall,20.0,3.0,,,25.0,24.0,7.0"]
     (folder / "contacts.csv").write_text("\n".join(rows) + "\n")
     text = write_report(folder).read_text()
-    assert "Forces on the sides and structures (contacts.csv)" in text
-    body = re.sub(r"<[^>]+>", "|", text[text.index("Forces on the sides"):])
+    assert "Forces on the structures and sides (contacts.csv)" in text
+    body = re.sub(r"<[^>]+>", "|", text[text.index("Forces on the structures"):])
     cells = [c.strip() for c in body.split("|") if c.strip()]
-    wall = cells[cells.index("wall"):][:6]
-    # no line of action: the run's summary has no entry for this contact
-    assert wall == ["wall", "61.25 N/m (-60, 12.3)", "0.1 s", "37.47 N/m", "0.1 s", "-"], wall
-    bottom = cells[cells.index("bottom"):][:5]
-    assert bottom == ["bottom", "80 N/m (2, -79.9)", "0.1 s", "50.01 N/m", "0.1 s"], bottom
+    wall = cells[cells.index("wall"):][:8]
+    # a contact the summary does not list as a structure (no polygon): no normal and tangential
+    # parts, no line of action
+    assert wall == ["wall", "61.2 N/m (N -, T -)", "0.1 s", "-", "-", "-", "-", "-"], wall
+    bottom = cells[cells.index("bottom (side)"):][:7]
+    # the side's parts along its axes: N = -F y of the peak step, T = F x
+    assert bottom == ["bottom (side)", "80 N/m (N 79.9, T 2)", "0.1 s", "50 N/m", "0.1 s", "2 N/m", "0.2 s"], bottom
     # and their history as a figure, embedded, one line per contact that took any force in each panel
     picture = folder / "report" / "contacts.png"
     _non_blank(picture)
@@ -120,7 +122,8 @@ def test_report_plots_only_the_contacts_that_took_a_force(tmp_path, monkeypatch)
     real = Figure.savefig
 
     def spy(fig, path, *args, **kwargs):
-        shown.append({line.get_label() for ax in fig.axes for line in ax.get_lines()})
+        shown.append({line.get_label() for ax in fig.axes for line in ax.get_lines()
+                      if not line.get_label().startswith("_")})  # not the zero line
         return real(fig, path, *args, **kwargs)
 
     t = np.array([0.0, 0.1, 0.2])
@@ -131,7 +134,7 @@ def test_report_plots_only_the_contacts_that_took_a_force(tmp_path, monkeypatch)
     monkeypatch.setattr(Figure, "savefig", spy)
     assert report.contacts_png(table, tmp_path / "c.png") == tmp_path / "c.png"
     assert report.contacts_png({"left": table["left"]}, tmp_path / "none.png") is None
-    assert shown == [{"dam"}]
+    assert shown == [{"peak |F| of a step"}]  # the dam's plot alone (no normal or tangential here)
     assert not (tmp_path / "none.png").exists()
 
 

@@ -131,3 +131,30 @@ def test_hazard_json_structures_have_their_normal_and_tangential_peaks(tmp_path)
     assert dam["max_normal_force_N_per_m"] == pytest.approx(100e3) and dam["max_normal_force_time_s"] == 1.0
     assert dam["max_tangential_force_N_per_m"] == pytest.approx(-5e3) and dam["max_tangential_force_time_s"] == 1.5
     assert "bottom" not in structure_forces(tmp_path / "r")
+
+
+def test_the_reports_force_figure_gives_each_structure_its_own_plot_and_the_sides_theirs(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from app.report import _contacts, contacts_png
+    from projects.results import read_contacts
+
+    _write_dam_run(tmp_path / "r")  # a dam taking 104 kN/m beside a base taking 2.9 MN/m
+    figures = []
+    import matplotlib.figure
+
+    keep = matplotlib.figure.Figure.savefig
+    matplotlib.figure.Figure.savefig = lambda self, *a, **k: (figures.append(self), keep(self, *a, **k))[1]
+    try:
+        assert contacts_png(read_contacts(tmp_path / "r"), tmp_path / "contacts.png", ["check-dam"]).is_file()
+    finally:
+        matplotlib.figure.Figure.savefig = keep
+    dam, sides = figures[0].axes
+    assert dam.get_title(loc="left") == "check-dam" and sides.get_title(loc="left") == "closed sides: bottom"
+    assert dam.get_ylim()[1] < 150.0 and sides.get_ylim()[1] > 2500.0  # kN/m: the dam on its own scale
+    assert [line.get_label() for line in dam.get_lines()[:3]] == ["peak |F| of a step", "mean normal",
+                                                                  "mean tangential"]
+    rows = _contacts(tmp_path / "r", {})
+    assert rows[0][:7] == ["check-dam", "104 kN/m (N 103, T -4)", "1 s", "100 kN/m", "1 s", "-5 kN/m", "1.5 s"]
+    assert rows[1][0] == "bottom (side)"
