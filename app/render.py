@@ -1084,10 +1084,16 @@ def render_mechanism(results: Results | str | os.PathLike[str], path: str | os.P
                     label=f"Bishop critical circle, F = {le['factor_of_safety']:.3f}")
         if fos.get("monitor_point_m"):
             ax.plot(*fos["monitor_point_m"], "o", mfc="none", mec="lime", ms=10, label="monitor point")
+        from app.report import structure_patches
+
+        structures = summary.get("structures") or []
+        structure_patches(ax, structures)  # the walls and dams the mechanism runs against
         if frame is not None:
-            pad = 0.05 * max(np.ptp(xy[:, 0]), np.ptp(xy[:, 1]))
-            ax.set_xlim(xy[:, 0].min() - pad, xy[:, 0].max() + pad)
-            ax.set_ylim(xy[:, 1].min() - pad, xy[:, 1].max() + pad)
+            box = np.vstack([xy, *[np.asarray(st.get("polygon_m") or np.zeros((0, 2)), dtype=float).reshape(-1, 2)
+                                   for st in structures]])
+            pad = 0.05 * max(np.ptp(box[:, 0]), np.ptp(box[:, 1]))
+            ax.set_xlim(box[:, 0].min() - pad, box[:, 0].max() + pad)
+            ax.set_ylim(box[:, 1].min() - pad, box[:, 1].max() + pad)
         ax.set_aspect("equal")
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")

@@ -634,3 +634,36 @@ def test_each_structures_peak_force_is_a_number_in_the_list_and_a_table(window, 
     dam = next(t for t in texts if t.startswith("check-dam"))
     assert dam.splitlines()[1].strip() == "peak 104 kN/m (N 103, T -4) at 1 s; mean N up to 100 kN/m at 1 s"
     assert next(t for t in texts if t.startswith("bedrock")).count("\n") == 0
+
+
+def test_the_mechanism_pictures_draw_the_structures(window, make_results, tmp_path):
+    import json
+
+    from matplotlib.patches import Polygon
+
+    from app.render import render_mechanism
+    from tests.gui.test_analysis import _fos_summary
+
+    path = make_results()
+    _fos_summary(path)
+    summary = json.loads((path / "summary.json").read_text())
+    wall = [[0.3, 0.0], [0.34, 0.0], [0.34, 0.08], [0.3, 0.08]]  # beyond the block (0 to 0.2 m)
+    summary["structures"] = [{"name": "wall", "polygon_m": wall}]
+    (path / "summary.json").write_text(json.dumps(summary))
+    assert window.open_results(path)
+    mech = window.fos_view.figure.axes[0]
+    patches = [p for p in mech.patches if isinstance(p, Polygon)]
+    assert len(patches) == 1 and np.allclose(patches[0].get_xy()[:4], wall)
+    assert mech.get_xlim()[1] > 0.34  # the view holds the wall too
+    assert any(t.get_text() == "wall" for t in mech.texts)
+    # and the picture of runout render --mechanism
+    import matplotlib.figure
+
+    drawn = []
+    keep = matplotlib.figure.Figure.savefig
+    matplotlib.figure.Figure.savefig = lambda self, *a, **k: (drawn.append(self), keep(self, *a, **k))[1]
+    try:
+        render_mechanism(path, tmp_path / "mechanism.png", size=(900, 400))
+    finally:
+        matplotlib.figure.Figure.savefig = keep
+    assert any(isinstance(p, Polygon) for p in drawn[0].axes[0].patches)
