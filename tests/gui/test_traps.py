@@ -667,3 +667,21 @@ def test_the_mechanism_pictures_draw_the_structures(window, make_results, tmp_pa
     finally:
         matplotlib.figure.Figure.savefig = keep
     assert any(isinstance(p, Polygon) for p in drawn[0].axes[0].patches)
+
+
+# -- a sweep measure key without its prefix -------------------------------------------------------------
+
+def test_the_sweep_dialog_refuses_a_measure_without_its_prefix(qtbot, tmp_path, tiny_file):
+    from app.gui.document import ProjectDocument
+    from app.gui.sweep_dialog import SweepDialog
+
+    doc = ProjectDocument()
+    doc.open(tiny_file)
+    dialog = SweepDialog(doc, tmp_path / "bad.sweep")
+    qtbot.addWidget(dialog)
+    dialog.more_measures.setText("runout_distance_m")  # hazard.runout_distance_m meant
+    dialog.accept()
+    assert dialog.result() != SweepDialog.DialogCode.Accepted
+    assert "runout_distance_m" in dialog.error.text() and '"hazard."' in dialog.error.text()
+    assert "Traceback" not in dialog.error.text()
+    assert not (tmp_path / "bad.sweep" / "sweep.toml").exists()
