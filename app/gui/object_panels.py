@@ -63,12 +63,12 @@ def _kn(value: Any) -> str:
 
 
 def force_text(row: dict[str, Any]) -> str:
-    """``peak 104 kN/m (N 104, T -1.71) at 3.55 s; mean N up to 103 kN/m at 3.55 s`` for a row of
-    :func:`projects.structure_forces.force_table`."""
+    """``peak 104 kN/m (N 104, T -1.71) at 3.55 s`` and, on a second line, ``mean N up to 103 kN/m
+    at 3.55 s`` for a row of :func:`projects.structure_forces.force_table`."""
     text = (f"peak {_kn(row.get('peak_force_N_per_m'))} kN/m (N {_kn(row.get('peak_force_normal_N_per_m'))}, "
             f"T {_kn(row.get('peak_force_tangential_N_per_m'))}) at {row.get('peak_time_s', 0.0):.3g} s")
-    if row.get("max_normal_force_N_per_m") is not None:
-        text += (f"; mean N up to {_kn(row['max_normal_force_N_per_m'])} kN/m at "
+    if row.get("max_normal_force_N_per_m") is not None:  # a line of its own: the list stays narrow
+        text += (f"\nmean N up to {_kn(row['max_normal_force_N_per_m'])} kN/m at "
                  f"{row.get('max_normal_force_time_s') or 0.0:.3g} s")
     return text
 
@@ -125,7 +125,7 @@ class StructuresPanel(PolygonPanel):
         text = f"{item.get('name', '?')}   ({contact_text(item.get('contact'))})"
         force = getattr(self, "forces", {}).get(item.get("name"))
         if force:
-            text += f"\n    {force}"
+            text += "".join(f"\n    {line}" for line in force.splitlines())
         return swatch(STRUCTURE_COLOR), text
 
     def set_forces(self, rows: list[dict[str, Any]], source: str = "") -> None:

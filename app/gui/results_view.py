@@ -786,7 +786,9 @@ class ResultsView(QWidget):
             self.query_answer = None
             return None
         self.query_answer = answer
-        self.query_label.setText(point_text(answer))
+        # frames counted as the slider counts them (runout query's --frame counts from 0)
+        self.query_label.setText(point_text(answer).replace(
+            f", frame {answer.frame} (", f", frame {answer.frame + 1}/{len(self.results)} ("))
         return answer.points[0]
 
     def _export_section_dialog(self) -> None:
