@@ -521,6 +521,25 @@ def _view(bounds: tuple[float, float, float, float], size: tuple[int, int]) -> _
     return _View((x0, x1, y0, y1), (nx, ny), _label_format(xstep, ystep), ppm)
 
 
+def structure_patches(ax, structures: Sequence[Mapping[str, Any]] | None) -> None:
+    """The run's rigid structures (``summary.json`` ``structures``) on a section plot: grey,
+    hatched and named as in the scene views, so that a wall or a dam is not read as deposit in the
+    surface line that runs over it. One legend entry for them all."""
+    from matplotlib.patches import Polygon as PolygonPatch
+
+    first = True
+    for structure in structures or []:
+        pts = np.asarray(structure.get("polygon_m") or [], dtype=float).reshape(-1, 2)
+        if len(pts) < 3:
+            continue
+        ax.add_patch(PolygonPatch(pts, closed=True, facecolor="#b4b4b4", edgecolor="0.3", hatch="///", lw=0.8,
+                                  zorder=3, label="structure" if first else None))
+        first = False
+    for (x, y, _z), name in zip(*structure_labels(structures)):
+        ax.annotate(name, (x, y), xytext=(0, 3), textcoords="offset points", ha="center", va="bottom", fontsize=7,
+                    color="0.25", zorder=4)
+
+
 def _cell_size(results: Results) -> float | None:
     """The grid's cell size from ``summary.json`` (None where it is not recorded)."""
     size = (results.summary.get("domain") or {}).get("cell_size_m")
@@ -1084,8 +1103,6 @@ def render_mechanism(results: Results | str | os.PathLike[str], path: str | os.P
                     label=f"Bishop critical circle, F = {le['factor_of_safety']:.3f}")
         if fos.get("monitor_point_m"):
             ax.plot(*fos["monitor_point_m"], "o", mfc="none", mec="lime", ms=10, label="monitor point")
-        from app.report import structure_patches
-
         structures = summary.get("structures") or []
         structure_patches(ax, structures)  # the walls and dams the mechanism runs against
         if frame is not None:

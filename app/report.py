@@ -30,6 +30,7 @@ import numpy as np
 
 from projects.hazard import HAZARD_JSON, read_hazard
 from projects.motion import hazard_provisional
+from app.render import structure_patches  # noqa: F401 - drawn in the report's profiles; the views take it here too
 from projects.results import Results, ResultsError
 
 logger = logging.getLogger(__name__)
@@ -197,27 +198,6 @@ def _target_lines(ax, doc: Mapping[str, Any], label: bool = False) -> None:
             y = ax.get_ylim()[1]
             ax.annotate(name, (t["x_m"], y), xytext=(2, -10), textcoords="offset points", color="tab:red",
                         fontsize=8, rotation=90, va="top")
-
-
-def structure_patches(ax, structures: Sequence[Mapping[str, Any]] | None) -> None:
-    """The run's rigid structures (``summary.json`` ``structures``) on a section plot: grey,
-    hatched and named as in the scene views, so that a wall or a dam is not read as deposit in the
-    surface line that runs over it. One legend entry for them all."""
-    from matplotlib.patches import Polygon as PolygonPatch
-
-    from app.render import structure_labels
-
-    first = True
-    for structure in structures or []:
-        pts = np.asarray(structure.get("polygon_m") or [], dtype=float).reshape(-1, 2)
-        if len(pts) < 3:
-            continue
-        ax.add_patch(PolygonPatch(pts, closed=True, facecolor="#b4b4b4", edgecolor="0.3", hatch="///", lw=0.8,
-                                  zorder=3, label="structure" if first else None))
-        first = False
-    for (x, y, _z), name in zip(*structure_labels(structures)):
-        ax.annotate(name, (x, y), xytext=(0, 3), textcoords="offset points", ha="center", va="bottom", fontsize=7,
-                    color="0.25", zorder=4)
 
 
 def water_lines(project: Any, summary: Mapping[str, Any]) -> list[tuple[str, Any, Any]]:
@@ -513,11 +493,11 @@ def _read_contacts(path: Path) -> dict[str, dict[str, np.ndarray]]:
 
 
 def _contacts(results_dir: Path, peaks: Mapping[str, Mapping[str, Any]]) -> list[list[str]]:
-    """Per contact that took any force, the structures first (:func:`projects.structure_forces.
-    force_table`): the largest single-step force with its normal and tangential parts and time,
+    """Per contact that took any force, the structures first (:func:`projects.results.force_table`):
+    the largest single-step force with its normal and tangential parts and time,
     the largest interval-mean normal and tangential forces with their times, and a point of the
     largest mean force's line of action (``summary.json``, where the run wrote one)."""
-    from projects.structure_forces import force_table
+    from projects.results import force_table
 
     try:
         rows = force_table(results_dir)

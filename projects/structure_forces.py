@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 
@@ -133,56 +132,3 @@ def contact_peaks(columns: dict[str, np.ndarray]) -> dict[str, float | None]:
         k = int(np.nanargmax(np.abs(tangential)))
         out.update(max_tangential_force_N_per_m=float(tangential[k]) + 0.0, max_tangential_force_time_s=float(t[k]))
     return out
-
-
-#: A closed side's outward axis (the material pushing along it presses on the side) and the axis
-#: of its tangential force (contacts.csv's convention).
-_SIDE_AXES = {"left": ((-1.0, 0.0), (0.0, 1.0)), "right": ((1.0, 0.0), (0.0, 1.0)),
-              "bottom": ((0.0, -1.0), (1.0, 0.0)), "top": ((0.0, 1.0), (1.0, 0.0))}
-
-
-def force_table(results_dir: str | Path) -> list[dict[str, object]]:
-    """One row per contact of a results folder that carried any force, the structures first (in
-    the project's order), then the closed sides: ``contact``, ``kind`` ("structure" or "side"),
-    :func:`contact_peaks`, and the peak step's ``peak_force_normal_N_per_m`` and
-    ``peak_force_tangential_N_per_m`` (on the face that carried its interval's mean force; a
-    side's along its axes). N per metre, s. Empty without ``contacts.csv``."""
-    import json
-
-    from projects.results import SUMMARY_NAME, read_contacts
-
-    folder = Path(results_dir)
-    contacts = read_contacts(folder)
-    if not contacts:
-        return []
-    try:
-        summary = json.loads((folder / SUMMARY_NAME).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        summary = {}
-    polygons = {st.get("name"): st.get("polygon_m") for st in (summary.get("structures") or [])
-                if isinstance(st, dict)}
-    origin = (summary.get("domain") or {}).get("origin_m") or (0.0, 0.0)
-    order = [n for n in polygons if n in contacts] + [n for n in contacts if n not in polygons]
-    rows = []
-    for name in order:
-        cols = contacts[name]
-        peaks = contact_peaks(cols)
-        if not peaks or not peaks["peak_force_N_per_m"] and not peaks["max_mean_force_N_per_m"]:
-            continue  # never touched
-        i = int(np.argmax(np.nan_to_num(np.asarray(cols["peak_force_N_per_m"], dtype=float))))
-        peak = (peaks["peak_force_x_N_per_m"], peaks["peak_force_y_N_per_m"])
-        if name in _SIDE_AXES:
-            n, t = (np.asarray(v) for v in _SIDE_AXES[name])
-            pn, pt = float(np.dot(peak, n)), float(np.dot(peak, t))
-            kind = "side"
-        elif name in polygons:
-            mean = (float(np.nan_to_num(cols["force_x_N_per_m"][i])), float(np.nan_to_num(cols["force_y_N_per_m"][i])))
-            moment = float(cols.get("moment_N_m_per_m", np.full(len(cols["time_s"]), np.nan))[i])
-            face = loaded_face(polygons[name], mean if math.hypot(*mean) > 0 else peak, moment, origin)
-            pn, pt, _ = components(polygons[name], peak, math.nan, origin, face=face)
-            kind = "structure"
-        else:
-            pn, pt, kind = math.nan, math.nan, "structure"
-        rows.append({"contact": name, "kind": kind, **peaks, "peak_force_normal_N_per_m": pn + 0.0,
-                     "peak_force_tangential_N_per_m": pt + 0.0})
-    return rows

@@ -64,7 +64,7 @@ def _kn(value: Any) -> str:
 
 def force_text(row: dict[str, Any]) -> str:
     """``peak 104 kN/m (N 104, T -1.71) at 3.55 s`` and, on a second line, ``mean N up to 103 kN/m
-    at 3.55 s`` for a row of :func:`projects.structure_forces.force_table`."""
+    at 3.55 s`` for a row of :func:`projects.results.force_table`."""
     text = (f"peak {_kn(row.get('peak_force_N_per_m'))} kN/m (N {_kn(row.get('peak_force_normal_N_per_m'))}, "
             f"T {_kn(row.get('peak_force_tangential_N_per_m'))}) at {row.get('peak_time_s', 0.0):.3g} s")
     if row.get("max_normal_force_N_per_m") is not None:  # a line of its own: the list stays narrow
@@ -130,7 +130,7 @@ class StructuresPanel(PolygonPanel):
 
     def set_forces(self, rows: list[dict[str, Any]], source: str = "") -> None:
         """Show each structure's peak force from the results shown (``rows``:
-        :func:`projects.structure_forces.force_table`) under its name in the list: the peak of a
+        :func:`projects.results.force_table`) under its name in the list: the peak of a
         step with its normal and tangential parts and when, and the largest interval-mean normal
         force and when. ``source`` names the results folder (the list's tooltip)."""
         self.forces = {str(r["contact"]): force_text(r) for r in rows if r.get("kind") == "structure"}

@@ -45,7 +45,7 @@ from app.render import FIELDS, bar_format, field_info, field_values, structure_l
 
 logger = logging.getLogger(__name__)
 
-#: The peak-force table's columns: key of projects.structure_forces.force_table's rows, header.
+#: The peak-force table's columns: key of projects.results.force_table's rows, header.
 FORCE_COLUMNS: tuple[tuple[str, str], ...] = (
     ("contact", "Contact"),
     ("peak_force_N_per_m", "Peak |F|\n(kN/m)"),
@@ -587,7 +587,7 @@ class ResultsView(QWidget):
 
     message = Signal(str)
     resultsShown = Signal()
-    #: the rows of the peak-force table (projects.structure_forces.force_table) and the folder
+    #: the rows of the peak-force table (projects.results.force_table) and the folder
     forcesShown = Signal(list, str)
 
     def __init__(self, parent: QWidget | None = None) -> None:
@@ -1044,7 +1044,7 @@ class ResultsView(QWidget):
             logger.debug("contacts.csv not readable: %s", err)
             contacts = {}
         self.contact_plot.set_contacts(contacts, now=not live)
-        from projects.structure_forces import force_table
+        from projects.results import force_table
 
         try:
             rows = force_table(path) if contacts else []
