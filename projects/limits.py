@@ -54,7 +54,7 @@ MIN_FREE_DISK_BYTES = 1_000_000
 
 
 def _fmt(value: float) -> str:
-    from projects.build import MAX_COUNT
+    MAX_COUNT = 2**62  # projects.build.MAX_COUNT, the estimate's cap (build imports this module: no import back)
 
     if value >= MAX_COUNT:
         return f"more than {MAX_COUNT:.3g}"  # the estimate's cap: beyond any number that matters
