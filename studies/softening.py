@@ -3,9 +3,10 @@ softening length; its run-out against the clay's brittleness.
 
 The scene (:func:`scene`) is a small riverbank of sensitive clay on a rough base (fixed bottom),
 10 m high with a 1:2 face from the crest at x = 25 m to the toe at x = 45 m, undrained (phi = 0,
-c_p = 25 kPa, 18 kN/m3, E = 5 MPa, nu = 0.45): the clay of x in [10, 39] m softens (linear law,
-from peak at a plastic strain of 0.02 to the residual ``residual_pa`` at 0.5), the clay behind
-x = 10 m does not, so that the retrogression has an end the cell size does not set. The bank
+c_p = 25 kPa, 18 kN/m3, E = 5 MPa, nu = 0.45): the clay of x in [15, 39] m softens (linear law,
+from peak at a plastic strain of 0.02 to the residual ``residual_pa`` at 0.5); the clay behind
+x = 15 m is stiffer (c = 60 kPa, whose 10 m scarp stands: 3.83 c / gamma = 12.8 m) and does not
+soften, so that the retrogression has an end the cell size does not set. The bank
 stands at peak strength through a damped gravity stage (3 s); at the trigger the toe (the lowest
 3 m of the face, x in [39, 45]) is remoulded by the river (its cohesion set to the residual one)
 and the bank fails progressively for ``duration_s`` (40 s). It is the example
@@ -42,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from projects.measures import surface_heights
 from studies.common import (
     Note,
     Report,
@@ -62,8 +64,10 @@ HEIGHT_M = 10.0
 CREST_X_M = 25.0
 TOE_X_M = 45.0
 TOE_PART = (39.0, 3.0)
-POCKET_START_X_M = 10.0
-LENGTH_M = 120.0
+POCKET_START_X_M = 15.0
+LENGTH_M = 160.0
+#: The clay behind the sensitive pocket (Pa): its scarp of the bank's height stands.
+BACK_PA = 60e3
 #: Peak undrained strength (Pa) and the standard residual one (S_t = 6.25).
 PEAK_PA = 25e3
 RESIDUAL_PA = 4e3
@@ -108,6 +112,7 @@ def scene(cell_m: float, *, length_m: float | None = SOFTENING_LENGTH_M, residua
     clay = {"model": "drucker-prager", "density_kg_m3": "18 kN/m3", "youngs_modulus_pa": 5e6, "poisson_ratio": 0.45,
             "cohesion_pa": PEAK_PA, "friction_angle_deg": 0.0}
     sensitive = dict(clay)
+    back = {**clay, "cohesion_pa": BACK_PA}
     if residual_pa is not None:
         sensitive.update({"softening_law": "linear", "residual_cohesion_pa": residual_pa, "peak_plastic_strain": 0.02,
                           "residual_plastic_strain": 0.5})
@@ -119,7 +124,7 @@ def scene(cell_m: float, *, length_m: float | None = SOFTENING_LENGTH_M, residua
         "runout": {"schema_version": 2, "title": f"softening bank, cells {cell_m:g} m"},
         "domain": {"origin_m": [0.0, 0.0], "size_m": [LENGTH_M, h + 3.0], "cell_size_m": cell_m,
                    "boundaries": {"left": "slip", "right": "slip", "bottom": "fixed", "top": "open"}},
-        "materials": {"clay": clay, "sensitive_clay": sensitive, "toe": dict(clay)},
+        "materials": {"clay": back, "sensitive_clay": sensitive, "toe": dict(clay)},
         "bodies": [
             {"name": "clay", "material": "clay",
              "polygon_m": [[0.0, 0.0], [POCKET_START_X_M, 0.0], [POCKET_START_X_M, h], [0.0, h]]},
@@ -276,9 +281,9 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet) -> StudyResult:
         f"{'**quick** (reduced): cells of 1 and 0.5 m' if quick else '**full**: cells of 1, 0.5 and 0.25 m'}, "
         "two particles a cell each way, apic-affine, cfl 0.5, f32. Machine: " + machine_line() + ".",
         "Scene: a riverbank of sensitive clay 10 m high, 1:2 face (crest x = 25 m, toe x = 45 m) on a rough base, "
-        "undrained (phi = 0, c_p = 25 kPa, 18 kN/m3, E = 5 MPa, nu = 0.45); the clay between x = 10 m and the toe "
-        "softens linearly from a plastic strain of 0.02 to the residual cohesion at 0.5, the clay behind x = 10 m "
-        "does not. A gravity stage (3 s, damped) at peak strength, then the toe's lowest 3 m remoulded (the "
+        "undrained (phi = 0, c_p = 25 kPa, 18 kN/m3, E = 5 MPa, nu = 0.45); the clay between x = 15 m and the toe "
+        "softens linearly from a plastic strain of 0.02 to the residual cohesion at 0.5, the clay behind x = 15 m "
+        "is stiffer (60 kPa) and does not soften. A gravity stage (3 s, damped) at peak strength, then the toe's lowest 3 m remoulded (the "
         "trigger) and 40 s of failure. Failure time: the crest particles' mean displacement past 0.5 m; run-out: "
         "hazard.json's runout_distance_m (deposit over 0.5 m thick, beyond the toe); retrogression: the crest's x "
         "less the rearmost start of the particles that moved more than 1 m. Times from the trigger.",
@@ -319,21 +324,25 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet) -> StudyResult:
 
 
 def _plots(report: Report, out_dir: Path, mesh: list[dict[str, Any]], brittle: list[dict[str, Any]]) -> None:
-    fig, axes = new_figure(9.0, 4.5, ncols=1, nrows=2)
+    fig, axes = new_figure(9.0, 4.0, ncols=1, nrows=2)
     for ax, regularised in zip(axes[:, 0], (True, False)):
         for r in (r for r in mesh if r["regularised"] == regularised):
             path = out_dir / "runs" / r["label"] / "final.npz"
             if not path.is_file():
                 continue
             pos = np.load(path)["positions"]
-            ax.scatter(pos[:, 0], pos[:, 1], s=0.2, label=f"h = {r['cell_m']:g} m")
+            xs = np.arange(0.0, LENGTH_M + 1e-9, 0.5)
+            spacing = r["cell_m"] / 2.0
+            ax.plot(xs, surface_heights(pos, None, spacing, xs, window_m=max(1.0, 2.0 * spacing)), lw=1.0,
+                    label=f"h = {r['cell_m']:g} m")
         ax.set_title(f"softening_length_m = {SOFTENING_LENGTH_M:g} m" if regularised else "no softening length",
                      fontsize=9)
         ax.set_aspect("equal")
         ax.set_ylabel("y (m)")
-        ax.legend(fontsize=7, markerscale=10, loc="upper right")
+        ax.legend(fontsize=7, loc="upper right")
     axes[1, 0].set_xlabel("x (m)")
-    report.figure(fig, "deposits", "Final particles at each cell size, with and without the softening length.")
+    report.figure(fig, "deposits", "Final surface (highest particle top within 1 m) at each cell size, with and "
+                  "without the softening length.")
     fig, ax = new_figure(5.0, 3.2)
     s = [r["sensitivity"] for r in brittle]
     ax.plot(s, [r["runout_m"] for r in brittle], "o-", label="run-out")
