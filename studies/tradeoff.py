@@ -32,6 +32,7 @@ import time
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -126,6 +127,16 @@ def quick_settings() -> list[Setting]:
     out.append(Setting("apic-affine", 0.0025, 2, QUICK_CFL))
     out += [Setting(s, 0.005, 2, QUICK_CFL) for s in ("apic", "mpm")]
     out += [Setting("apic-affine", 0.005, 2, cfl) for cfl in (0.2, 0.8)]
+    return out
+
+
+def preset_settings() -> list[Setting]:
+    """The presets sweep (8 runs, apic-affine): 2 x 2 particles per cell at cfl 0.4 at 5, 4, 3.33,
+    2.5 and 2 mm cells, cfl 0.2 at 2.5 mm, 1 particle per cell at 5 mm, and the reference at
+    1.25 mm with 2 x 2 particles per cell at cfl 0.2 (80 cells over the block's height)."""
+    out = [Setting("apic-affine", c, 2, QUICK_CFL) for c in (0.005, 0.004, 0.1 / 30, 0.0025, 0.002)]
+    out += [Setting("apic-affine", 0.0025, 2, BASE_CFL), Setting("apic-affine", 0.005, 1, QUICK_CFL),
+            Setting("apic-affine", 0.00125, 2, BASE_CFL)]
     return out
 
 
@@ -235,21 +246,23 @@ def _cached(run_dir: Path, setting: Setting) -> dict[str, Any] | None:
     return row
 
 
-def _run_bui(run_dir: Path, setting: Setting, experiment: np.ndarray):
+def _run_bui(run_dir: Path, setting: Setting, experiment: np.ndarray, change: Callable[[Any], Any] | None = None):
     """One run of the sweep's form: frames every 20 ms, positions only, none kept."""
     return run_bui(run_dir, setting.label, setting.cell_m, setting.per_cell, setting.scheme, experiment,
-                   cfl=setting.cfl, keep_frames=False, interval_s=0.02, fields=())
+                   cfl=setting.cfl, keep_frames=False, interval_s=0.02, fields=(), change=change)
 
 
-def run_setting(out_dir: Path, setting: Setting, experiment: np.ndarray, note: Note) -> dict[str, Any]:
-    """Run (or read back) one setting; returns its row with the deposit and ``_surface``."""
+def run_setting(out_dir: Path, setting: Setting, experiment: np.ndarray, note: Note,
+                change: Callable[[Any], Any] | None = None) -> dict[str, Any]:
+    """Run (or read back) one setting; returns its row with the deposit and ``_surface``.
+    ``change``: a change of the loaded scene (:func:`studies.bui2008.run_bui`)."""
     run_dir = out_dir / "runs" / setting.label
     cached = _cached(run_dir, setting)
     if cached is not None:
         note(f"tradeoff: {setting.label} (cached)")
         return cached
     note(f"tradeoff: {setting.label}")
-    rec, dep = _run_bui(run_dir, setting, experiment)
+    rec, dep = _run_bui(run_dir, setting, experiment, change)
     row = rec.row()
     row.update(setting.params())
     row["run_at"] = _now()
@@ -267,7 +280,7 @@ DRIFT_RUN_S = 30.0
 
 
 def _drift_check(out_dir: Path, cached_rows: list[dict[str, Any]], experiment: np.ndarray,
-                 note: Note) -> dict[str, Any] | None:
+                 note: Note, change: Callable[[Any], Any] | None = None) -> dict[str, Any] | None:
     """Repeat one cached run now (the one nearest :data:`DRIFT_RUN_S`, apic-affine first), so that
     the report says how the machine's speed compares with when the cached runs were timed: a
     shared machine's speed drifts between hours, and the wall-time axis mixes both."""
@@ -277,7 +290,7 @@ def _drift_check(out_dir: Path, cached_rows: list[dict[str, Any]], experiment: n
     row = min(done, key=lambda r: (r["scheme"] != "apic-affine", abs(math.log(r["wall_s"] / DRIFT_RUN_S))))
     note(f"tradeoff: drift check, {row['label']} again (cached {row['wall_s']:.0f} s)")
     setting = Setting(row["scheme"], row["cell_mm"] / 1e3, int(row["per_cell"]), row["cfl"])
-    rec, _dep = _run_bui(out_dir / "drift", setting, experiment)
+    rec, _dep = _run_bui(out_dir / "drift", setting, experiment, change)
     out = {"label": row["label"], "cached_wall_s": row["wall_s"], "cached_at": row.get("run_at"),
            "fresh_wall_s": rec.wall_s, "fresh_at": _now(), "fresh_over_cached": rec.wall_s / row["wall_s"]}
     (out_dir / "drift").mkdir(parents=True, exist_ok=True)
@@ -298,7 +311,8 @@ def _deposit(row: dict[str, Any]) -> Deposit | None:
                    row.get("crest_m", math.nan), np.asarray(x), np.asarray(y), row.get("reach_m", math.nan))
 
 
-def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float | None = None) -> StudyResult:
+def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float | None = None,
+        presets_only: bool = False, change: Callable[[Any], Any] | None = None) -> StudyResult:
     """Run the sweep, write ``report.md``, ``sweep.csv``, ``tradeoff.json`` and ``presets.json``.
 
     Parameters
@@ -307,6 +321,10 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
     quick : bool
         12 settings at 5, 4 and 2.5 mm (:func:`quick_settings`) instead of the full sweep
         (:func:`full_settings`); the reference is then the 2.5 mm apic-affine run.
+    presets_only : bool
+        The presets sweep (:func:`preset_settings`, ``runout study presets``) instead.
+    change : callable, optional
+        A change of the loaded scene for every run (the presets study's rate-independent variant).
     note : callable
     budget_s : float, optional
         Start no new (uncached) run whose estimated wall time (:func:`estimated_cost`) does not
@@ -324,7 +342,7 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
     exp_crest = float(experiment[0, 1])
     exp_reach = experiment_toe(experiment, REACH_THICKNESS_M)
     # apic-affine first (it holds the reference and is the default scheme), each scheme cheapest first
-    settings = sorted(quick_settings() if quick else full_settings(),
+    settings = sorted(preset_settings() if presets_only else quick_settings() if quick else full_settings(),
                       key=lambda s: (s.scheme != "apic-affine", estimated_cost(s)))
     rows = []
     skipped: list[Setting] = []
@@ -335,11 +353,11 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
                 time.perf_counter() - t0 + estimated_cost(s) > budget_s:
             skipped.append(s)
             continue
-        rows.append(cached if cached is not None else run_setting(out_dir, s, experiment, note))
+        rows.append(cached if cached is not None else run_setting(out_dir, s, experiment, note, change))
         if cached is not None:
             cached_rows.append(cached)
             note(f"tradeoff: {s.label} (cached)")
-    drift = _drift_check(out_dir, cached_rows, experiment, note)
+    drift = _drift_check(out_dir, cached_rows, experiment, note, change)
 
     # reference: the most resolved apic-affine run (most particle-steps) that completed
     candidates = [r for r in rows if r["scheme"] == "apic-affine" and r["status"] == "completed" and _deposit(r)]
@@ -372,7 +390,8 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
     std = chosen.get("standard")
     presets = {
         "format": 1,
-        "source": ("runout study tradeoff" + (" --quick" if quick else "") + ": aluminium-bar collapse "
+        "source": (("runout study presets" if presets_only else "runout study tradeoff" + (" --quick" if quick else ""))
+                   + ": aluminium-bar collapse "
                    "(Bui et al. 2008), errors against the finest apic-affine run"),
         "resolution": "cells_per_height = height of the smallest body / cell size (the block is 0.1 m high)",
         "criteria_m": PRESET_CRITERIA,
@@ -407,7 +426,8 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
 
     report = Report(out_dir, "Study tradeoff: error against cost on the aluminium-bar collapse")
     report.text(
-        (f"**quick** (reduced): {' '.join(quick_settings.__doc__.split())}" if quick
+        (f"**presets**: {' '.join(preset_settings.__doc__.split())}" if presets_only
+         else f"**quick** (reduced): {' '.join(quick_settings.__doc__.split())}" if quick
          else f"**full**: {' '.join(full_settings.__doc__.split())}"),
         (f"**Not run** (not cached, and no room left in this invocation's wall-clock budget of {budget_s:g} s): " + ", ".join(f"`{s.label}`" for s in skipped)
          + ". The presets and the reference come from the runs that were done.") if skipped else
@@ -442,7 +462,7 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
                           fmt(p["measured"]["relative_wall_time"]), fmt(p["measured"]["relative_particle_steps"])]
                          if p else ["none meets the criteria"] + [""] * 9)
                   for n, p in presets["presets"].items()])
-    _plots(report, clean, front_ref, front_exp, QUICK_CFL if quick else BASE_CFL)
+    _plots(report, clean, front_ref, front_exp, QUICK_CFL if quick or presets_only else BASE_CFL)
     report.heading("All runs")
     report.table(["scheme", "cell (mm)", "ppc", "cfl", "status", "particles", "steps", "wall (s)", "CPU (s)",
                   "RMS vs exp (mm)", "toe (m)", "reach (m)", "crest (m)", "RMS vs ref (mm)", "reach vs ref (mm)",
@@ -460,7 +480,8 @@ def run(out_dir: Path, quick: bool = False, note: Note = quiet, budget_s: float 
     report.text("Raw data: `sweep.csv`, `tradeoff.json`, `presets.json`; per run `runs/LABEL/` (summary, series, "
                 "`record.json`, `surface.npz`, `final.npz`).")
     path = report.write()
-    verdict = [f"tradeoff {'PASS' if passed else 'FAIL'} ({'quick' if quick else 'full'}, {len(settings)} runs; "
+    verdict = [f"tradeoff {'PASS' if passed else 'FAIL'} ({'presets' if presets_only else 'quick' if quick else 'full'}, "
+               f"{len(settings)} runs; "
                f"{time.perf_counter() - t0:.0f} s); reference {ref['label'] if ref else '-'}"]
     for n, p in presets["presets"].items():
         verdict.append(f"{n}: " + (f"{p['scheme']}, {p['per_cell'] ** 2} ppc, cfl {p['cfl']:g}, "
