@@ -96,17 +96,37 @@ def dp_constants(friction_angle_rad: float, dilatancy_angle_rad: float, cohesion
 
 
 @ti.func
-def return_map(s, K, G, alpha, kc, alpha_psi, t_cut):
-    """Project the trial stress ``s`` (vec4 xx, yy, xy, zz) back onto the admissible set.
-
-    Returns (stress vec4, equivalent plastic strain increment, yielded 0/1).
-    """
+def _split(s):
+    """Mean stress, deviator (xx, yy, zz, xy) and sqrt(J2) of the stress vec4 ``s``."""
     p = (s[0] + s[1] + s[3]) / 3.0
     d0 = s[0] - p
     d1 = s[1] - p
     dz = s[3] - p
     d01 = s[2]
     sq = ti.sqrt(0.5 * (d0 * d0 + d1 * d1 + dz * dz) + d01 * d01)
+    return p, d0, d1, dz, d01, sq
+
+
+@ti.func
+def _cut_tension(stress, t_cut):
+    """The tension cut-off: the mean stress capped at ``t_cut``, the deviator kept; (stress, 1 where cut)."""
+    out = stress
+    pm = (out[0] + out[1] + out[3]) / 3.0
+    cut = 0
+    if pm > t_cut:
+        shift = pm - t_cut
+        out = ti.Vector([out[0] - shift, out[1] - shift, out[2], out[3] - shift])
+        cut = 1
+    return out, cut
+
+
+@ti.func
+def return_map(s, K, G, alpha, kc, alpha_psi, t_cut):
+    """Project the trial stress ``s`` (vec4 xx, yy, xy, zz) back onto the admissible set.
+
+    Returns (stress vec4, equivalent plastic strain increment, yielded 0/1).
+    """
+    p, d0, d1, dz, d01, sq = _split(s)
     f = sq + alpha * 3.0 * p - kc
     out = s
     deq = 0.0 * p
@@ -126,13 +146,8 @@ def return_map(s, K, G, alpha, kc, alpha_psi, t_cut):
         out = ti.Vector([p_new + scale * d0, p_new + scale * d1, scale * d01, p_new + scale * dz])
         one_minus = 1.0 - scale
         deq = ti.sqrt(2.0 / 3.0 * (d0 * d0 + d1 * d1 + dz * dz + 2.0 * d01 * d01)) * one_minus / (2.0 * G)
-    # tension cut-off on the mean stress
-    pm = (out[0] + out[1] + out[3]) / 3.0
-    if pm > t_cut:
-        shift = pm - t_cut
-        out = ti.Vector([out[0] - shift, out[1] - shift, out[2], out[3] - shift])
-        yielded = 1
-    return out, deq, yielded
+    out, cut = _cut_tension(out, t_cut)
+    return out, deq, ti.max(yielded, cut)
 
 
 @ti.func
@@ -148,12 +163,7 @@ def return_map_softening(s, K, G, eps, scale, law, e_peak, e_residual, match, pe
     ``[0, sqrt(J2) / G]`` (the deviator gone: the apex) by the Illinois method, exact in one
     iteration where the strength does not change. Returns what :func:`return_map` returns.
     """
-    p = (s[0] + s[1] + s[3]) / 3.0
-    d0 = s[0] - p
-    d1 = s[1] - p
-    dz = s[3] - p
-    d01 = s[2]
-    sq = ti.sqrt(0.5 * (d0 * d0 + d1 * d1 + dz * dz) + d01 * d01)
+    p, d0, d1, dz, d01, sq = _split(s)
     root3 = ti.sqrt(3.0)
     alpha, kc, apsi = _softened_cone(eps * scale, law, e_peak, e_residual, match, peak, residual)
     f = sq + alpha * 3.0 * p - kc
@@ -205,12 +215,8 @@ def return_map_softening(s, K, G, eps, scale, law, e_peak, e_residual, match, pe
     t_cut = t_tension
     if alpha > 0.0:
         t_cut = ti.min(t_cut, kc / (3.0 * alpha))
-    pm = (out[0] + out[1] + out[3]) / 3.0
-    if pm > t_cut:
-        shift = pm - t_cut
-        out = ti.Vector([out[0] - shift, out[1] - shift, out[2], out[3] - shift])
-        yielded = 1
-    return out, deq, yielded
+    out, cut = _cut_tension(out, t_cut)
+    return out, deq, ti.max(yielded, cut)
 
 
 @ti.func
