@@ -164,7 +164,7 @@ class MaterialTable:
                     out, deq, yielded = drucker_prager.return_map_softening(
                         trial, K, G, eps, self.soft_scale[mat], self.soft_law[mat], self.soft_e_peak[mat],
                         self.soft_e_res[mat], self.soft_match[mat], self.soft_peak[mat], self.soft_res[mat],
-                        self.soft_tension[mat])
+                        self.soft_tension[mat], ti.Vector([self.alpha[mat], self.kc[mat], self.alpha_psi[mat]]))
                 else:
                     out, deq, yielded = drucker_prager.return_map(
                         trial, K, G, self.alpha[mat], self.kc[mat], self.alpha_psi[mat], self.t_cut[mat])

@@ -151,11 +151,14 @@ def return_map(s, K, G, alpha, kc, alpha_psi, t_cut):
 
 
 @ti.func
-def return_map_softening(s, K, G, eps, scale, law, e_peak, e_residual, match, peak, residual, t_tension):
+def return_map_softening(s, K, G, eps, scale, law, e_peak, e_residual, match, peak, residual, t_tension,
+                         peak_cone):
     """:func:`return_map` for a softening cone (solver/materials/softening.py): the strength at the
     end of the step, implicitly. ``eps``: the equivalent plastic strain before the step, ``scale``
     its factor to the softening strain; ``peak``, ``residual``: (c Pa, phi rad, psi rad);
-    ``t_tension``: the tensile strength (Pa, 1e30 for none).
+    ``t_tension``: the tensile strength (Pa, 1e30 for none); ``peak_cone``: (alpha, k, alpha_psi)
+    of the peak strength, the material table's (a particle short of the peak strain, most of a
+    slope before it fails, then needs no trigonometry for its elastic check).
 
     The plastic multiplier ``dlam`` adds ``dlam / sqrt(3)`` to the equivalent plastic strain, so
     the consistency condition ``f(dlam) = sqrt(J2) - G dlam + alpha(e) (I1 - 9 K alpha_psi(e)
@@ -165,7 +168,9 @@ def return_map_softening(s, K, G, eps, scale, law, e_peak, e_residual, match, pe
     """
     p, d0, d1, dz, d01, sq = _split(s)
     root3 = ti.sqrt(3.0)
-    alpha, kc, apsi = _softened_cone(eps * scale, law, e_peak, e_residual, match, peak, residual)
+    alpha, kc, apsi = peak_cone[0], peak_cone[1], peak_cone[2]
+    if eps * scale > e_peak:
+        alpha, kc, apsi = _softened_cone(eps * scale, law, e_peak, e_residual, match, peak, residual)
     f = sq + alpha * 3.0 * p - kc
     out = s
     deq = 0.0 * p
