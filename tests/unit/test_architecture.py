@@ -152,3 +152,15 @@ def test_runout_starts_itself_in_one_way_only():
             if '"-m", "app.cli"' in text or "'-m', 'app.cli'" in text:
                 offenders.append(str(path.relative_to(root)))
     assert offenders == []
+
+
+def test_test_files_have_unique_names():
+    """The test folders are not packages, so pytest imports each file under its bare name: two files
+    of one name in different folders fail the collection of the second."""
+    seen: dict[str, Path] = {}
+    clashes = []
+    for path in sorted((ROOT / "tests").rglob("test_*.py")):
+        if path.name in seen:
+            clashes.append(f"{seen[path.name].relative_to(ROOT)} and {path.relative_to(ROOT)}")
+        seen.setdefault(path.name, path)
+    assert not clashes, clashes

@@ -149,7 +149,16 @@ def test_empty_domain_and_output_stall_give_ratios(bench):
 def test_targets_and_reports(bench):
     result, out = bench
     names = [t["name"] for t in result["targets"]]
-    assert len(names) == 9  # throughput, memory, overhead, the ground water's cost, the hazard envelopes
+    # throughput (2), one ratio per component variant (water, softening, volumetric averaging),
+    # empty domain, memory, output stall, hazard envelopes, GPU throughput and start-up rows
+    for expected in ("apic-affine / apic throughput", "apic-affine (Drucker-Prager) / yardstick",
+                     "apic-affine with ground water / dry throughput",
+                     "apic-affine, softening / apic-affine throughput",
+                     "apic-affine, volumetric averaging / apic-affine throughput",
+                     "step time, domain twice as long / normal", "solver memory per particle (f32, fields)",
+                     "GPU particle-steps/s at 1e6 f32"):
+        assert expected in names, expected
+    assert len(names) == len(set(names)) == 11
     for t in result["targets"]:
         assert t["met"] in (True, False, None)
         assert (t["value"] is None) == (t["met"] is None)
