@@ -28,6 +28,7 @@ from PySide6.QtGui import QUndoCommand, QUndoStack
 
 from projects.document import dumps_project, loads_project, parse_toml, save_project
 from projects.schema import PLASTIC_KEYS as FILE_PLASTIC_KEYS
+from projects.schema import INERTIAL_KEYS as FILE_INERTIAL_KEYS
 from projects.schema import SOFTENING_KEYS as FILE_SOFTENING_KEYS
 from projects.schema import (
     OUTPUT_FIELDS,
@@ -103,6 +104,10 @@ FIELD_INFO: dict[str, tuple[str, str]] = {
     "peak_plastic_strain": ("Peak plastic strain", "–"),
     "residual_plastic_strain": ("Residual plastic strain", "–"),
     "softening_length_m": ("Softening length", "m"),
+    "mu_i_friction_increase": ("Friction increase Δμ", "–"),
+    "mu_i_reference_number": ("Reference inertial number I₀", "–"),
+    "grain_diameter_m": ("Grain diameter", "m"),
+    "grain_density_kg_m3": ("Grain density", "kg/m³"),
 }
 MATERIAL_KEYS: tuple[str, ...] = (
     "density_kg_m3",
@@ -120,8 +125,12 @@ MATERIAL_KEYS: tuple[str, ...] = (
 #: the numbers of a material's strain softening (projects.schema.SOFTENING_KEYS without the law,
 #: which is a word), in the form below the softening law
 SOFTENING_NUMBER_KEYS: tuple[str, ...] = tuple(k for k in FILE_SOFTENING_KEYS if k != "softening_law")
+#: the numbers of a material's rate-dependent friction, the mu(I) law (projects.schema.INERTIAL_KEYS),
+#: in the form's own group below the softening
+INERTIAL_NUMBER_KEYS: tuple[str, ...] = FILE_INERTIAL_KEYS
 #: the keys only a Drucker-Prager material has (the file's rule: projects.schema.PLASTIC_KEYS)
-PLASTIC_KEYS: tuple[str, ...] = tuple(k for k in (*MATERIAL_KEYS, *SOFTENING_NUMBER_KEYS) if k in FILE_PLASTIC_KEYS)
+PLASTIC_KEYS: tuple[str, ...] = tuple(k for k in (*MATERIAL_KEYS, *SOFTENING_NUMBER_KEYS, *INERTIAL_NUMBER_KEYS)
+                                      if k in FILE_PLASTIC_KEYS)
 #: keys a material may leave out, with what an empty field means
 OPTIONAL_MATERIAL_KEYS: dict[str, str] = {
     "tensile_strength_pa": "no cut-off",
@@ -135,6 +144,10 @@ OPTIONAL_MATERIAL_KEYS: dict[str, str] = {
     "peak_plastic_strain": "0 (softens from first yield)",
     "residual_plastic_strain": "required with a law",
     "softening_length_m": "none: depends on the cell size",
+    "mu_i_friction_increase": "none (rate-independent friction)",
+    "mu_i_reference_number": "required with a friction increase",
+    "grain_diameter_m": "required with a friction increase",
+    "grain_density_kg_m3": "= density",
 }
 
 

@@ -41,6 +41,7 @@ from PySide6.QtWidgets import (
 
 from app.gui.document import (
     FIELD_INFO,
+    INERTIAL_NUMBER_KEYS,
     MATERIAL_KEYS,
     OPTIONAL_MATERIAL_KEYS,
     PLASTIC_KEYS,
@@ -341,6 +342,27 @@ class MaterialsPanel(Panel):
             "the same slip at every cell size. Empty: the particles' own strains, and the failure and run-out "
             "depend on the cell size (runout validate warns). Give at least the cell size")
         self.layout_.addWidget(box)
+        # rate-dependent friction (Drucker-Prager): the mu(I) law's rise, I0 and the grains
+        self.inertial_box, form = _form("Rate-dependent friction (mu(I))")
+        self.inertial_box.setToolTip(
+            "The mu(I) law of dense granular flow: mu(I) = tan(friction angle) + Δμ I / (I₀ + I), "
+            "I = shear rate × d / sqrt(p / grain density). Empty friction increase: rate-independent. "
+            "Not with a softening law (docs/project-format.md, rate-dependent friction)")
+        for key in INERTIAL_NUMBER_KEYS:
+            label, unit = FIELD_INFO[key]
+            field = NumberField(doc, None, label, unit, optional=True, placeholder=OPTIONAL_MATERIAL_KEYS.get(key, ""))
+            self.fields[key] = field
+            form.addRow(label, field)
+            self.watch(field)
+        self.fields["mu_i_friction_increase"].setToolTip(
+            "mu_2 - mu_s: how far the friction coefficient rises over tan(friction angle) at high rates "
+            "(0.26 for glass beads, Jop et al. 2006). Empty: the friction does not depend on the rate")
+        self.fields["mu_i_reference_number"].setToolTip(
+            "The inertial number I₀ at which half the rise is reached (0.279 for glass beads)")
+        self.fields["grain_diameter_m"].setToolTip("The grain diameter d of the inertial number")
+        self.fields["grain_density_kg_m3"].setToolTip(
+            "The grains' density of the inertial number; empty: the material's density")
+        self.layout_.addWidget(self.inertial_box)
         self.used_by = QLabel("")
         self.used_by.setWordWrap(True)
         self.used_by.setStyleSheet("color: #555;")
