@@ -71,6 +71,8 @@ def test_the_closed_form_is_the_textbook_one_for_one_unit_weight():
     assert wet_factor(25.0, 5000.0, 30.0, 0.4, 2000.0, 2000.0) == pytest.approx(textbook, rel=1e-12)
 
 
+# a covering sample of the cases in the suite (tests/conftest.py; RUNOUT_FULL_MATRIX=1: all)
+@pytest.mark.matrix
 @pytest.mark.parametrize("beta, cohesion, phi, m, dry, saturated, cell", CASES)
 def test_strength_reduction_of_an_infinite_slope_with_parallel_seepage(tmp_path, beta, cohesion, phi, m, dry,
                                                                         saturated, cell):
