@@ -142,8 +142,15 @@ def register(cli: typer.Typer) -> None:
                              f"runs done (run the same command again to go on) -> {result.out_dir}", markup=False)
             raise _stopped_exit(stop)
         n = len(result.records)
+        moving = result.still_moving_runs()
+        if moving:
+            from projects.motion import REMEDY
+
+            console.err.print(f"warning: {_runs_text(moving)} ended with the mass still moving: their measures are "
+                              f"provisional (still_moving in sweep.csv, * in report.html); {REMEDY}", markup=False)
         console.out.print(f"{result.count('completed')} of {n} runs completed, {n - result.count('completed')} not "
-                         f"({sum(r.reused for r in result.records)} reused) in {result.wall_time_s:.1f} s "
+                         f"({sum(r.reused for r in result.records)} reused), {len(moving)} ended still moving"
+                         f"{' (provisional measures)' if moving else ''} in {result.wall_time_s:.1f} s "
                          f"-> {result.out_dir}/sweep.csv, report.html", markup=False)
 
     @cli.command()
@@ -161,11 +168,22 @@ def register(cli: typer.Typer) -> None:
 
         result, stop = _run_on_ray(spec_path, "calibration", out_dir, "trials", check_calibration, run_calibration,
                                    address, workers, threads, gpus)
-        for line in result.summary_lines():
-            console.out.print(line, markup=False)
+        for line in result.summary_lines():  # warnings (trials that ended still moving) on standard error
+            (console.err if line.startswith("warning:") else console.out).print(line, markup=False)
         console.out.print(f"-> {result.out_dir}/calibration.csv, report.html", markup=False)
         if result.stopped:
             raise _stopped_exit(stop)
+
+
+def _runs_text(runs: list[int], most: int = 10) -> str:
+    """``run 3``, ``runs 3, 5 and 8``, or the first ``most`` and how many more."""
+    if len(runs) == 1:
+        return f"run {runs[0]}"
+    shown = ", ".join(str(r) for r in runs[:most])
+    if len(runs) > most:
+        return f"{len(runs)} runs ({shown} and {len(runs) - most} more)"
+    head, _, last = shown.rpartition(", ")
+    return f"runs {head} and {last}"
 
 
 def sweep_report(folder: Path, output: Path | None = None) -> None:

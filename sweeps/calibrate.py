@@ -25,6 +25,7 @@ profile are correlated, so the region is a lower bound on the uncertainty.
 from __future__ import annotations
 
 import csv
+import html
 import io
 import json
 import math
@@ -40,7 +41,18 @@ import numpy as np
 from projects.atomic import write_atomic
 from sweeps import pages
 from sweeps.engine import FINAL_STATUSES, RUNS_DIR, RayEngine, RunRecord, resolve_runs
-from sweeps.folder import PROGRESS_NAME, REPORT_NAME, SweepProgress, disk_problem, read_table_and_json
+from sweeps.folder import (
+    PROGRESS_NAME,
+    PROVISIONAL_LEGEND,
+    PROVISIONAL_MARK,
+    REPORT_NAME,
+    SweepProgress,
+    disk_problem,
+    fill_still_moving,
+    read_table_and_json,
+    row_still_moving,
+    still_moving_cell,
+)
 from sweeps.spec import CalibrationSpec, Parameter
 
 CSV_NAME = "calibration.csv"
@@ -189,10 +201,15 @@ class CalibrationResult:
         ok = [t for t in self.trials if math.isfinite(t.misfit)]
         return min(ok, key=lambda t: t.misfit) if ok else None
 
+    def still_moving_trials(self) -> list[Trial]:
+        """The trials the search used (a misfit) whose run ended with the mass still moving."""
+        return still_moving_trials(self.trials)
+
     def summary_lines(self) -> list[str]:
         b = self.best
         done = sum(t.record.status == "completed" for t in self.trials)
         lines = [f"{len(self.trials)} trials, {done} completed, in {self.wall_time_s:.0f} s"]
+        lines += still_moving_warnings(self.trials, b)
         if b is None:
             return [*lines, "no trial completed: no best fit"]
         lines.append(f"best fit (trial {b.number}): misfit {b.misfit:.4g} {self.unit}; "
@@ -203,6 +220,31 @@ class CalibrationResult:
         for k, (m, lo, hi) in self.quadratic.items():
             lines.append(f"  {k}: parabola through the best trials: minimum at {m:.4g}, 95% region {lo:.4g} to {hi:.4g}")
         return lines
+
+
+def still_moving_trials(trials: Sequence[Trial]) -> list[Trial]:
+    """The trials with a misfit (the ones the search and the region use) whose run ended with
+    the mass still moving: their misfits are measured on a deposit that had not come to rest."""
+    return [t for t in trials if math.isfinite(t.misfit) and t.record.still_moving]
+
+
+def still_moving_warnings(trials: Sequence[Trial], best: Trial | None) -> list[str]:
+    """``warning: ...`` lines where trials the search used ended still moving (none otherwise)."""
+    from projects.motion import REMEDY
+
+    moving = still_moving_trials(trials)
+    if not moving:
+        return []
+    used = sum(math.isfinite(t.misfit) for t in trials)
+    numbers = ", ".join(str(t.number) for t in moving[:10]) + (f" and {len(moving) - 10} more" if len(moving) > 10
+                                                               else "")
+    lines = [f"warning: {len(moving)} of the {used} trials used ended with the mass still moving (trial"
+             f"{'s' if len(moving) > 1 else ''} {numbers}): their misfits are provisional (still_moving in "
+             f"calibration.csv); {REMEDY}"]
+    if best is not None and best.record.still_moving:
+        lines.append(f"warning: the best fit (trial {best.number}) is one of them: its run had not come to rest, "
+                     "so the fit and its region are provisional")
+    return lines
 
 
 def _fmt(v: Any) -> str:
@@ -293,7 +335,8 @@ def run_calibration(
             "settings": settings, "unit": unit, "n_observed": n_obs,
             "observed": None if observed is None else observed.tolist(),
             "best": None if best is None else {"trial": best.number, "values": best.values, "misfit": best.misfit,
-                                               "run_id": best.run_id},
+                                               "run_id": best.run_id, "still_moving": best.record.still_moving},
+            "still_moving_trials": [t.number for t in still_moving_trials(trials)],
             "threshold": None if not math.isfinite(threshold) else threshold,
             "intervals": _intervals(trials, keys, threshold),
             "quadratic": _quadratic(trials, keys, threshold),
@@ -396,6 +439,7 @@ def _reuse(runs_dir: Path, run_id: str, measures: Sequence[str], need_surface: b
         return None
     if need_surface and rec.status == "completed" and rec.surface is None:
         return None
+    fill_still_moving(rec, runs_dir / run_id, runs_dir / f"{run_id}.json")
     rec.reused = True
     return rec
 
@@ -403,12 +447,14 @@ def _reuse(runs_dir: Path, run_id: str, measures: Sequence[str], need_surface: b
 def _csv_text(trials: Sequence[Trial], keys: Sequence[str]) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["trial", "run_id", *keys, "misfit", "status", "message", "wall_time_s", "results_dir"])
+    w.writerow(["trial", "run_id", *keys, "misfit", "status", "message", "wall_time_s", "results_dir",
+                "still_moving"])
     for t in trials:
         w.writerow([t.number, t.run_id, *(repr(t.values[k]) if isinstance(t.values[k], float) else t.values[k]
                                           for k in keys),
                     repr(t.misfit) if math.isfinite(t.misfit) else "", t.record.status, t.record.message,
-                    repr(t.record.wall_time_s) if math.isfinite(t.record.wall_time_s) else "", t.record.results_dir])
+                    repr(t.record.wall_time_s) if math.isfinite(t.record.wall_time_s) else "", t.record.results_dir,
+                    still_moving_cell(t.record.still_moving)])
     return buf.getvalue()
 
 
@@ -471,7 +517,12 @@ def write_calibration_report(data: CalibrationData, output: Path | None = None) 
     ]
     if best:
         rows.append(["best fit", f"trial {best['trial']}: misfit {best['misfit']:.4g} {unit}; "
-                     + ", ".join(f"{k} = {_fmt(v)}" for k, v in best["values"].items())])
+                     + ", ".join(f"{k} = {_fmt(v)}" for k, v in best["values"].items())
+                     + ("; its run ended still moving: provisional" if best.get("still_moving") else "")])
+    moving = [r for r in data.rows if row_still_moving(r) and r.get("misfit", "") != ""]
+    used = sum(r.get("misfit", "") != "" for r in data.rows)
+    rows.append(["ended still moving", f"{len(moving)} of the {used} trials with a misfit"
+                 + (f": their misfits are provisional ({PROVISIONAL_MARK} in the trials below)" if moving else "")])
     for k, (lo, hi) in (info.get("intervals") or {}).items():
         rows.append([f"95% region of {k}", f"{lo:.4g} to {hi:.4g} (trials with misfit <= {thr:.4g} {unit})"])
     for k, (m, lo, hi) in (info.get("quadratic") or {}).items():
@@ -518,9 +569,14 @@ def write_calibration_report(data: CalibrationData, output: Path | None = None) 
             parts += ["<h2>Best fit against the observation</h2>", pages.png(fig)]
         except (OSError, ValueError, KeyError, IndexError):
             parts.append("<p>The best run's results folder is not readable here.</p>")
-    table_rows = [[r["trial"], *(r[k] for k in data.parameters), r["misfit"], r["status"], r["message"]]
-                  for r in data.rows]
+    table_rows = [[r["trial"], *(r[k] for k in data.parameters),
+                   r["misfit"] + (PROVISIONAL_MARK if row_still_moving(r) and r["misfit"] else ""), r["status"],
+                   r["message"]] for r in data.rows]
     parts += ["<h2>Trials</h2>", pages.table(["trial", *data.parameters, "misfit", "status", "message"], table_rows)]
+    if moving:
+        from projects.motion import REMEDY
+
+        parts.append(f"<p>{html.escape(PROVISIONAL_LEGEND)}. To make them final: {html.escape(REMEDY)}.</p>")
     path = (output or data.out_dir) / REPORT_NAME
     path.parent.mkdir(parents=True, exist_ok=True)
     write_atomic(path, pages.page(f"Calibration report: {data.out_dir.name}", parts))

@@ -90,6 +90,10 @@ class RunRecord:
     overhead_s : float
         Time from submitting the task to receiving its result, less the run process's wall time:
         Ray's scheduling, the task's start and reading the measures, s.
+    still_moving : bool or None
+        The run ended with the mass still moving (``summary.json``'s verdict,
+        :func:`projects.motion.provisional`): its measures are provisional. None where the run
+        wrote no verdict (no dynamic stage ran, or no results).
     """
 
     run_id: str
@@ -103,6 +107,7 @@ class RunRecord:
     host: str = ""
     overhead_s: float = math.nan
     reused: bool = False
+    still_moving: bool | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -111,6 +116,7 @@ class RunRecord:
             "measures": {k: _finite(v) for k, v in self.measures.items()},
             "profile": None if self.profile is None else {"x_m": self.profile[0], "values": self.profile[1]},
             "surface": self.surface, "host": self.host, "overhead_s": _finite(self.overhead_s),
+            "still_moving": self.still_moving,
         }
 
     @classmethod
@@ -123,6 +129,7 @@ class RunRecord:
             measures={k: _num(v) for k, v in (data.get("measures") or {}).items()},
             profile=None if not prof else (list(prof["x_m"]), [_num(v) for v in prof["values"]]),
             surface=data.get("surface"), host=str(data.get("host", "")), overhead_s=_num(data.get("overhead_s")),
+            still_moving=data["still_moving"] if isinstance(data.get("still_moving"), bool) else None,
         )
 
 
@@ -212,7 +219,7 @@ def execute_run(task: dict[str, Any]) -> dict[str, Any]:
     dict
         A :class:`RunRecord` as JSON data.
     """
-    from sweeps.measures import read_measures, read_profile, surface_at
+    from sweeps.measures import read_measures, read_profile, still_moving, surface_at
 
     runs_dir = Path(task["runs_dir"])
     runs_dir.mkdir(parents=True, exist_ok=True)
@@ -250,7 +257,7 @@ def execute_run(task: dict[str, Any]) -> dict[str, Any]:
         status = "error"
         message = last if rc is None else f"exit status {rc}: {last}" if last else f"exit status {rc}"
     rec = RunRecord(run_id=run_id, status=status, message=message, wall_time_s=wall, results_dir=str(results),
-                    host=socket.gethostname())
+                    host=socket.gethostname(), still_moving=still_moving(summary))
     if results.is_dir():
         rec.measures = read_measures(results, task.get("measures") or ())
         if task.get("profile_field"):

@@ -4,7 +4,8 @@ A sweep folder (:mod:`sweeps.sweep` writes it; the one interface to a sweep, liv
 
     sweep.json       the spec, the engine settings and the run plan
     progress.json    done / total / failed / elapsed_s / eta_s, rewritten after every run
-    sweep.csv        one row per run (rewritten after every run; pending runs included)
+    sweep.csv        one row per run (rewritten after every run; pending runs included); its
+                     still_moving column marks the runs whose measures are provisional
     exceedance.csv   P(measure > x) with the DKW band, per measure
     profile.csv      P(profile field > threshold) along the section, with Wilson bands
     sensitivity.csv  Spearman rank correlation of each parameter with each measure
@@ -33,7 +34,21 @@ CSV_NAME = "sweep.csv"
 SPEC_NAME = "sweep.json"
 PROGRESS_NAME = "progress.json"
 REPORT_NAME = "report.html"
-FIXED_COLUMNS = ("status", "message", "wall_time_s", "results_dir")
+FIXED_COLUMNS = ("status", "message", "wall_time_s", "results_dir", "still_moving")
+#: The mark of a provisional measure (a run that ended still moving) in reports and tables, and its legend.
+PROVISIONAL_MARK = "*"
+PROVISIONAL_LEGEND = ("* provisional: the run ended with the mass still moving, so the measure is where the mass "
+                      "was when the run ended, not its final value")
+
+
+def still_moving_cell(value: bool | None) -> str:
+    """The ``still_moving`` cell of a CSV row: ``true``, ``false`` or empty (no verdict)."""
+    return "" if value is None else ("true" if value else "false")
+
+
+def row_still_moving(row: dict[str, str]) -> bool:
+    """Whether a sweep.csv or calibration.csv row is a run that ended still moving."""
+    return str(row.get("still_moving", "")).strip().lower() == "true"
 
 
 @dataclass(frozen=True)
@@ -90,6 +105,14 @@ class SweepData:
     def completed(self) -> list[dict[str, str]]:
         return [r for r in self.rows if r["status"] == "completed"]
 
+    def still_moving(self) -> list[dict[str, str]]:
+        """The completed runs that ended with the mass still moving (provisional measures)."""
+        return [r for r in self.completed() if row_still_moving(r)]
+
+    def still_moving_mask(self) -> np.ndarray:
+        """Per completed run (in the order of :meth:`column`), whether it ended still moving."""
+        return np.array([row_still_moving(r) for r in self.completed()], dtype=bool)
+
     def column(self, key: str, completed_only: bool = True) -> np.ndarray:
         """A numeric column (NaN for empty or text cells)."""
         rows = self.completed() if completed_only else self.rows
@@ -134,6 +157,19 @@ def read_record(path: Path) -> RunRecord | None:
         return RunRecord.from_json(json.loads(path.read_text(encoding="utf-8")))
     except (OSError, ValueError, KeyError, TypeError):
         return None
+
+
+def fill_still_moving(rec: RunRecord, results: Path, path: Path) -> None:
+    """A reused record written before records carried ``still_moving``: its verdict read from the
+    kept results folder's ``summary.json``, and the record rewritten at ``path``."""
+    if rec.still_moving is not None or not results.is_dir():
+        return
+    from projects.atomic import write_atomic
+    from sweeps.measures import read_still_moving
+
+    rec.still_moving = read_still_moving(results)
+    if rec.still_moving is not None:
+        write_atomic(path, json.dumps(rec.to_json()))
 
 
 class SweepFolderError(Exception):

@@ -215,6 +215,24 @@ def _hazard_key_problem(parts: list[str], doc: Mapping[str, Any]) -> str:
     return ""
 
 
+def still_moving(summary: Mapping[str, Any] | None) -> bool | None:
+    """Whether a run ended with the mass still moving, from its ``summary.json`` (``summary``):
+    :func:`projects.motion.provisional`; None where it holds no verdict (no dynamic stage ran, an
+    older run, no summary)."""
+    from projects.motion import provisional
+
+    if not isinstance(summary, Mapping):
+        return None
+    if not isinstance(summary.get("still_moving"), bool) and not isinstance(summary.get("motion_at_end"), Mapping):
+        return None
+    return provisional(summary)
+
+
+def read_still_moving(results_dir: str | Path) -> bool | None:
+    """:func:`still_moving` of the ``summary.json`` in a results folder."""
+    return still_moving(_read_json(Path(results_dir) / "summary.json"))
+
+
 def read_measures(results_dir: str | Path, keys: Iterable[str]) -> dict[str, float]:
     """The values of measure keys for one results folder (NaN where absent).
 

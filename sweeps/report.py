@@ -21,7 +21,7 @@ import numpy as np
 from projects.atomic import write_atomic
 from sweeps import pages
 from sweeps.analysis import exceedance, probability_profile, sensitivity
-from sweeps.folder import REPORT_NAME, SweepData, read_sweep
+from sweeps.folder import PROVISIONAL_LEGEND, PROVISIONAL_MARK, REPORT_NAME, SweepData, read_sweep
 
 def _csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> Path:
     buf = io.StringIO()
@@ -77,8 +77,14 @@ def write_statistics(data: SweepData, alpha: float = 0.05) -> list[Path]:
 
 def write_sweep_report(data: SweepData, alpha: float = 0.05, output: Path | None = None) -> Path:
     """Write ``report.html`` of a sweep folder: runs, measures against parameters, exceedance
-    curves with DKW bands, the probability profile, the sensitivity ranking, failed runs."""
+    curves with DKW bands, the probability profile, the sensitivity ranking, failed runs, and the
+    runs that ended with the mass still moving (their measures marked provisional, ``*``)."""
+    from projects.motion import REMEDY
+
     rows = data.rows
+    moving = data.still_moving()
+    moving_mask = data.still_moving_mask()
+    n_done = len(data.completed())
     statuses: dict[str, int] = {}
     for r in rows:
         statuses[r["status"]] = statuses.get(r["status"], 0) + 1
@@ -94,6 +100,10 @@ def write_sweep_report(data: SweepData, alpha: float = 0.05, output: Path | None
             ["sampling", f"{sw.get('sampling')} (seed {sw.get('seed')})"],
             ["runs", len(rows)],
             ["status", ", ".join(f"{k}: {v}" for k, v in sorted(statuses.items()))],
+            ["ended still moving", f"{len(moving)} of {n_done} completed runs"
+             + (f": their measures are provisional ({PROVISIONAL_MARK}, see below)" if moving else "")
+             if not rows or "still_moving" in rows[0] else "not recorded (a sweep.csv without the still_moving "
+             "column)"],
             ["engine", f"{settings.get('workers')} workers x {settings.get('threads_per_run')} threads, "
                        f"{settings.get('gpus_per_run')} GPU per run, "
                        f"{'cluster ' + str(settings['address']) if settings.get('address') else 'local Ray'}"],
@@ -127,12 +137,20 @@ def write_sweep_report(data: SweepData, alpha: float = 0.05, output: Path | None
         ax.set_title(f"exceedance of {m} ({ex.n} runs)")
         parts.append(pages.png(fig))
         q = np.nanpercentile(y, [5, 50, 95])
+        provisional = int((moving_mask & np.isfinite(y)).sum())
         parts.append(f"<p>mean {np.nanmean(y):.4g}, 5% {q[0]:.4g}, median {q[1]:.4g}, 95% {q[2]:.4g} "
-                     f"(n = {ex.n}).</p>")
+                     f"(n = {ex.n}"
+                     + (f"; {provisional} of them provisional{PROVISIONAL_MARK}: ended still moving" if provisional
+                        else "") + ").</p>")
         if numeric:
             fig, axes = pages.subplots(len(numeric))
             for ax, k in zip(axes, numeric):
-                ax.plot(data.column(k), y, "o", ms=4)
+                x = data.column(k)
+                ax.plot(x[~moving_mask], y[~moving_mask], "o", ms=4, color="C0")
+                if moving_mask.any():
+                    ax.plot(x[moving_mask], y[moving_mask], "o", ms=5, mfc="none", color="C1",
+                            label="ended still moving (provisional)")
+                    ax.legend(fontsize=6)
                 ax.set_xlabel(k, fontsize=8)
                 ax.set_ylabel(m, fontsize=8)
             parts.append(pages.png(fig))
@@ -159,6 +177,13 @@ def write_sweep_report(data: SweepData, alpha: float = 0.05, output: Path | None
         parts.append("<h2>Sensitivity (Spearman rank correlation)</h2>")
         parts.append(pages.table(["measure", "parameter", "rho", "p-value", "n"],
                             [[s.measure, s.parameter, s.rho, s.p_value, s.n] for s in sens]))
+    if moving:
+        parts.append("<h2>Runs that ended still moving</h2>")
+        parts.append(pages.table(["run", *data.parameters, *data.measures],
+                                 [[r["run"], *(r[k] for k in data.parameters),
+                                   *(_provisional(r.get(m, "")) for m in data.measures)]
+                                  for r in moving]))
+        parts.append(f"<p>{html.escape(PROVISIONAL_LEGEND)}. To make them final: {html.escape(REMEDY)}.</p>")
     bad = [r for r in rows if r["status"] != "completed"]
     if bad:
         parts.append("<h2>Runs that did not complete</h2>")
@@ -169,6 +194,21 @@ def write_sweep_report(data: SweepData, alpha: float = 0.05, output: Path | None
     path.parent.mkdir(parents=True, exist_ok=True)
     write_atomic(path, pages.page(f"Sweep report: {data.out_dir.name}", parts))
     return path
+
+
+def _number(text: str) -> str:
+    """A CSV cell shown with 4 significant digits where it is a number ("-" where empty)."""
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        return str(text) or "-"
+    return f"{value:.4g}" if math.isfinite(value) else "-"
+
+
+def _provisional(text: str) -> str:
+    """A provisional measure's cell: the number and the mark ("-" where the run has none)."""
+    shown = _number(text)
+    return shown if shown == "-" else shown + PROVISIONAL_MARK
 
 
 def _describe(p: dict[str, Any]) -> str:

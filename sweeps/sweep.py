@@ -23,7 +23,17 @@ from typing import Any
 
 from projects.atomic import write_atomic
 from sweeps.engine import FINAL_STATUSES, RUNS_DIR, RayEngine, RunPlan, RunRecord, resolve_runs
-from sweeps.folder import CSV_NAME, FIXED_COLUMNS, PROGRESS_NAME, SPEC_NAME, SweepProgress, disk_problem, read_sweep
+from sweeps.folder import (
+    CSV_NAME,
+    FIXED_COLUMNS,
+    PROGRESS_NAME,
+    SPEC_NAME,
+    SweepProgress,
+    disk_problem,
+    fill_still_moving,
+    read_sweep,
+    still_moving_cell,
+)
 from sweeps.sampling import sample
 from sweeps.spec import SweepSpec
 
@@ -41,6 +51,11 @@ class SweepResult:
 
     def count(self, status: str) -> int:
         return sum(r.status == status for r in self.records)
+
+    def still_moving_runs(self) -> list[int]:
+        """The runs (their numbers, ``run`` in sweep.csv) that completed with the mass still moving:
+        their measures are provisional."""
+        return [p.index for p, r in zip(self.plans, self.records) if r.status == "completed" and r.still_moving]
 
 
 def plan_sweep(spec: SweepSpec) -> list[RunPlan]:
@@ -90,7 +105,9 @@ def _cell(value: Any) -> Any:
 
 def csv_text(plans: Sequence[RunPlan], records: Sequence[RunRecord | None], measures: Sequence[str]) -> str:
     """sweep.csv: ``run, run_id``, a column per parameter (dotted key), the measures, then
-    ``status, message, wall_time_s, results_dir``; empty cells for missing numbers."""
+    ``status, message, wall_time_s, results_dir, still_moving`` (``true`` where the run ended with
+    the mass still moving, so that its measures are provisional; empty without a verdict); empty
+    cells for missing numbers."""
     keys = list(plans[0].values) if plans else []
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -99,7 +116,8 @@ def csv_text(plans: Sequence[RunPlan], records: Sequence[RunRecord | None], meas
         rec = rec or RunRecord(plan.run_id, "pending")
         w.writerow([plan.index, plan.run_id, *(_cell(plan.values[k]) for k in keys),
                     *(_cell(rec.measures.get(m, math.nan)) for m in measures),
-                    rec.status, rec.message, _cell(rec.wall_time_s), rec.results_dir])
+                    rec.status, rec.message, _cell(rec.wall_time_s), rec.results_dir,
+                    still_moving_cell(rec.still_moving)])
     return buf.getvalue()
 
 
@@ -123,6 +141,7 @@ def _load_record(runs_dir: Path, plan: RunPlan, measures: Sequence[str], profile
         if profile_field and rec.profile is None:
             rec.profile = read_profile(results, profile_field)
         write_atomic(path, json.dumps(rec.to_json()))
+    fill_still_moving(rec, results, path)
     rec.reused = True
     return rec
 

@@ -7,7 +7,9 @@ Neither Ray nor Taichi enters the workbench: the child schedules the runs; the w
 runs completed so far, the exceedance curve of a measure (with its DKW band), the measure against
 a parameter (each completed run a point) and the probability profile along the section (with
 Wilson bands), with :mod:`sweeps.analysis` (numpy and scipy). A
-calibration shows its trials with their misfit and the misfit against each parameter.
+calibration shows its trials with their misfit and the misfit against each parameter. A run
+that ended with the mass still moving (``still_moving`` in the table) has its measures marked
+provisional (``*``, amber) and the header counts such runs.
 A folder written earlier, or by ``runout sweep`` on the command line, opens the same way
 (File ▸ Open sweep).
 """
@@ -45,6 +47,8 @@ POLL_MS = 1000
 KILL_AFTER_MS = 15_000
 STATUS_COLOURS = {"completed": "#e6f4ea", "failed": "#fce8e6", "error": "#fce8e6", "invalid": "#fef7e0",
                   "running": "#e8f0fe", "pending": "#ffffff"}
+#: The background of a provisional measure (the run ended still moving).
+PROVISIONAL_COLOUR = "#fff4e5"
 
 
 def folder_kind(path: Path) -> str | None:
@@ -321,14 +325,17 @@ class SweepView(QWidget):
             return {}
 
     def _fill(self, data: Any) -> None:
+        from sweeps.folder import PROVISIONAL_LEGEND, PROVISIONAL_MARK, row_still_moving
+
         progress = self._progress()
         rows = data.rows
         if self.kind == "sweep":
             measures = list(data.measures)
-            columns = ["run", "status", *data.parameters, *measures, "wall_time_s", "message"]
+            columns = ["run", "status", *data.parameters, *measures, "still_moving", "wall_time_s", "message"]
         else:
             measures = ["misfit"]
-            columns = ["trial", "status", *data.parameters, "misfit", "wall_time_s", "message"]
+            columns = ["trial", "status", *data.parameters, "misfit", "still_moving", "wall_time_s", "message"]
+        moving = sum(row_still_moving(r) and r.get("status") == "completed" for r in rows)
         total = int(progress.get("total") or len(rows))
         done = int(progress.get("done") or sum(r.get("status") not in ("pending", "") for r in rows))
         failed = int(progress.get("failed") or 0)
@@ -339,7 +346,8 @@ class SweepView(QWidget):
         self.header.setText(
             f"{self.kind.capitalize()} {self.path}   [{state}]   {done} of {total} runs done, {failed} not completed"
             + (f", about {eta:.0f} s left" if self.running and isinstance(eta, (int, float)) and eta > 0 else "")
-            + (f", elapsed {progress['elapsed_s']:.0f} s" if progress.get("elapsed_s") else ""))
+            + (f", elapsed {progress['elapsed_s']:.0f} s" if progress.get("elapsed_s") else "")
+            + (f", {moving} ended still moving (measures provisional, {PROVISIONAL_MARK})" if moving else ""))
         self.report_button.setEnabled((self.path / "report.html").is_file())
         self.table.setColumnCount(len(columns))
         self.table.setHorizontalHeaderLabels(columns)
@@ -347,17 +355,24 @@ class SweepView(QWidget):
         for r, row in enumerate(rows):
             status = row.get("status", "")
             colour = QColor(STATUS_COLOURS.get(status, "#ffffff"))
+            provisional = status == "completed" and row_still_moving(row)
             for c, col in enumerate(columns):
                 text = row.get(col, "")
-                if col not in ("status", "message", "run", "trial"):
+                if col == "still_moving":
+                    text = {"true": "yes", "false": "no"}.get(text.strip().lower(), "–")
+                elif col not in ("status", "message", "run", "trial"):
                     try:
                         text = format_value(float(text)) if text != "" else "–"
                     except ValueError:
                         pass
-                item = QTableWidgetItem(text)
-                item.setBackground(colour)
+                mark = provisional and col in measures and text != "–"
+                amber = mark or (provisional and col == "still_moving")
+                item = QTableWidgetItem(f"{text} {PROVISIONAL_MARK}" if mark else text)
+                item.setBackground(QColor(PROVISIONAL_COLOUR) if amber else colour)
                 if col == "message":
                     item.setToolTip(row.get(col, ""))
+                elif amber:
+                    item.setToolTip(PROVISIONAL_LEGEND)
                 self.table.setItem(r, c, item)
         current = self.measure.currentText()
         self.measure.blockSignals(True)
