@@ -420,17 +420,30 @@ class SweepView(QWidget):
         parameter: ``(parameter, values, measures)`` (None without a sweep, a measure or a parameter).
         A sweep of a few values (a list, a range, a grid) reads here, where its exceedance curve of
         three samples says little."""
+        against = self._against()
+        return None if against is None else against[:3]
+
+    def provisional_against_parameter(self) -> np.ndarray | None:
+        """Which points of :meth:`measure_against_parameter` are runs that ended still moving
+        (their measures provisional), in the same order."""
+        against = self._against()
+        return None if against is None else against[3]
+
+    def _against(self) -> tuple[str, np.ndarray, np.ndarray, np.ndarray] | None:
+        from sweeps.folder import row_still_moving
+
         if self.data is None or self.kind != "sweep" or not self.measure.currentText() \
                 or not self.parameter.currentText():
             return None
         key = self.parameter.currentText()
         x = np.asarray(self.data.column(key), dtype=float)
         y = np.asarray(self.data.column(self.measure.currentText()), dtype=float)
-        if len(x) != len(y):
+        moving = np.array([row_still_moving(r) for r in self.data.completed()], dtype=bool)
+        if len(x) != len(y) or len(moving) != len(x):
             return None
         ok = np.isfinite(x) & np.isfinite(y)
         order = np.argsort(x[ok], kind="stable")
-        return key, x[ok][order], y[ok][order]
+        return key, x[ok][order], y[ok][order], moving[ok][order]
 
     def probability_profile(self) -> Any:
         """The probability profile of the completed runs (or None without a [profile])."""
@@ -471,6 +484,11 @@ class SweepView(QWidget):
         if against is not None and len(against[1]):
             key, xs_p, ys_p = against
             middle.plot(xs_p, ys_p, "o-", color="tab:green", ms=5, lw=1, label=f"{len(xs_p)} completed runs")
+            moving = self.provisional_against_parameter()
+            if moving is not None and moving.any():
+                # hollow orange: runs that ended still moving, their measures provisional
+                middle.plot(xs_p[moving], ys_p[moving], "o", ms=8, mfc="none", mec="tab:orange", mew=1.5,
+                            label=f"{int(moving.sum())} ended still moving (provisional)")
             middle.legend(fontsize=7)
             middle.set_xlabel(key, fontsize=8)
         else:

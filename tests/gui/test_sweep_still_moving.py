@@ -56,6 +56,13 @@ def test_the_sweep_tab_marks_the_runs_that_ended_still_moving(window, tmp_path):
     assert item.toolTip() == PROVISIONAL_LEGEND and item.background().color().name() == "#fff4e5"
     # only completed runs count: the failed run's verdict is not a provisional measure
     assert "1 ended still moving (measures provisional, *)" in view.header.text()
+    # the plot against the parameter rings the provisional point (the second run's)
+    view.parameter.setCurrentText("materials.sand.friction_angle_deg")
+    key, x, y = view.measure_against_parameter()
+    assert list(x) == [25.0, 26.0, 27.0]
+    assert list(view.provisional_against_parameter()) == [False, True, False]
+    labels = [line.get_label() for ax in view.figure.axes for line in ax.get_lines()]
+    assert "1 ended still moving (provisional)" in labels
 
 
 def test_a_sweep_folder_without_the_column_opens_as_before(window, tmp_path):
@@ -67,3 +74,5 @@ def test_a_sweep_folder_without_the_column_opens_as_before(window, tmp_path):
     assert not any(m.endswith("*") for m in _column(view, MEASURE))
     assert "still moving" not in view.header.text()
     assert view.exceedance().n == 3
+    view.parameter.setCurrentText("materials.sand.friction_angle_deg")
+    assert not view.provisional_against_parameter().any()
