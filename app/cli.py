@@ -793,9 +793,14 @@ def bench(
         out.print(f"written: {out_file} and {out_file.with_suffix('.md')}", markup=False)
 
 
+#: The studies' names for the help (studies.STUDIES is the list; importing it here would load numpy
+#: and the studies' harness into every command's start-up).
+STUDY_NAMES = "sand-column | bui2008 | bui2008-choices | slope | tradeoff | presets | extremes | fos | softening"
+
+
 @cli.command()
 def study(
-    name: Annotated[str, typer.Argument(help="sand-column | bui2008 | slope | tradeoff | extremes | fos | softening", show_default=False)],
+    name: Annotated[str, typer.Argument(help=STUDY_NAMES, show_default=False)],
     out_dir: Annotated[Path | None, typer.Option("--out", help="Report folder (default: study-results/NAME).")] = None,
     quick: Annotated[bool, typer.Option("--quick", help="The reduced version: a few minutes on two CPU cores.")] = False,
     budget_min: Annotated[float | None, typer.Option(

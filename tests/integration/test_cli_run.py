@@ -219,3 +219,10 @@ def test_study_refuses_bad_arguments_before_running_anything(tmp_path, args, mes
     assert proc.returncode == 1, proc.stderr
     assert message in " ".join(proc.stderr.split())
     assert not any((tmp_path / "out").rglob("report.md"))
+
+
+def test_the_study_help_names_every_study():
+    from app.cli import STUDY_NAMES
+    from studies import STUDIES
+
+    assert STUDY_NAMES.split(" | ") == list(STUDIES)
