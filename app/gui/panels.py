@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import re
+from collections.abc import Sequence
 from typing import Any
 
 from PySide6.QtCore import Qt, Signal
@@ -327,12 +328,7 @@ class MaterialsPanel(Panel):
             "plastic strain to the residual one; exponential: 95 % of the drop at the residual strain. "
             "none removes the softening keys (docs/project-format.md, strain softening)")
         form.addRow("Softening law", self.softening_law)
-        for key in SOFTENING_NUMBER_KEYS:
-            label, unit = FIELD_INFO[key]
-            field = NumberField(doc, None, label, unit, optional=True, placeholder=OPTIONAL_MATERIAL_KEYS.get(key, ""))
-            self.fields[key] = field
-            form.addRow(label, field)
-            self.watch(field)
+        self._optional_number_rows(doc, form, SOFTENING_NUMBER_KEYS)
         self.fields["residual_cohesion_pa"].setToolTip(
             "The remoulded (residual) cohesion; empty: the cohesion does not soften. At most the cohesion")
         self.fields["residual_plastic_strain"].setToolTip(
@@ -348,12 +344,7 @@ class MaterialsPanel(Panel):
             "The mu(I) law of dense granular flow: mu(I) = tan(friction angle) + Δμ I / (I₀ + I), "
             "I = shear rate × d / sqrt(p / grain density). Empty friction increase: rate-independent. "
             "Not with a softening law (docs/project-format.md, rate-dependent friction)")
-        for key in INERTIAL_NUMBER_KEYS:
-            label, unit = FIELD_INFO[key]
-            field = NumberField(doc, None, label, unit, optional=True, placeholder=OPTIONAL_MATERIAL_KEYS.get(key, ""))
-            self.fields[key] = field
-            form.addRow(label, field)
-            self.watch(field)
+        self._optional_number_rows(doc, form, INERTIAL_NUMBER_KEYS)
         self.fields["mu_i_friction_increase"].setToolTip(
             "mu_2 - mu_s: how far the friction coefficient rises over tan(friction angle) at high rates "
             "(0.26 for glass beads, Jop et al. 2006). Empty: the friction does not depend on the rate")
@@ -370,6 +361,16 @@ class MaterialsPanel(Panel):
         self.finish()
         self._current: str | None = None
         self._on_changed(frozenset({"materials"}))
+
+    def _optional_number_rows(self, doc: ProjectDocument, form: Any, keys: Sequence[str]) -> None:
+        """An optional number field per material key, with its label, unit and empty-field
+        placeholder (document.FIELD_INFO, OPTIONAL_MATERIAL_KEYS), added to ``form``."""
+        for key in keys:
+            label, unit = FIELD_INFO[key]
+            field = NumberField(doc, None, label, unit, optional=True, placeholder=OPTIONAL_MATERIAL_KEYS.get(key, ""))
+            self.fields[key] = field
+            form.addRow(label, field)
+            self.watch(field)
 
     # -- list ---------------------------------------------------------------------------------
 
