@@ -306,7 +306,7 @@ def _state(result: RunResult) -> str:
     m = result.summary.get("motion_at_end")
     if not isinstance(m, dict):
         return result.status
-    state = "still moving" if m.get("still_moving") else "at rest"
+    state = "driven" if m.get("driven") else "still moving" if m.get("still_moving") else "at rest"
     return f"{result.status}, {state} ({motion_numbers(m)} at t = {m.get('time_s') or 0.0:.4g} s)"
 
 

@@ -40,6 +40,10 @@ def solver_material(name: str, material: schema.Material) -> sc.Material:
     solver.config.Material
     """
     plastic = material.model == "drucker-prager"
+    if material.model == "rigid":  # kinematic: no stiffness, no strength (solver/rigid.py)
+        return sc.Material(name=name, model="rigid", density_kg_m3=material.density_kg_m3, youngs_modulus_pa=0.0,
+                           poisson_ratio=0.0, velocity_m_s=tuple(material.velocity_m_s or (0.0, 0.0)),
+                           contact=solver_contact(material.contact or schema.Contact(type="fixed")))
     return sc.Material(
         name=name,
         model=material.model,
@@ -153,12 +157,15 @@ def solver_boundary(boundary: schema.Boundary) -> sc.Boundary:
     return sc.Boundary(kind=boundary.type, friction_angle_rad=angle)
 
 
+def solver_contact(contact: schema.Contact) -> sc.Boundary:
+    """A structure's or a rigid body's contact, as a side's boundary."""
+    angle = math.radians(contact.friction_angle_deg or 0.0) if contact.type == "friction" else 0.0
+    return sc.Boundary(kind=contact.type, friction_angle_rad=angle)
+
+
 def solver_structure(structure: schema.Structure) -> sc.Structure:
     """Convert one ``[[structures]]`` entry (its contact as a side's boundary)."""
-    contact = structure.contact
-    angle = math.radians(contact.friction_angle_deg or 0.0) if contact.type == "friction" else 0.0
-    return sc.Structure(structure.name, tuple(tuple(p) for p in structure.polygon_m),
-                        sc.Boundary(kind=contact.type, friction_angle_rad=angle))
+    return sc.Structure(structure.name, tuple(tuple(p) for p in structure.polygon_m), solver_contact(structure.contact))
 
 
 def material_tables(project: Project) -> list[dict[str, schema.Material]]:

@@ -789,6 +789,8 @@ def deposit_period(project: Project) -> float:
     height = float(heights.max() - heights.min())
     speeds = []
     for material in project.materials.values():
+        if material.model == "rigid":
+            continue
         shear = material.youngs_modulus_pa / (2.0 * (1.0 + material.poisson_ratio))
         speeds.append(math.sqrt(shear / material.density_kg_m3))
     slowest = min(speeds)

@@ -54,7 +54,8 @@ def verdict(motion: Mapping[str, Any] | None, *, kinetic_energy_fraction: float,
     Returns
     -------
     dict
-        JSON-ready: ``still_moving`` (bool), ``stage``, ``time_s``, ``ended_by`` ("rest": by the
+        JSON-ready: ``still_moving`` (bool; never where ``driven``: a rigid body moves the
+        material at its prescribed velocity at the end), ``driven``, ``stage``, ``time_s``, ``ended_by`` ("rest": by the
         stage's rest criterion, "duration": its time ran out, "stopped"), the kinetic energy now and
         its peak (J/m), ``kinetic_energy_fraction`` (now over peak; None where nothing moved),
         ``max_speed_m_s`` (the fastest particle now), ``rest_kinetic_energy_fraction`` and
@@ -70,9 +71,13 @@ def verdict(motion: Mapping[str, Any] | None, *, kinetic_energy_fraction: float,
     fraction = ke / peak if peak > 0.0 else None
     speed = float(motion["max_speed_m_s"])
     at_rest = (fraction is None or fraction <= frac_rest) and speed <= speed_rest
+    # a rigid body driven at its velocity moves the material on purpose (a platen's test): that
+    # motion is the loading, not an answer still on its way
+    driven = bool(motion.get("driven"))
     ended_by = "stopped" if status == "stopped" else ("rest" if motion.get("ended_at_rest") else "duration")
     return {
-        "still_moving": not at_rest, "stage": motion.get("stage"), "time_s": float(motion["time_s"]),
+        "still_moving": not (at_rest or driven), "driven": driven, "stage": motion.get("stage"),
+        "time_s": float(motion["time_s"]),
         "ended_by": ended_by, "kinetic_energy_J_per_m": ke, "peak_kinetic_energy_J_per_m": peak,
         "kinetic_energy_fraction": fraction, "max_speed_m_s": speed,
         "rest_kinetic_energy_fraction": frac_rest, "rest_speed_m_s": speed_rest,
@@ -100,6 +105,9 @@ def motion_text(m: Mapping[str, Any] | None) -> str:
     the end (t = 4.6 s): ...``."""
     if not m:
         return ""
+    if m.get("driven"):
+        return (f"moved by a driven rigid body at the end (t = {_g(m.get('time_s'), 4)} s): {motion_numbers(m)}; "
+                "the motion is the loading")
     state = "still moving" if m.get("still_moving") else "at rest"
     return (f"{state} at the end (t = {_g(m.get('time_s'), 4)} s): {motion_numbers(m)}; at rest below "
             f"{_g(m.get('rest_kinetic_energy_fraction'))} of the peak and {_g(m.get('rest_speed_m_s'), 3)} m/s")

@@ -93,7 +93,7 @@ def fast_bodies(project: Project) -> list[str]:
                          "or strikes its sides before any frame shows it")
             continue
         material = project.materials.get(body.material)
-        if material is None:
+        if material is None or material.model == "rigid":  # a rigid body moves at its own velocity
             continue
         c_p = solver_material(body.material, material).p_wave_speed_m_s
         if speed > c_p:

@@ -109,6 +109,8 @@ INERTIAL_KEYS: tuple[str, ...] = (
     "grain_density_kg_m3",
 )
 #: Material keys that only a Drucker-Prager material may have.
+#: The keys of a rigid material (solver/rigid.py)
+RIGID_KEYS: tuple[str, ...] = ("model", "density_kg_m3", "velocity_m_s", "contact")
 PLASTIC_KEYS: tuple[str, ...] = (
     "cohesion_pa",
     "friction_angle_deg",
@@ -535,13 +537,35 @@ class Domain(_Model):
     boundaries: Boundaries = Boundaries()
 
 
+def _contact_input(value: Any) -> Any:
+    if not isinstance(value, Mapping):
+        if isinstance(value, str) and value in ("fixed", "slip"):
+            return {"type": value}
+        raise _fail('must be "fixed", "slip" or a table {type = "friction", friction_angle_deg = ...}')
+    return value
+
+
+class Contact(_Model):
+    """A structure's or a rigid body's contact: ``"fixed" | "slip"`` or ``{type = "friction",
+    friction_angle_deg = ..}``."""
+
+    type: Annotated[Literal[CONTACT_TYPES], _choice(CONTACT_TYPES)]
+    friction_angle_deg: OptAngleDeg = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _from_string(cls, data: Any) -> Any:
+        return _contact_input(data)
+
+
 class Material(_Model):
-    """``[materials.<name>]``: one material. The plastic keys are for Drucker-Prager only."""
+    """``[materials.<name>]``: one material. The plastic keys are for Drucker-Prager only; a
+    ``rigid`` body (a platen, a gate) takes its density, ``velocity_m_s`` and ``contact`` alone."""
 
     model: Annotated[Literal[MATERIAL_MODELS], _choice(MATERIAL_MODELS)]
     density_kg_m3: Density
-    youngs_modulus_pa: PositivePa
-    poisson_ratio: PoissonRatio
+    youngs_modulus_pa: OptPositivePa = None
+    poisson_ratio: _number_type(ge=0.0, lt=0.5, optional=True) = None
     cohesion_pa: OptNonNegativePa = None
     friction_angle_deg: OptAngleDeg = None
     dilatancy_angle_deg: OptAngleDeg = None
@@ -563,6 +587,8 @@ class Material(_Model):
     mu_i_reference_number: OptPositive = None
     grain_diameter_m: OptPositive = None
     grain_density_kg_m3: OptDensity = None
+    velocity_m_s: Vec2 | None = None
+    contact: Contact | None = None
 
 
 class MaterialChange(_Model):
@@ -588,6 +614,7 @@ class MaterialChange(_Model):
     peak_plastic_strain: OptNonNegative = None
     residual_plastic_strain: OptPositive = None
     softening_length_m: OptPositive = None
+    velocity_m_s: Vec2 | None = None
 
 
 class Body(_Model):
@@ -597,26 +624,6 @@ class Body(_Model):
     material: Str
     polygon_m: Polygon
     initial_velocity_m_s: Vec2 = (0.0, 0.0)
-
-
-def _contact_input(value: Any) -> Any:
-    if not isinstance(value, Mapping):
-        if isinstance(value, str) and value in ("fixed", "slip"):
-            return {"type": value}
-        raise _fail('must be "fixed", "slip" or a table {type = "friction", friction_angle_deg = ...}')
-    return value
-
-
-class Contact(_Model):
-    """A structure's contact: ``"fixed" | "slip"`` or ``{type = "friction", friction_angle_deg = ..}``."""
-
-    type: Annotated[Literal[CONTACT_TYPES], _choice(CONTACT_TYPES)]
-    friction_angle_deg: OptAngleDeg = None
-
-    @model_validator(mode="before")
-    @classmethod
-    def _from_string(cls, data: Any) -> Any:
-        return _contact_input(data)
 
 
 class Structure(_Model):
@@ -1274,6 +1281,20 @@ def _material_rules(materials: Mapping[str, Any]) -> list[Problem]:
             continue
         path = f"materials.{name}"
         model = material.get("model")
+        if model == "rigid":
+            for key in material:
+                if key not in RIGID_KEYS:
+                    problems.append(Problem(f"{path}.{key}", material[key], 'not used by model "rigid" (a body moved at '
+                                            f'its velocity); allowed: {", ".join(RIGID_KEYS)}'))
+            problems += _contact_rule(path, material.get("contact"))
+            continue
+        for key in ("velocity_m_s", "contact"):
+            if key in material:
+                problems.append(Problem(f"{path}.{key}", material[key], 'only allowed with model "rigid"'))
+        if model in ("drucker-prager", "linear-elastic"):
+            for key in ("youngs_modulus_pa", "poisson_ratio"):
+                if key not in material:
+                    problems.append(Problem(f"{path}.{key}", None, f'required for model "{model}"'))
         if model == "drucker-prager":
             for key in ("cohesion_pa", "friction_angle_deg"):
                 if key not in material:
@@ -1445,6 +1466,19 @@ def _body_rules(bodies: list[Any], materials: Mapping[str, Any], domain: Mapping
     return problems
 
 
+def _contact_rule(path: str, contact: Any) -> list[Problem]:
+    """A friction contact needs its angle; the others take none."""
+    if not isinstance(contact, Mapping):
+        return []
+    kind = contact.get("type")
+    if kind == "friction" and "friction_angle_deg" not in contact:
+        return [Problem(f"{path}.contact.friction_angle_deg", None, 'required for type "friction"')]
+    if kind in ("fixed", "slip") and "friction_angle_deg" in contact:
+        return [Problem(f"{path}.contact.friction_angle_deg", contact["friction_angle_deg"],
+                        'only allowed with type "friction"')]
+    return []
+
+
 def _structure_rules(structures: list[Any], domain: Mapping[str, Any]) -> list[Problem]:
     """Names unique and no side's name (both name a contact in contacts.csv), friction angle with
     type friction only, every point inside the domain."""
@@ -1468,14 +1502,7 @@ def _structure_rules(structures: list[Any], domain: Mapping[str, Any]) -> list[P
                 problems.append(Problem(f"{path}.name", name, f"duplicate; structures.{seen[name]} has the same name"))
             else:
                 seen[name] = index
-        contact = structure.get("contact")
-        if isinstance(contact, Mapping):
-            kind = contact.get("type")
-            if kind == "friction" and "friction_angle_deg" not in contact:
-                problems.append(Problem(f"{path}.contact.friction_angle_deg", None, 'required for type "friction"'))
-            elif kind in ("fixed", "slip") and "friction_angle_deg" in contact:
-                problems.append(Problem(f"{path}.contact.friction_angle_deg", contact["friction_angle_deg"],
-                                        'only allowed with type "friction"'))
+        problems += _contact_rule(path, structure.get("contact"))
         if box is not None:
             problems += _outside_points(path, _array(structure.get("polygon_m")), box, origin, size)
     return problems
@@ -1696,6 +1723,14 @@ def _change_rules(path: str, changes: Mapping[str, Any], current: dict[str, dict
         if not isinstance(change, Mapping):
             continue
         material = current[name]
+        if material.get("model") == "rigid":
+            for key in change:
+                if key != "velocity_m_s":
+                    problems.append(Problem(f"{change_path}.{key}", change[key],
+                                            'a rigid body changes only its velocity_m_s between stages'))
+            continue
+        if "velocity_m_s" in change:
+            problems.append(Problem(f"{change_path}.velocity_m_s", change["velocity_m_s"], 'only allowed with model "rigid"'))
         problems += _damping_rule(change_path, {**material, **change})
         problems += _wave_speed_rule(change_path, {**material, **change}, change)
         if "saturated_density_kg_m3" in change or "density_kg_m3" in change:

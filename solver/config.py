@@ -21,8 +21,9 @@ import numpy as np
 
 Scheme = Literal["mpm", "apic", "apic-affine"]
 SCHEMES: tuple[str, ...] = ("mpm", "apic", "apic-affine")
-MaterialModel = Literal["linear-elastic", "drucker-prager"]
-MATERIAL_MODELS: tuple[str, ...] = ("linear-elastic", "drucker-prager")
+MaterialModel = Literal["linear-elastic", "drucker-prager", "rigid"]
+#: ``rigid``: a kinematic body moved at a prescribed velocity (a platen, a gate; solver/rigid.py)
+MATERIAL_MODELS: tuple[str, ...] = ("linear-elastic", "drucker-prager", "rigid")
 #: How a Drucker-Prager cone is matched to Mohr-Coulomb's c and phi (solver/materials/drucker_prager.py).
 MOHR_COULOMB_MATCHES: tuple[str, ...] = ("plane-strain-associated", "plane-strain", "simple-shear")
 DEFAULT_MOHR_COULOMB_MATCH = "plane-strain-associated"
@@ -141,6 +142,15 @@ class Material:
     softening: Softening | None = None
     #: rate-dependent friction, the mu(I) law (None: the friction does not depend on the rate)
     inertial: InertialFriction | None = None
+    #: a rigid material's velocity (m/s) in dynamic stages, and its contact with the material it
+    #: touches (solver/rigid.py); unused by the other models
+    velocity_m_s: tuple[float, float] = (0.0, 0.0)
+    contact: Boundary = field(default_factory=lambda: Boundary("fixed"))
+
+    @property
+    def rigid(self) -> bool:
+        """Whether the material is a rigid body moved at its velocity (no stress, no weight)."""
+        return self.model == "rigid"
 
     @property
     def wet_density_kg_m3(self) -> float:
@@ -232,6 +242,9 @@ class Material:
         then both stresses from the new velocity, the arm's exactly) is stable up to
         ``omega sqrt(1 + a) dt = 2`` and beyond where the damping peak nears the grid's frequency
         (measured: a bar damped 0.9 is stable to 1.1 times this step, unstable from 1.5 times)."""
+        if self.rigid:  # no wave: only its own motion across the cells limits the step
+            speed = math.hypot(*self.velocity_m_s) + max_speed_m_s
+            return cell_size_m / speed if speed > 0.0 else math.inf
         a = self.maxwell_stiffening
         step = cell_size_m / (self.p_wave_speed_m_s * math.sqrt(1.0 + a) + max_speed_m_s)
         beta = self.damping_beta_s
@@ -267,6 +280,11 @@ def averages_volume(setting: str, materials) -> bool:
 def softens(materials) -> bool:
     """Whether some of ``materials`` softens (the softening return map is compiled in only then)."""
     return any(m.model == "drucker-prager" and m.softening is not None for m in materials)
+
+
+def has_rigid(materials) -> bool:
+    """Whether some of ``materials`` is a rigid body (solver/rigid.py, compiled in only then)."""
+    return any(m.model == "rigid" for m in materials)
 
 
 def flows_inertially(materials) -> bool:

@@ -90,11 +90,13 @@ class Contacts:
     f64 whatever the precision.
     """
 
-    def __init__(self, engine, structures: tuple[Structure, ...]):
+    def __init__(self, engine, structures: tuple[Structure, ...], rigid_bodies: int = 0):
         self.engine = engine
         self.structures = tuple(structures)
         self.n_structures = len(self.structures)
-        self.n_contacts = 4 + self.n_structures
+        #: the contacts: the four sides, the structures, then the rigid bodies (solver.rigid), whose
+        #: impulses this component records and tallies with the others
+        self.n_contacts = 4 + self.n_structures + int(rigid_bodies)
         ns = max(1, self.n_structures)
         has = self.n_structures > 0
         nodes = engine.nodes if has else (1, 1)
@@ -541,7 +543,7 @@ class Contacts:
         reach = ti.static(MIRROR_REACH_CELLS * e.dx)
         ti.loop_config(serialize=e.plain)
         for p in range(e.n):
-            if e.active[p]:
+            if e.active[p] and not e.rigid.is_rigid(p):
                 x = e.x[p]
                 for st in range(self.n_structures):
                     box = self.st_box[st]
@@ -559,7 +561,7 @@ class Contacts:
         e = self.engine
         ti.loop_config(serialize=e.plain)
         for p in range(e.n):
-            if e.active[p]:
+            if e.active[p] and not e.rigid.is_rigid(p):
                 x = e.x[p]
                 for st in range(self.n_structures):
                     box = self.st_zone_box[st]

@@ -56,6 +56,7 @@ from solver.damping import Damping
 from solver.fieldio import FieldIO
 from solver.materials import MaterialTable
 from solver.periodic import PeriodicSides
+from solver.rigid import RigidBodies
 from solver.runtime import mat_vec, outer, ti, transpose
 from solver.scatter import BIG, SCATTER_STATE, make_scatter
 from solver.shape import PAD
@@ -152,7 +153,8 @@ class Engine:
         self.periodic = PeriodicSides(self, grid.periodic)
         self.damping = Damping(self.n, any(m.damping_beta_s > 0.0 for m in materials) if viscous is None
                                else bool(viscous))
-        self.contact = Contacts(self, structures)
+        self.rigid = RigidBodies(self)
+        self.contact = Contacts(self, structures, self.rigid.count)
         self.walls = MirrorWalls(self)
         #: ground water (solver.groundwater.GroundWater, built by the caller where a run has water;
         #: None: dry, and none of it is compiled in)
@@ -187,7 +189,7 @@ class Engine:
         # every field the host reads or writes, moved by one kernel (solver.fieldio: one kernel
         # per field, as Taichi's own to_numpy / from_numpy are, costs start-up time in every process)
         own = {name: getattr(self, name) for name in self.HOST_FIELDS if hasattr(self, name)}
-        host = {**own, **self.damping.host_fields(), **self.contact.host_fields()}
+        host = {**own, **self.damping.host_fields(), **self.contact.host_fields(), **self.rigid.host_fields()}
         assert set(host) == set(self.HOST_FIELDS), sorted(set(host) ^ set(self.HOST_FIELDS))
         io_fields = {**{name: host[name] for name in self.HOST_FIELDS}, **self.to_grid.state_fields()}
         clash = set(io_fields) & set(self.materials.columns)
@@ -211,7 +213,7 @@ class Engine:
     HOST_FIELDS = PARTICLE_STATE + COUNTER_STATE + (
         "contact_step", "speed_bound", "bc_kind", "bc_mu", "st_kind", "st_mu", "edge_a", "edge_b",
         "st_edges", "st_box", "node_struct", "node_normal", "node_normal_b", "node_sd", "node_zone", "node_far",
-        "st_zone_box")
+        "st_zone_box", "rigid_moving")
 
     @property
     def viscous(self) -> bool:
@@ -231,8 +233,13 @@ class Engine:
 
     @property
     def contact_names(self) -> tuple[str, ...]:
-        """Names of the contacts in engine order: the four sides, then the structures."""
-        return SIDES + tuple(st.name for st in self.structures)
+        """Names of the contacts in engine order: the four sides, the structures, then the rigid
+        bodies (their materials' names)."""
+        return SIDES + tuple(st.name for st in self.structures) + self.rigid.names
+
+    def set_rigid_moving(self, moving: bool) -> None:
+        """Whether the rigid bodies move at their velocities (dynamic stages) or stand still."""
+        self._io.write({"rigid_moving": 1.0 if moving else 0.0})
 
     def read_contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Impulse on each contact since the last read (N s/m, (n_contacts, 2)), the largest force
@@ -428,6 +435,8 @@ class Engine:
                 self.contact.node_pn[I] = ti.Vector.zero(float, 3)
             if ti.static(self.averaging):
                 self.g_dil[I] = ti.Vector.zero(float, 2)
+            if ti.static(self.rigid.on):
+                self.rigid.clear(I)
         self.lo[None] = ti.Vector([BIG, BIG])  # empty: the scatter widens it
         self.hi[None] = ti.Vector([-BIG, -BIG])
 
@@ -603,9 +612,12 @@ class Engine:
     # strategy (``self.to_grid``, solver/scatter.py) runs the loops and makes the adds.
     @ti.func
     def _update_particle(self, kind: ti.template(), p, dt):
-        """The update of particle p in a pass of ``kind`` (see :meth:`_add_particle`); its volume."""
+        """The update of particle p in a pass of ``kind`` (see :meth:`_add_particle`); its volume.
+        A rigid body's particle keeps its state (solver.rigid)."""
         vol = 0.0 * dt
-        if ti.static(kind == "affine"):
+        if self.rigid.is_rigid(p):
+            vol = self.particle_volume(p)
+        elif ti.static(kind == "affine"):
             vol = self._stress_point(p, self.C[p], dt)  # eqs 29-30: D = sym(C), W = skew(C)
         elif ti.static(kind == "force"):
             vol = self._stress_from_grid_point(p, dt)
@@ -627,8 +639,12 @@ class Engine:
         """Particle p's adds to the grid, one part of them (see :meth:`pass_parts`). ``affine``
         (apic-affine P2G): mass, APIC momentum and force, the force fused into the momentum with
         ``fuse_force``; ``momentum`` (mpm, apic P2G): mass and momentum; ``force`` (mpm, apic):
-        internal and body force. ``vol``: the particle's volume after its update (m2 per m)."""
-        if ti.static(part == "wall forces"):
+        internal and body force. ``vol``: the particle's volume after its update (m2 per m).
+        A rigid body's particle gives its weights to the body's nodes instead (solver.rigid)."""
+        if self.rigid.is_rigid(p):
+            if ti.static(part == "shares" and kind in ("affine", "momentum")):
+                self.rigid.share(p)
+        elif ti.static(part == "wall forces"):
             self.walls.ghost_particle(p, g)
         elif ti.static(kind == "dilatation"):
             base, fx, w, dw = self._stencil(self.x[p])
@@ -668,6 +684,7 @@ class Engine:
                 force += weight * buoyant
             I = base + offset
             self.to_grid.add(self.g_mass, I, weight * m)
+            self.rigid.soil_share(I, vol, grad)  # the normal of a rigid body's contact (solver.rigid)
             if ti.static(fuse_force):
                 self.to_grid.add(self.g_mom, I, weight * (mv + mat_vec(mC, dpos)) + dt * force)
             else:
@@ -688,7 +705,8 @@ class Engine:
                 if ti.static(self.n_structures > 0):
                     self.g_mom[I] = v  # the contact in a second loop: it reads the free nodes' v
                 else:
-                    self.g_mom[I] = self.contact.apply(I, v, mass, True, "fused", dt, damping)
+                    v = self.contact.apply(I, v, mass, True, "fused", dt, damping)
+                    self.g_mom[I] = self.rigid.hold(I, v, mass, True)
             else:
                 self.g_mom[I] = ti.Vector.zero(float, 2)
         if ti.static(self.n_structures > 0):
@@ -697,6 +715,9 @@ class Engine:
                 mass = self.g_mass[I]
                 if mass > 0.0 and self.contact.held(I):
                     self.g_mom[I] = self.contact.apply(I, self.g_mom[I], mass, True, "fused", dt, damping)
+                if ti.static(self.rigid.on):
+                    if mass > 0.0:
+                        self.g_mom[I] = self.rigid.hold(I, self.g_mom[I], mass, True)
 
     # ------------------------------------------------------------------ six-stage (mpm, apic)
     @ti.func
@@ -712,6 +733,9 @@ class Engine:
             weight = w[i][0] * w[j][1]
             I = base + offset
             self.to_grid.add(self.g_mass, I, weight * m)
+            if ti.static(self.rigid.on):  # the normal of a rigid body's contact (solver.rigid)
+                grad = ti.Vector([dw[i][0] * w[j][1], w[i][0] * dw[j][1]]) * self.inv_dx
+                self.rigid.soil_share(I, self.particle_volume(p), grad)
             if ti.static(self.scheme == "apic"):
                 dpos = (ti.cast(offset, float) - fx) * self.dx
                 self.to_grid.add(self.g_mom, I, weight * (mv + mat_vec(mC, dpos)))
@@ -737,6 +761,7 @@ class Engine:
                 # velocity itself (PIC there, see g2p), so they receive it too: recorded in
                 # every scheme.
                 v = self.contact.apply(I, self.g_mom[I] / mass, mass, True, "interpolated", 0.0, 0.0)
+                v = self.rigid.hold(I, v, mass, True)
             self.g_v_old[I] = v
 
     @ti.func
@@ -785,7 +810,8 @@ class Engine:
             if mass > 0.0:
                 v = self.g_v_old[I]
                 f = self._damped(I, self.g_f[I], v, damping)
-                self.g_mom[I] = self.contact.apply(I, v + dt * f / mass, mass, True, "updated", dt, damping)
+                v = self.contact.apply(I, v + dt * f / mass, mass, True, "updated", dt, damping)
+                self.g_mom[I] = self.rigid.hold(I, v, mass, True)
             else:
                 self.g_mom[I] = ti.Vector.zero(float, 2)
 
@@ -798,37 +824,43 @@ class Engine:
         bound2 = self.speed_bound[None] ** 2
         for p in range(self.n):
             if self.active[p]:
-                base, fx, w, dw = self._stencil(self.x[p])
-                new_v = ti.Vector.zero(float, 2)
-                new_C = ti.Matrix.zero(float, 2, 2)
-                dv = ti.Vector.zero(float, 2)
-                held = ti.Vector.zero(float, 2)  # mpm: sum over contact nodes of w (v_old - v_p)
-                touched = False
-                for i, j in ti.static(ti.ndrange(3, 3)):
-                    offset = ti.Vector([i, j])
-                    weight = w[i][0] * w[j][1]
-                    gv = self.g_mom[base + offset]  # the new grid velocity
-                    new_v += weight * gv
-                    if ti.static(self.scheme == "mpm"):
-                        old = self.g_v_old[base + offset]
-                        dv += weight * (gv - old)
-                        if self.contact.held(base + offset):
-                            touched = True
-                            held += weight * (old - self.v[p])
-                    else:
-                        dpos = (ti.cast(offset, float) - fx) * self.dx
-                        new_C += 4.0 * self.inv_dx * self.inv_dx * weight * outer(gv, dpos)  # eq 17
-                x = self.x[p] + dt * new_v  # eq 28
-                v = new_v
-                if ti.static(self.scheme == "mpm"):
-                    v = self.v[p] + dv  # FLIP: particle velocity takes the grid's increment
-                    if touched:
-                        # PIC at contact nodes (docs/solver.md, contact): the particle takes a contact
-                        # node's constrained velocity itself, w v_new, not its own plus the increment,
-                        # w (v_p + v_new - v_old); away from contacts this is zero and v is FLIP's
-                        v += held
+                x = self.x[p]
+                v = self.v[p]
+                rigid = self.rigid.is_rigid(p)
+                if rigid:
+                    x, v = self.rigid.move(p, dt)  # a rigid body's particle moves with the body
                 else:
-                    self.C[p] = new_C
+                    base, fx, w, dw = self._stencil(self.x[p])
+                    new_v = ti.Vector.zero(float, 2)
+                    new_C = ti.Matrix.zero(float, 2, 2)
+                    dv = ti.Vector.zero(float, 2)
+                    held = ti.Vector.zero(float, 2)  # mpm: sum over contact nodes of w (v_old - v_p)
+                    touched = False
+                    for i, j in ti.static(ti.ndrange(3, 3)):
+                        offset = ti.Vector([i, j])
+                        weight = w[i][0] * w[j][1]
+                        gv = self.g_mom[base + offset]  # the new grid velocity
+                        new_v += weight * gv
+                        if ti.static(self.scheme == "mpm"):
+                            old = self.g_v_old[base + offset]
+                            dv += weight * (gv - old)
+                            if self.contact.held(base + offset) or self.rigid.holds(base + offset):
+                                touched = True
+                                held += weight * (old - self.v[p])
+                        else:
+                            dpos = (ti.cast(offset, float) - fx) * self.dx
+                            new_C += 4.0 * self.inv_dx * self.inv_dx * weight * outer(gv, dpos)  # eq 17
+                    x = self.x[p] + dt * new_v  # eq 28
+                    v = new_v
+                    if ti.static(self.scheme == "mpm"):
+                        v = self.v[p] + dv  # FLIP: particle velocity takes the grid's increment
+                        if touched:
+                            # PIC at contact nodes (docs/solver.md, contact): the particle takes a contact
+                            # node's constrained velocity itself, w v_new, not its own plus the increment,
+                            # w (v_p + v_new - v_old); away from contacts this is zero and v is FLIP's
+                            v += held
+                    else:
+                        self.C[p] = new_C
                 speed2 = v.dot(v)
                 keep = 1
                 if not (speed2 <= bound2):  # also true for NaN
@@ -848,7 +880,8 @@ class Engine:
                             keep = -1 if keep == 1 else keep
                         else:
                             x[d] = self.upper[d]
-                x, v = self.contact.push_out(self.x[p], x, v, self.m[p])
+                if not rigid:
+                    x, v = self.contact.push_out(self.x[p], x, v, self.m[p])
                 self.x[p] = x
                 self.v[p] = v
                 if keep == -1:
@@ -869,7 +902,8 @@ class Engine:
         # order, so the energies and momenta of series.csv repeat bit for bit as the frames do
         ti.loop_config(serialize=self.plain)
         for p in range(self.n):
-            if self.active[p]:
+            # the measures of the material's motion: a rigid body's prescribed motion is not one
+            if self.active[p] and not self.rigid.is_rigid(p):
                 m = self.particle_mass(p, self.water_state(p))
                 v = self.v[p]
                 self.diag[0] += 0.5 * m * v.dot(v)

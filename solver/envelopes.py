@@ -47,6 +47,7 @@ from solver.runtime import ti
 
 from solver.config import EnvelopeConfig, Grid
 from solver.fieldio import FieldIO
+from solver.materials import RIGID
 
 _BIG = 1.0e30
 #: Updates whose time-series rows are kept on the device before they are copied to the host.
@@ -275,10 +276,11 @@ class Envelopes:
 
     def _particles(self) -> dict[str, np.ndarray]:
         """The engine's particle state the envelopes record: positions (m), volumes (m2), active."""
-        got = self.engine.state(("x", "m", "rho", "active"))
+        got = self.engine.state(("x", "m", "rho", "active", "mat"))
+        rigid = self.engine.materials.host["model"][got["mat"]] == RIGID  # a rigid body is no flow
         return {"positions_m": got["x"].astype(float),
                 "volumes_m2": got["m"].astype(float) / got["rho"].astype(float),
-                "active": got["active"].astype(bool)}
+                "active": got["active"].astype(bool) & ~rigid}
 
     #: Device fields a checkpoint holds (with the host counters, the series and the initial state).
     FIELDS = ("ground", "top", "edge_hi", "edge_lo", "peak_height", "arrival", "front", "max_speed",
@@ -354,7 +356,7 @@ class Envelopes:
         self.energy[None] = 0.0
         self.speed_now[None] = 0.0
         for p in range(self.n):
-            if active[p] != 0:
+            if active[p] != 0 and not self.engine.rigid.is_rigid(p):  # a rigid body is no flow
                 xp = x[p]
                 vp = v[p]
                 r = rho[p]

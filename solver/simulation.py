@@ -198,6 +198,18 @@ def validate(config: SimulationConfig, particles: Particles) -> None:
         if st.materials is not None and len(st.materials) != len(config.materials):
             problems.append(f"stage {st.name!r}: material table must have {len(config.materials)} rows")
     names = [st.name for st in config.structures]
+    for m in all_materials(config):
+        if m.rigid and m.contact.kind in ("open", "periodic"):
+            problems.append(f"rigid material {m.name!r}: contact must be fixed, slip or friction, not {m.contact.kind}")
+    rigid_names = [m.name for m in config.materials if m.rigid]
+    for name in rigid_names:
+        if name in names or name in SIDES:
+            problems.append(f"rigid material {name!r}: its contact's name is a structure's or a side's")
+    if config.materials and len(rigid_names) == len(config.materials):
+        problems.append("every material is rigid: at least one must deform")
+    for st in config.stages:
+        if st.materials is not None and [m.rigid for m in st.materials] != [m.rigid for m in config.materials]:
+            problems.append(f"stage {st.name!r}: a stage's materials keep which of them are rigid")
     for st in config.structures:
         if len(st.polygon_m) < 3:
             problems.append(f"structure {st.name!r}: a polygon needs at least 3 points")
@@ -296,9 +308,9 @@ class Simulation:
         #: this process's CPU time (user + system, all threads) at that moment, s
         self.first_step_cpu_s: float | None = None
         self.fingerprint = fingerprint(config, particles)
-        # contacts reported in frames: the closed sides, then the structures (engine order)
+        # contacts reported in frames: the closed sides, the structures, then the rigid bodies (engine order)
         self._contacts = [i for i, side in enumerate(SIDES) if config.grid.boundary(side).kind not in ("open", "periodic")]
-        self._contacts += [4 + k for k in range(len(config.structures))]
+        self._contacts += [4 + k for k in range(len(config.structures) + self.engine.rigid.count)]
         self._contacts_since_s = 0.0
 
     # ------------------------------------------------------------------ helpers
@@ -524,6 +536,11 @@ class Simulation:
             self._start_water_move(self.cursor.stage_index)
             self.engine.water.load_state({k.split("/", 1)[1]: v for k, v in checkpoint.arrays.items()
                                           if k.startswith("water/")})
+    def _rigid_particles(self) -> np.ndarray:
+        """Which particles belong to a rigid body (solver.rigid)."""
+        rigid = np.array([m.rigid for m in self._materials], dtype=bool)
+        return rigid[np.asarray(self.particles.material_ids)]
+
     def equilibrium_check(self, stage: Stage, dt: float, max_speed_m_s: float,
                           released: bool = False) -> dict[str, Any]:
         """Measure the unbalanced force of the current state (the engine is left as it was).
@@ -669,9 +686,12 @@ class Simulation:
                 self._start_loads(stage)
                 if stage.kind == "k0":
                     now = e.state(("active", "x"))
+                    # a rigid body (solver.rigid) weighs nothing and carries no stress
+                    soil = now["active"].astype(bool) & ~self._rigid_particles()
                     stress = k0_stress(self.particles, self._materials, cfg.gravity_m_s2,
-                                       cfg.grid.cell_size_m, stage.k0, now["active"].astype(bool), now["x"],
+                                       cfg.grid.cell_size_m, stage.k0, soil, now["x"],
                                        water=self._local_water(self.water_now()))
+                    stress[~soil] = 0.0
                     e.set_stress(stress)
                     # a k0 state followed at once by free motion, with no trigger of its own, is a
                     # retained body released (a column or dam-break collapse): its imbalance is the
@@ -697,6 +717,7 @@ class Simulation:
             stage_end = c.stage_start_s + stage.duration_s
             if c.phase == "loop":
                 damping = stage.damping
+                e.set_rigid_moving(stage.kind == "dynamic")  # initial-stress stages hold them still
                 g_full = np.asarray(body_force_m_s2(cfg.gravity_m_s2, stage.seismic), dtype=float)
                 while not c.reason and self.time_s < stage_end - 1e-12 * max(1.0, stage_end):
                     # step size: the configured one, landing exactly on outputs and the stage end
@@ -814,7 +835,7 @@ class Simulation:
         criterion ``stop_when_kinetic_energy_below`` and ``stop_when_max_speed_below_m_s``, None
         where not given), ``ended_at_rest`` (it ended by that criterion), the kinetic energy now
         and the largest of the dynamic stages (J/m), the fastest particle now (m/s) and the time
-        (s). None when no dynamic stage ran."""
+        (s), and whether a rigid body moves now (``driven``). None when no dynamic stage ran."""
         c = self.cursor
         if c.last_dynamic < 0:
             return None
@@ -827,6 +848,7 @@ class Simulation:
             "time_s": float(self.time_s), "kinetic_energy_J_per_m": float(d["kinetic_energy"]),
             "peak_kinetic_energy_J_per_m": float(max(c.run_peak_ke, d["kinetic_energy"])),
             "max_speed_m_s": float(d["max_speed"]),
+            "driven": any(m.rigid and any(m.velocity_m_s) for m in self._materials),
         }
 
     # ------------------------------------------------------------------ driving from outside

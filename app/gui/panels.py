@@ -66,6 +66,7 @@ from app.gui.units import parse_quantity
 from projects.schema import (
     ARCHS,
     BOUNDARY_TYPES,
+    CONTACT_TYPES,
     DEFAULT_GRAVITY_RAMP_FRACTION,
     DAMPING_MODELS,
     DEFAULT_DAMPING_MODEL,
@@ -77,6 +78,7 @@ from projects.schema import (
     OUTPUT_FIELDS,
     PRECISIONS,
     PRESETS,
+    RIGID_KEYS,
     SCHEMES,
     SEEDINGS,
     SIDES,
@@ -354,6 +356,24 @@ class MaterialsPanel(Panel):
         self.fields["grain_density_kg_m3"].setToolTip(
             "The grains' density of the inertial number; empty: the material's density")
         self.layout_.addWidget(self.inertial_box)
+        # a rigid body (a platen, a gate): its velocity in dynamic stages and its contact
+        self.rigid_box, form = _form("Rigid body (model rigid)")
+        self.rigid_box.setToolTip(
+            "A rigid body moves at its velocity in dynamic stages and stands still in initial-stress "
+            "stages; it carries no stress and no weight. Its reaction is a contact force named after the "
+            "material (docs/project-format.md, rigid bodies)")
+        self.velocity = PairField(doc, None, "Velocity", "m/s", names=("vx", "vy"))
+        self.velocity.setToolTip("The body's velocity in dynamic stages (a stage may change it)")
+        self.contact = ChoiceField(doc, None, "Contact", CONTACT_TYPES, default="fixed")
+        self.contact.combo.activated.disconnect()
+        self.contact.combo.activated.connect(self._contact_chosen)
+        self.contact.setToolTip("fixed: the material sticks to the body (a rough platen); slip: it slides "
+                                "along it without friction; friction: Coulomb friction (its angle is "
+                                "friction_angle_deg of the contact in the file, 20 degrees when chosen here)")
+        form.addRow("Velocity", self.velocity)
+        form.addRow("Contact", self.contact)
+        self.watch(self.velocity, self.contact)
+        self.layout_.addWidget(self.rigid_box)
         self.used_by = QLabel("")
         self.used_by.setWordWrap(True)
         self.used_by.setStyleSheet("color: #555;")
@@ -395,17 +415,21 @@ class MaterialsPanel(Panel):
         self.name.setEnabled(name is not None)
         self.model.set_path(f"{base}.model" if base else None)
         plastic = base is not None and self.doc.get(f"{base}.model") == "drucker-prager"
+        rigid = base is not None and self.doc.get(f"{base}.model") == "rigid"
         softens = plastic and self.doc.get(f"{base}.softening_law") is not None
         for key, field in self.fields.items():
             enabled = base is not None and (plastic or key not in PLASTIC_KEYS) and (
-                softens or key not in SOFTENING_NUMBER_KEYS)
+                softens or key not in SOFTENING_NUMBER_KEYS) and (not rigid or key in RIGID_KEYS)
             field.set_path(f"{base}.{key}" if enabled else None)
             if not enabled:
                 field.edit.setText("")
                 field.edit.setPlaceholderText("—" if base else "")
         self.match.set_path(f"{base}.mohr_coulomb_match" if plastic else None)
         self.softening_law.set_path(f"{base}.softening_law" if plastic else None)
-        self.damping_model.set_path(f"{base}.damping_model" if base else None)
+        self.damping_model.set_path(f"{base}.damping_model" if base and not rigid else None)
+        self.velocity.set_path(f"{base}.velocity_m_s" if rigid else None)
+        self.contact.set_path(f"{base}.contact.type" if rigid else None)
+        self.rigid_box.setVisible(rigid)
         if name is not None:
             users = [b.get("name", "?") for b in self.doc.get("bodies", []) if b.get("material") == name]
             self.used_by.setText("Used by: " + (", ".join(users) if users else "no body"))
@@ -497,6 +521,18 @@ class MaterialsPanel(Panel):
         self.name.setText(new)
         self._rename()
 
+    def _contact_chosen(self, _index: int) -> None:
+        """A rigid body's contact: the whole table, so that a friction angle goes with its type."""
+        name, kind = self._current, self.contact.combo.currentText()
+        path = f"materials.{name}.contact"
+        current = self.doc.get(path) or {}
+        if name is None or current.get("type") == kind:
+            return
+        table = {"type": kind}
+        if kind == "friction":
+            table["friction_angle_deg"] = current.get("friction_angle_deg", 20.0)
+        self.doc.set_value(path, table, f"change the contact of {name}")
+
     def _model_chosen(self, _index: int) -> None:
         self.set_model(self.model.combo.currentText())
 
@@ -508,7 +544,28 @@ class MaterialsPanel(Panel):
 
         def mutate(d: dict[str, Any]) -> None:
             table = d["materials"][name]
+            was_rigid = table.get("model") == "rigid"
             table["model"] = model
+            if model == "rigid":  # a body moved at its velocity: density, velocity and contact alone
+                for key in [k for k in table if k not in RIGID_KEYS]:
+                    table.pop(key)
+                table.setdefault("velocity_m_s", [0.0, 0.0])
+                table.setdefault("contact", {"type": "fixed"})
+                for stage in d.get("stages", []):
+                    change = stage.get("material_changes", {}).get(name)
+                    if isinstance(change, dict):
+                        for key in [k for k in change if k != "velocity_m_s"]:
+                            change.pop(key)
+                return
+            if was_rigid:
+                for key in ("velocity_m_s", "contact"):
+                    table.pop(key, None)
+                table.setdefault("youngs_modulus_pa", 1.0e7)
+                table.setdefault("poisson_ratio", 0.3)
+                for stage in d.get("stages", []):
+                    change = stage.get("material_changes", {}).get(name)
+                    if isinstance(change, dict):
+                        change.pop("velocity_m_s", None)
             if model == "linear-elastic":
                 for key in (*PLASTIC_KEYS, "mohr_coulomb_match", "softening_law", *INERTIAL_KEYS):
                     table.pop(key, None)

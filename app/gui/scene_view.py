@@ -651,7 +651,9 @@ class SceneView(QWidget):
                     if p is not None and len(p) >= 3]
         g = get_path(self.doc.data, "domain.gravity_m_s2", [0.0, -9.81])
         try:
-            down = np.asarray(g, dtype=float) / float(np.linalg.norm(np.asarray(g, dtype=float)))
+            g = np.asarray(g, dtype=float)
+            norm = float(np.linalg.norm(g))
+            down = g / norm if norm > 0.0 and np.isfinite(norm) else np.array([0.0, -1.0])  # no gravity: down
         except (TypeError, ValueError):
             down = np.array([0.0, -1.0])
         if not np.all(np.isfinite(down)):

@@ -12,11 +12,14 @@ from collections.abc import Sequence
 import numpy as np
 from solver.runtime import mat_mat, ti, transpose
 
-from solver.config import Material, flows_inertially, softens
+from solver.config import Material, flows_inertially, has_rigid, softens
+from solver.contact import contact_codes
 from solver.fieldio import FieldIO
 from solver.materials import drucker_prager, linear_elastic, softening
 
-MODEL_CODES = {"linear-elastic": 0, "drucker-prager": 1}
+MODEL_CODES = {"linear-elastic": 0, "drucker-prager": 1, "rigid": 2}
+#: The model code of a rigid body (solver/rigid.py: no stress update, no weight)
+RIGID = MODEL_CODES["rigid"]
 #: Columns of the per-material table (one Taichi field each).
 MATERIAL_COLUMNS = ("model", "K", "G", "alpha", "kc", "alpha_psi", "t_cut", "rho0", "beta", "relax")
 #: The softening's columns (solver/materials/softening.py): the law's code (0: none), its
@@ -28,15 +31,25 @@ SOFTENING_COLUMNS = ("soft_law", "soft_e_peak", "soft_e_res", "soft_scale", "sof
 #: material's own ``tan(phi)`` (0: none), the reference inertial number ``I0`` and
 #: ``d sqrt(rho_s)``, so that ``I = gamma_dot d sqrt(rho_s) / sqrt(p)``
 INERTIAL_COLUMNS = ("mui_ratio", "mui_i0", "mui_scale")
-_INT_COLUMNS = ("model", "soft_law", "soft_match")
+#: A rigid body's columns (solver/rigid.py): its velocity in dynamic stages (m/s), its contact's
+#: kind code and friction coefficient, and its index among the rigid materials (-1: not rigid)
+RIGID_COLUMNS = ("rigid_v", "rigid_kind", "rigid_mu", "rigid_index")
+_INT_COLUMNS = ("model", "soft_law", "soft_match", "rigid_kind", "rigid_index")
 softening.check_match_codes(drucker_prager.MATCHES)
 
 
 def material_rows(materials: Sequence[Material], cell_size_m: float | None = None) -> dict[str, np.ndarray]:
     """The per-material parameter table as numpy columns (SI units); ``cell_size_m`` sets the
     softening's regularisation scale (None: one, as in a single-point test)."""
-    rows: dict[str, list] = {k: [] for k in MATERIAL_COLUMNS + SOFTENING_COLUMNS + INERTIAL_COLUMNS}
+    rows: dict[str, list] = {k: [] for k in MATERIAL_COLUMNS + SOFTENING_COLUMNS + INERTIAL_COLUMNS + RIGID_COLUMNS}
+    rigid_count = 0
     for m in materials:
+        kind, mu = contact_codes((m.contact,))
+        rows["rigid_v"].append(m.velocity_m_s if m.rigid else (0.0, 0.0))
+        rows["rigid_kind"].append(int(kind[0]))
+        rows["rigid_mu"].append(float(mu[0]))
+        rows["rigid_index"].append(rigid_count if m.rigid else -1)
+        rigid_count += int(m.rigid)
         mui = m.inertial if m.model == "drucker-prager" and m.friction_angle_rad > 0.0 else None
         rows["mui_ratio"].append(0.0 if mui is None else mui.friction_increase / math.tan(m.friction_angle_rad))
         rows["mui_i0"].append(1.0 if mui is None else mui.reference_inertial_number)
@@ -117,6 +130,17 @@ class MaterialTable:
             for name in INERTIAL_COLUMNS:
                 setattr(self, name, ti.field(float, n))
             names = names + INERTIAL_COLUMNS
+        #: some material is a rigid body (solver/rigid.py, compiled in only then); fixed at
+        #: construction, as the stages' changes keep every material's model
+        self.rigid = has_rigid(materials)
+        #: the rigid materials' names, in their index order (their contacts follow the structures')
+        self.rigid_names = tuple(m.name for m in materials if m.rigid)
+        if self.rigid:
+            self.rigid_v = ti.Vector.field(2, float, n)
+            self.rigid_kind = ti.field(ti.i32, n)
+            self.rigid_mu = ti.field(float, n)
+            self.rigid_index = ti.field(ti.i32, n)
+            names = names + RIGID_COLUMNS
         #: the table's fields by column name
         self.columns = {name: getattr(self, name) for name in names}
         #: the table as loaded, numpy columns in the fields' dtypes
@@ -138,6 +162,8 @@ class MaterialTable:
             raise ValueError("a material softens, but the table was built without softening")
         if flows_inertially(materials) and not self.inertial:
             raise ValueError("a material's friction depends on the rate (mu(I)), but the table was built without it")
+        if tuple(m.name for m in materials if m.rigid) != self.rigid_names:
+            raise ValueError("a stage's materials must keep which of them are rigid bodies")
         rows = material_rows(materials, self.cell_size_m)
         self.host = {name: column.astype(np.int32 if name in _INT_COLUMNS else self.np_float)
                      for name, column in rows.items() if name in self.columns}

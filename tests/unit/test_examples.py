@@ -15,7 +15,7 @@ from projects.document import dumps_project, load_project, loads_project, save_p
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "projects" / "examples"
 NAMES = ["bui2008_aluminium_bars", "sand_column", "slope_sun_song_2015", "tiny_column", "slope_fos", "debris_barrier",
-         "reservoir_drawdown", "rain_water_table", "sensitive_clay_spread"]
+         "reservoir_drawdown", "rain_water_table", "sensitive_clay_spread", "biaxial_softening_clay"]
 PAPER_SCENES = NAMES[:3]
 
 

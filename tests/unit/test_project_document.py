@@ -360,13 +360,13 @@ def test_overrides_on_raw_data_do_not_modify_it():
             "mohr_coulomb_match, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru, "
             "softening_law, residual_cohesion_pa, residual_friction_angle_deg, residual_dilatancy_angle_deg, "
             "peak_plastic_strain, residual_plastic_strain, softening_length_m, mu_i_friction_increase, "
-            "mu_i_reference_number, grain_diameter_m, grain_density_kg_m3",
+            "mu_i_reference_number, grain_diameter_m, grain_density_kg_m3, velocity_m_s, contact",
         ),
         ("stages.1.material_changes.sand.model=x", "stages.1.material_changes.sand.model: unknown key; allowed: "
          "density_kg_m3, youngs_modulus_pa, poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, "
          "tensile_strength_pa, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru, "
          "softening_law, residual_cohesion_pa, residual_friction_angle_deg, residual_dilatancy_angle_deg, "
-         "peak_plastic_strain, residual_plastic_strain, softening_length_m"),
+         "peak_plastic_strain, residual_plastic_strain, softening_length_m, velocity_m_s"),
         ("materials.sand.poisson_ratio=0.6", "materials.sand.poisson_ratio = 0.6: must be >= 0 and < 0.5"),
         ("numerics.scheme=flip", 'numerics.scheme = "flip": must be one of "mpm", "apic", "apic-affine"'),
         ("runout.title=1", "runout.title = 1: must be a string"),

@@ -224,7 +224,7 @@ GOLDEN = [
         "youngs_modulus_pa, poisson_ratio, cohesion_pa, friction_angle_deg, dilatancy_angle_deg, "
         "tensile_strength_pa, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru, "
         "softening_law, residual_cohesion_pa, residual_friction_angle_deg, residual_dilatancy_angle_deg, "
-        "peak_plastic_strain, residual_plastic_strain, softening_length_m",
+        "peak_plastic_strain, residual_plastic_strain, softening_length_m, velocity_m_s",
     ),
     (
         "stages.1.material_changes",

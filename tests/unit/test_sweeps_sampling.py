@@ -200,7 +200,7 @@ def test_command_line_reports_bad_sweep_files_in_one_line(tmp_path):
         "mohr_coulomb_match, damping_ratio, damping_frequency_hz, damping_model, saturated_density_kg_m3, ru, "
         "softening_law, residual_cohesion_pa, residual_friction_angle_deg, residual_dilatancy_angle_deg, "
         "peak_plastic_strain, residual_plastic_strain, softening_length_m, mu_i_friction_increase, "
-        "mu_i_reference_number, grain_diameter_m, grain_density_kg_m3"]
+        "mu_i_reference_number, grain_diameter_m, grain_density_kg_m3, velocity_m_s, contact"]
     assert not (tmp_path / "s.sweep").exists()
     res = _runout("calibrate", "s.toml", cwd=tmp_path)
     assert res.returncode == 1 and "this is a sweep file" in res.stderr
