@@ -692,6 +692,21 @@ def _overdamped_bodies(project: Project) -> list[str]:
     return found
 
 
+def _strength_reduction_with_flip(project: Project) -> list[str]:
+    """A strength-reduction stage under classic MPM (FLIP): its particles' velocity noise keeps the
+    trials' kinetic energy up, and loaded ground "fails" far below its collapse load
+    (docs/validation.md, undrained clay: a strip footing at 0.79 of Prandtl's factor)."""
+    if project.numerics.scheme != "mpm":
+        return []
+    index = next((i for i, stage in enumerate(project.stages) if stage.type == "strength-reduction"), None)
+    if index is None:
+        return []
+    return [f"numerics.scheme = \"mpm\" with stages.{index} (strength-reduction): classic MPM's velocity noise "
+            "keeps the trials' kinetic energy up, so loaded ground reads as failing well below its collapse load "
+            "(a strip footing at 0.79 of Prandtl's factor); use scheme \"apic-affine\" or \"apic\" for the factor "
+            "of safety (docs/validation.md, undrained clay)"]
+
+
 def _softening_without_length(project: Project) -> list[str]:
     """A softening material (in any stage) of a body without a softening length, or with one shorter
     than the cell size; one warning per material, at the table that set the law (or the length)."""
@@ -754,7 +769,7 @@ def project_warnings(project: Project) -> list[str]:
                 *_k0_on_slope(project),
                 *_thin_structures(project), *_off_node_faces(project), *_stress_free_on_friction(project),
                 *_short_gravity_stage(project), *_near_limit_slides(project), *_overdamped_bodies(project),
-                *_softening_without_length(project)]
+                *_softening_without_length(project), *_strength_reduction_with_flip(project)]
 
 
 def recommended_initial_stage(project: Project) -> dict[str, Any]:

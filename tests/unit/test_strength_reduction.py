@@ -200,3 +200,18 @@ def test_crest_is_the_top_of_the_slope_face(gravity_angle_deg):
     gravity = rot @ np.array([0.0, -9.81])
     crest = np.linalg.solve(rot, crest_point(points, gravity, 0.5))
     assert crest[0] == pytest.approx(8.0, abs=1.0) and crest[1] == pytest.approx(9.0, abs=0.5)
+
+
+@pytest.mark.parametrize("scheme", ["mpm", "apic", "apic-affine"])
+def test_strength_reduction_under_classic_mpm_is_warned_about(scheme):
+    from projects.checks import project_warnings
+    from projects.schema import validate_project
+
+    data = _project()
+    data["numerics"]["scheme"] = scheme
+    found = [w for w in project_warnings(validate_project(data)) if "strength-reduction" in w and "scheme" in w]
+    if scheme == "mpm":
+        assert len(found) == 1 and found[0].startswith('numerics.scheme = "mpm" with stages.1 (strength-reduction)')
+        assert "apic-affine" in found[0]
+    else:
+        assert found == []
