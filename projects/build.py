@@ -446,6 +446,7 @@ class ResolvedRun:
             "total_time_s": float(sum(st.duration_s for st in config.stages if st.kind != "k0")),
             "stages": [stage.name for stage in config.stages],
             "materials": list(self.material_names),
+            "rigid_materials": [m.name for m in config.materials if m.rigid],
             "bodies": list(self.body_names),
             "structures": [{"name": st.name, "polygon_m": [list(p) for p in st.polygon_m]}
                            for st in config.structures],

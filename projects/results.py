@@ -1406,6 +1406,18 @@ class Results:
         """Material names by ``material_id`` (from the summary; may be empty)."""
         return [str(m) for m in self.summary.get("materials", [])]
 
+    def measured(self, arrays: Mapping[str, np.ndarray]) -> np.ndarray | None:
+        """The particles of a frame (:meth:`frame`) that the deposit measures count: the active
+        ones less the rigid bodies' (their motion is the loading, not the material's), told by
+        ``material_id`` and ``summary.json``'s ``rigid_materials`` (a frame written without
+        ``material_id`` keeps them); None where the frame has no ``active`` and no rigid body."""
+        active = arrays.get("active")
+        rigid = [i for i, name in enumerate(self.material_names) if name in set(self.summary.get("rigid_materials", []))]
+        if not rigid or "material_id" not in arrays:
+            return active
+        keep = ~np.isin(np.asarray(arrays["material_id"]), rigid)
+        return keep if active is None else np.asarray(active, dtype=bool) & keep
+
     @property
     def frame_files(self) -> list[Path]:
         return list(self._files)

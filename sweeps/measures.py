@@ -83,6 +83,7 @@ class _LastFrame:
         self.dir = results_dir
         self.summary = summary
         self._arrays: dict[str, np.ndarray] | None = None
+        self._measured: np.ndarray | None = None
 
     @property
     def spacing_m(self) -> float:
@@ -93,12 +94,14 @@ class _LastFrame:
         if self._arrays is None:
             from projects.results import Results
 
-            self._arrays = dict(Results(self.dir).frame(-1))
+            results = Results(self.dir)
+            self._arrays = dict(results.frame(-1))
+            self._measured = results.measured(self._arrays)  # rigid bodies left out
         return self._arrays
 
     def deposit(self, key: str) -> float:
         a = self.arrays()
-        pos, active, s = a["positions"], a.get("active"), self.spacing_m
+        pos, active, s = a["positions"], self._measured, self.spacing_m
         if key == "front_m":
             return measures.front_position(pos, active, s)
         if key == "toe_m":
@@ -115,7 +118,7 @@ class _LastFrame:
 
     def surface(self, x_m: np.ndarray) -> np.ndarray:
         a = self.arrays()
-        return measures.surface_heights(a["positions"], a.get("active"), self.spacing_m, x_m)
+        return measures.surface_heights(a["positions"], self._measured, self.spacing_m, x_m)
 
 
 def _hazard_skeleton(project: Any) -> dict[str, Any] | None:

@@ -172,3 +172,22 @@ def test_the_deformable_models_still_need_their_stiffness():
                                                               'model = "linear-elastic"\nvelocity_m_s = [1, 0]')
     assert any(p.startswith('materials.soil.velocity_m_s = [1, 0]: only allowed with model "rigid"')
                for p in problems_of_text(text))
+
+
+def test_the_deposit_measures_leave_a_rigid_body_out(tmp_path):
+    from projects.measures import top_height
+    from projects.results import Results
+    from projects.runner import run_project
+
+    project = loads_project(RIGID_PROJECT.format(extra="", stage=""))
+    result = run_project(project, tmp_path / "run")
+    assert result.status == "completed", result.message
+    assert result.summary["rigid_materials"] == ["platen"]
+    results = Results(tmp_path / "run")
+    frame = results.frame(-1)
+    keep = results.measured(frame)
+    assert keep.sum() == (np.asarray(frame["material_id"]) == 0).sum() > 0
+    spacing = result.summary["particle_spacing_m"]
+    # the column's top (1 m, pressed by 1 mm), not the platen's (1.1 m)
+    assert top_height(frame["positions"], keep, spacing) == pytest.approx(1.0, abs=0.01)
+    assert top_height(frame["positions"], frame["active"], spacing) == pytest.approx(1.1, abs=0.01)
