@@ -864,11 +864,12 @@ class Simulation:
         returned (also from the check after the last step). ``cancel()`` returning True ends it
         with ``"cancelled"``. Returns ``""`` when the whole duration ran. The clock (``time_s``,
         ``steps``) advances; callers that restore a checkpoint restore it too. Raises
-        InstabilityError like :meth:`run`.
+        InstabilityError like :meth:`run`. Rigid bodies (solver.rigid) stand still.
         """
         runtime.check_owner()
         e = self.engine
         g = self._body_force
+        e.set_rigid_moving(False)  # a strength-reduction trial loads a state: rigid bodies stand still
         d = e.diagnostics()
         dt = self._time_step(d["max_speed"])
         elapsed = 0.0

@@ -191,3 +191,37 @@ def test_the_deposit_measures_leave_a_rigid_body_out(tmp_path):
     # the column's top (1 m, pressed by 1 mm), not the platen's (1.1 m)
     assert top_height(frame["positions"], keep, spacing) == pytest.approx(1.0, abs=0.01)
     assert top_height(frame["positions"], frame["active"], spacing) == pytest.approx(1.1, abs=0.01)
+
+
+def test_a_run_with_a_rigid_body_resumes_from_a_checkpoint_to_the_same_frames():
+    platen = Material("platen", "rigid", 7850.0, 0.0, 0.0, velocity_m_s=(0.0, -0.01), contact=Boundary("fixed"))
+    stages = (Stage("geostatic", "k0"), Stage("press", "dynamic", duration_s=0.3))
+    cfg, parts = _column(0.1, platen, stages, gravity=(0.0, -9.81), precision="f32")
+    frames, checkpoints = [], []
+    with Simulation(cfg, parts) as sim:
+        for frame in sim.run():
+            frames.append(frame)
+            checkpoints.append(sim.checkpoint() if sim.can_checkpoint else None)
+    index = next(i for i, c in enumerate(checkpoints) if c is not None and 0 < i < len(frames) - 1)
+    with Simulation(cfg, parts) as sim:
+        sim.restore(checkpoints[index])
+        rest = list(sim.run())  # the platen moves on after the restore
+    assert len(rest) == len(frames) - index - 1
+    for a, b in zip(frames[index + 1:], rest):
+        assert a.diagnostics == b.diagnostics
+        assert a.contacts == b.contacts
+        for name in a.fields:
+            np.testing.assert_array_equal(a.fields[name], b.fields[name], err_msg=name)
+
+
+def test_a_rigid_body_stands_still_while_a_strength_reduction_trial_advances_the_state():
+    platen = Material("platen", "rigid", 7850.0, 0.0, 0.0, velocity_m_s=(0.0, -0.5), contact=Boundary("fixed"))
+    cfg, parts = _column(0.1, platen, (Stage("press", "dynamic", duration_s=0.05),), precision="f64")
+    rigid = parts.material_ids == 1
+    with Simulation(cfg, parts) as sim:
+        list(sim.run())  # the dynamic stage moves the platen down 2.5 cm
+        moved = sim.engine.state(("x",))["x"][rigid].copy()
+        sim.advance(0.05)  # a trial: the state under full gravity, the body held
+        held = sim.engine.state(("x",))["x"][rigid]
+    assert np.allclose(moved[:, 1] - parts.positions_m[rigid, 1], -0.025, atol=1e-9)
+    assert np.array_equal(held, moved)
