@@ -630,10 +630,14 @@ class _Scene:
             dx0, dx1, dy0, dy1 = domain[0] - sx, domain[1] - sx, domain[2] - sy, domain[3] - sy
             outline = [[dx0, dy0, 0], [dx1, dy0, 0], [dx1, dy1, 0], [dx0, dy1, 0], [dx0, dy0, 0]]
             pl.add_mesh(pv.MultipleLines(outline), color="#8c8c8c", line_width=1)
+        # each outline a band of polygons (outline_band), not a wide line: an offscreen (EGL) window
+        # of a process that has drawn the workbench's Qt window draws wide lines one pixel wide
+        width_m = max(2.0, self.size[1] / 400.0) / self._view.pixels_per_m
         for structure in _structures(self.results, self._shift):
             pl.add_mesh(structure.triangulate(), color="#b4b4b4", show_edges=False, lighting=False)
-            ring = np.vstack([structure.points, structure.points[:1]])
-            pl.add_mesh(pv.MultipleLines(ring), color="#505050", line_width=2)
+            band = outline_band(np.asarray(structure.points)[:, :2], width_m, z=0.01)
+            if band is not None:
+                pl.add_mesh(band, color="#505050", lighting=False)
         points, names = structure_labels(self.results.summary.get("structures"), self._shift, 0.01 * (y1 - y0))
         if names:
             pl.add_point_labels(points, names, name="structure-labels", font_size=self._font, text_color="#303030",
@@ -788,6 +792,33 @@ def line_band(line: Any, width: float) -> np.ndarray:
     if not parts:
         return np.zeros((0, 2))
     return np.asarray(max(parts, key=lambda g: g.area).exterior.coords, dtype=np.float64)[:-1]
+
+
+def outline_band(ring: Any, width: float, z: float = 0.0) -> pyvista.PolyData | None:
+    """The outline of the closed polygon ``ring`` (N, 2) as filled polygons ``width`` wide (one
+    band per edge, :func:`line_band`, each reaching half the width past its corners so that the
+    corners are closed), at height ``z``; None for fewer than two points."""
+    import pyvista as pv
+
+    pts = np.asarray(ring, dtype=np.float64).reshape(-1, 2)
+    if len(pts) < 2:
+        return None
+    points: list[np.ndarray] = []
+    faces: list[int] = []
+    for a, b in zip(pts, np.roll(pts, -1, axis=0)):
+        length = float(np.hypot(*(b - a)))
+        if length <= 0.0:
+            continue
+        step = 0.5 * width * (b - a) / length
+        quad = line_band([a - step, b + step], width)
+        if len(quad) < 3:
+            continue
+        faces += [len(quad), *range(sum(len(p) for p in points), sum(len(p) for p in points) + len(quad))]
+        points.append(quad)
+    if not points:
+        return None
+    xy = np.vstack(points)
+    return pv.PolyData(np.c_[xy, np.full(len(xy), z)], faces=np.asarray(faces)).triangulate()
 
 
 def add_water_actors(plotter: Any, shown: WaterShown, shift: Any = (0.0, 0.0), line_width: float = 3.0,

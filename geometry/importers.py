@@ -45,7 +45,8 @@ import csv
 import logging
 import math
 import os
-from collections import defaultdict
+import stat
+from collections import Counter, defaultdict
 from typing import NamedTuple
 
 import numpy as np
@@ -83,9 +84,77 @@ _CELL_CORNERS = {
 }
 
 
+#: The largest file an import reads (bytes): a profile of 20,000 points (the project format's
+#: limit per outline) takes under 1 MB as CSV; a DXF drawing holds more than its polylines.
+MAX_IMPORT_FILE_BYTES = 64_000_000
+
+
+def _kind_of(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode):
+        return "a character device"
+    if stat.S_ISBLK(mode):
+        return "a block device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def check_import_file(path: str | os.PathLike, max_bytes: int = MAX_IMPORT_FILE_BYTES) -> str:
+    """The name of a file an import may read, or one line saying why not, before a byte is read:
+    missing or unreadable, not a regular file (a FIFO with no writer would block the open forever,
+    ``/dev/zero`` never ends), empty, or larger than ``max_bytes``.
+
+    Raises
+    ------
+    ValueError
+        ``FILE: cannot read the file: ...``, ``FILE: the file is empty`` or ``FILE: the file is
+        ... MB, more than the limit of ... MB``.
+    """
+    name = os.fspath(path)
+    try:
+        info = os.stat(name)  # follows links, opens nothing
+    except OSError as exc:
+        raise ValueError(f"{name}: cannot read the file: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise ValueError(f"{name}: cannot read the file: it is {_kind_of(info.st_mode)}, not a regular file")
+    if not os.access(name, os.R_OK):
+        raise ValueError(f"{name}: cannot read the file: permission denied")
+    if info.st_size == 0:
+        raise ValueError(f"{name}: the file is empty; expected a CSV of points, a DXF drawing or a mesh")
+    if info.st_size > max_bytes:
+        raise ValueError(f"{name}: the file is {info.st_size / 1e6:.3g} MB, more than the limit of "
+                         f"{max_bytes / 1e6:.3g} MB for an import")
+    return name
+
+
+def suffix_of(name: str) -> str:
+    return os.path.splitext(name)[1].lower().lstrip(".") or "(no suffix)"
+
+
+def check_point_count(name: str, count: int, max_points: int | None, what: str = "the file") -> None:
+    """Refuse more than ``max_points`` points (None: no limit), before the geometry is built."""
+    if max_points is not None and count > max_points:
+        raise ValueError(f"{name}: {what} has {count:,} points, more than the limit of {max_points:,} per "
+                         "outline (docs/project-format.md, size limits); simplify the profile")
+
+
 def _csv_rows(path: str | os.PathLike) -> tuple[str, list[tuple[float, float]], list[str] | None]:
     """The points of a CSV of points and, with a ``layer`` column, each point's layer."""
-    name = os.fspath(path)
+    name = check_import_file(path)
+    try:
+        return _csv_rows_of(name)
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{name}: not UTF-8 text ({exc.reason} at byte {exc.start}); expected a CSV of "
+                         "points with the header 'x_m,y_m'") from None
+    except csv.Error as exc:
+        raise ValueError(f"{name}: not a CSV of points ({exc})") from None
+
+
+def _csv_rows_of(name: str) -> tuple[str, list[tuple[float, float]], list[str] | None]:
     points: list[tuple[float, float]] = []
     layers: list[str] | None = None
     header_seen = False
@@ -244,10 +313,10 @@ def dxf_points(path: str | os.PathLike) -> np.ndarray:
     """
     import ezdxf
 
-    name = os.fspath(path)
+    name = check_import_file(path)
     try:
         doc = ezdxf.readfile(name)
-    except (OSError, ezdxf.DXFError) as err:
+    except (OSError, ezdxf.DXFError, ValueError) as err:
         raise ValueError(f"{name}: not a readable DXF drawing ({err})") from None
     msp = doc.modelspace()
     polylines: list[list[tuple[float, float]]] = []
@@ -284,10 +353,10 @@ def dxf_layers(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """
     import ezdxf
 
-    name = os.fspath(path)
+    name = check_import_file(path)
     try:
         doc = ezdxf.readfile(name)
-    except (OSError, ezdxf.DXFError) as err:
+    except (OSError, ezdxf.DXFError, ValueError) as err:
         raise ValueError(f"{name}: not a readable DXF drawing ({err})") from None
     msp = doc.modelspace()
     polylines: dict[str, list[list[tuple[float, float]]]] = {}
@@ -416,7 +485,8 @@ def _bands(name: str, items: list[tuple[str, np.ndarray]], base_y_m: float | Non
     return bodies
 
 
-def read_layers(path: str | os.PathLike, base_y_m: float | None = None) -> list[LayerBody]:
+def read_layers(path: str | os.PathLike, base_y_m: float | None = None,
+                max_points: int | None = None) -> list[LayerBody]:
     """The bodies of a section from a file: several layers of a CSV (a ``layer`` column) or a DXF
     drawing (its layers), or the one outline of any file :func:`read_outline` reads, named after
     the file (module docstring, Layers).
@@ -426,6 +496,9 @@ def read_layers(path: str | os.PathLike, base_y_m: float | None = None) -> list[
     path : path-like
     base_y_m : float, optional, m
         The base open profiles are closed down to (default: the lowest point of any line).
+    max_points : int, optional
+        The most points a line (a layer, the profile) may have; more is refused before any
+        geometry is built (the workbench passes the project format's limit per outline).
 
     Returns
     -------
@@ -437,12 +510,17 @@ def read_layers(path: str | os.PathLike, base_y_m: float | None = None) -> list[
     ValueError
         With the file name and what is wrong (one line).
     """
-    name = os.fspath(path)
+    name = check_import_file(path)
     stem = os.path.splitext(os.path.basename(name))[0]
     suffix = os.path.splitext(name)[1].lower()
     if suffix == ".csv":
         _name, points, layers = _csv_rows(path)
         pts = np.array(points, dtype=np.float64).reshape(-1, 2)
+        if layers is None:
+            check_point_count(name, len(pts), max_points)
+        else:
+            for layer, count in Counter(layers).items():
+                check_point_count(name, count, max_points, f"layer {layer!r}")
         if layers is None or len(set(layers)) == 1:
             label = stem if layers is None else layers[0]
             return [LayerBody(label, _outline_from_points(name, pts, base_y_m), label)]
@@ -452,10 +530,14 @@ def read_layers(path: str | os.PathLike, base_y_m: float | None = None) -> list[
         return layers_from_points(name, {k: np.array(v) for k, v in groups.items()}, base_y_m)
     if suffix == ".dxf":
         found = dxf_layers(path)
+        for layer, pts in found.items():
+            check_point_count(name, len(pts), max_points, f"layer {layer!r}" if len(found) > 1 else "the drawing")
         if len(found) == 1:
             return [LayerBody(stem, outline_from_dxf(path, base_y_m), stem)]
         return layers_from_points(name, found, base_y_m)
-    return [LayerBody(stem, read_outline(path, base_y_m), stem)]
+    outline = read_outline(path, base_y_m)
+    check_point_count(name, len(outline), max_points, "the outline")
+    return [LayerBody(stem, outline, stem)]
 
 
 def outline_from_dxf(path: str | os.PathLike, base_y_m: float | None = None) -> np.ndarray:
@@ -502,7 +584,7 @@ def read_outline(path: str | os.PathLike, base_y_m: float | None = None) -> np.n
     ValueError
         With the file name and what is wrong (one line).
     """
-    name = os.fspath(path)
+    name = check_import_file(path)
     suffix = os.path.splitext(name)[1].lower()
     if suffix == ".csv":
         return outline_from_csv(path, base_y_m)
@@ -536,13 +618,16 @@ def outline_from_mesh(path: str | os.PathLike) -> np.ndarray:
     """
     import meshio  # lazy: only the importer needs it
 
-    name = os.fspath(path)
-    if not os.path.isfile(name):
-        raise FileNotFoundError(f"{name}: no such mesh file")
+    name = check_import_file(path)
     try:
         mesh = meshio.read(name)
-    except meshio.ReadError as exc:
-        raise ValueError(f"{name}: meshio cannot read this file: {exc}") from exc
+    except (meshio.ReadError, ValueError, KeyError, IndexError, TypeError, EOFError, OSError) as exc:
+        # a damaged file fails anywhere in meshio's readers, not only with its ReadError
+        raise ValueError(f"{name}: meshio cannot read this file: {exc}") from None
+    except SystemExit:
+        # meshio ends the process (sys.exit(1)) when no reader of the suffix reads the file: that
+        # closed the workbench, unsaved edits and all
+        raise ValueError(f"{name}: meshio cannot read this file as {suffix_of(name)}") from None
     points = np.asarray(mesh.points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] not in (2, 3):
         raise ValueError(f"{name}: expected 2D or 3D point coordinates, got shape {points.shape}")

@@ -783,12 +783,20 @@ class MainWindow(QMainWindow):
         the domain fitted to it (the base under it, its ends on the side walls), gravity loading
         where the ground slopes, a cell size the estimate can afford at this machine's throughput."""
         from geometry.importers import read_layers
+        from projects.schema import MAX_POLYGON_POINTS
         from projects.sections import place_section
 
         try:
-            layers = read_layers(path, base_y_m)
+            # the file is checked before it is opened (missing, a FIFO or a device, empty, too
+            # large) and its lines counted before any geometry: one line naming the file, as the
+            # command line's readers say it (projects.inputs)
+            layers = read_layers(path, base_y_m, max_points=MAX_POLYGON_POINTS)
         except (ValueError, OSError) as err:
             self.show_error("Cannot import", str(err))
+            return False
+        except Exception as err:  # a reader's own failure on a damaged file: one line, not a traceback
+            logger.exception("import of %s", path)
+            self.show_error("Cannot import", f"{os.fspath(path)}: cannot import this file ({type(err).__name__}: {err})")
             return False
         material = material or (self.doc.material_names[0] if self.doc.material_names else "soil")
         name = Path(path).stem

@@ -200,8 +200,11 @@ class SweepDialog(QDialog):
         pl = QVBoxLayout(pbox)
         pl.addWidget(self.params)
         pl.addLayout(pbuttons)
-        self.hint = QLabel(self.params.toolTip())
-        self.hint.setWordWrap(True)
+        # two lines, not word-wrapped: a wrapped label's height depends on its width, and the
+        # dialog's layout then gave the Sweep box less than its height (the measures list ran
+        # under the fields below it)
+        self.hint = QLabel("Values, comma-separated: list: the values; range: low, high, count; uniform: low, high;\n"
+                           "normal: mean, std[, low, high]; lognormal: mean_log, std_log[, low, high]")
         self.hint.setStyleSheet("color: #5f6368; font-size: 11px;")
         pl.addWidget(self.hint)
 
@@ -217,6 +220,11 @@ class SweepDialog(QDialog):
         self.runs = QSpinBox()
         self.runs.setRange(1, MAX_RUNS)  # a sweep file's limit (sweeps.spec)
         self.runs.setValue(8)
+        #: what the sampling runs: a grid's run count (the product of the levels)
+        self.runs_note = QLabel("")
+        self.runs_note.setStyleSheet("color: #5f6368;")
+        self.sampling.currentTextChanged.connect(lambda _t: self._update_runs())
+        self.params.itemChanged.connect(lambda _item: self._discrete_sampling())
         self.seed = QSpinBox()
         self.seed.setRange(0, 2**31 - 1)
         self.measures = QListWidget()
@@ -235,7 +243,10 @@ class SweepDialog(QDialog):
         self.thresholds.setToolTip("P(field > threshold) along the section, per threshold (comma-separated)")
         sf = QFormLayout(self.sweep_box)
         sf.addRow("Sampling", self.sampling)
-        sf.addRow("Runs", self.runs)
+        runs_row = QHBoxLayout()
+        runs_row.addWidget(self.runs, 1)
+        runs_row.addWidget(self.runs_note, 2)
+        sf.addRow("Runs", runs_row)
         sf.addRow("Seed", self.seed)
         sf.addRow("Measures", self.measures)
         sf.addRow("", self.more_measures)
@@ -338,7 +349,48 @@ class SweepDialog(QDialog):
 
         keys.currentTextChanged.connect(refill)
         dist.currentTextChanged.connect(refill)
+        dist.currentTextChanged.connect(lambda _t: self._discrete_sampling())
+        self._update_runs()
         return r
+
+    def _levels(self) -> list[int] | None:
+        """Each parameter's number of levels where every one is a ``list`` or a ``range`` (None
+        where one is continuous or its values do not read)."""
+        counts = []
+        for r in range(self.params.rowCount()):
+            dist = self.params.cellWidget(r, 1).currentText()
+            item = self.params.item(r, 2)
+            try:
+                values = _numbers(item.text() if item else "", "values")
+            except SpecInputError:
+                return None
+            if dist == "list" and values:
+                counts.append(len(values))
+            elif dist == "range" and len(values) == 3 and values[2] >= 1 and float(values[2]).is_integer():
+                counts.append(int(values[2]))
+            else:
+                return None
+        return counts or None
+
+    def _discrete_sampling(self) -> None:
+        """Parameters that are all lists or ranges are a grid: a Latin hypercube or random draw of
+        8 runs from 3 values repeats runs (the solver is deterministic) and leaves values out."""
+        if self._levels() is not None and self.sampling.currentText() != "grid":
+            self.sampling.setCurrentText("grid")
+        self._update_runs()
+
+    def _update_runs(self) -> None:
+        grid = self.sampling.currentText() == "grid"
+        self.runs.setEnabled(not grid)
+        if not grid:
+            self.runs_note.setText("")
+            return
+        levels = self._levels()
+        if levels is None:
+            self.runs_note.setText("grid: every combination of the levels")
+            return
+        self.runs_note.setText(f"grid: {math.prod(levels):,} runs (every combination of the levels: "
+                               f"{' × '.join(str(n) for n in levels)})")
 
     def _remove_parameter(self) -> None:
         r = self.params.currentRow()

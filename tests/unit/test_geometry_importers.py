@@ -117,7 +117,7 @@ def test_bad_meshes_raise_value_error(tmp_path):
     unknown = _write(tmp_path, "hello", name="mesh.unknownformat")
     with pytest.raises(ValueError, match="meshio cannot read"):
         outline_from_mesh(unknown)
-    with pytest.raises(FileNotFoundError):
+    with pytest.raises(ValueError, match="cannot read the file: No such file"):
         outline_from_mesh(tmp_path / "missing.vtu")
 
 
@@ -176,4 +176,52 @@ def test_dxf_problems_are_one_line_errors_naming_the_file(tmp_path):
     with pytest.raises(ValueError, match=r"zigzag\.dxf: an open surface profile needs x strictly"):
         outline_from_dxf(zigzag)
     with pytest.raises(ValueError, match=r"unknown kind of file '\.txt'"):
-        read_outline(tmp_path / "profile.txt")
+        read_outline(_write(tmp_path, "x_m,y_m\n", "profile.txt"))
+
+
+# -- the file checks of an import (geometry.importers.check_import_file): one line, nothing hangs --
+
+def test_an_import_refuses_what_it_cannot_read_in_one_line_naming_the_file(tmp_path):
+    import os
+
+    from geometry.importers import read_layers
+
+    fifo = tmp_path / "fifo.csv"
+    os.mkfifo(fifo)  # no writer: an open() would block forever
+    nul = tmp_path / "nul.csv"
+    nul.write_bytes(b"x_m,y_m\n0,1\x00\n")
+    binary = tmp_path / "binary.csv"
+    binary.write_bytes(b"x_m,y_m\n\xff\xfe0,1\n")
+    cases = [
+        (tmp_path / "missing.csv", "cannot read the file: No such file or directory"),
+        (tmp_path, "cannot read the file: it is a folder, not a regular file"),
+        (fifo, "cannot read the file: it is a FIFO (named pipe), not a regular file"),
+        (_write(tmp_path, "", name="empty.csv"), "the file is empty"),
+        (binary, "not UTF-8 text"),
+        (nul, "line 2: non-numeric value"),
+        (_write(tmp_path, "", name="empty.dxf"), "the file is empty"),
+        (_write(tmp_path, "not a drawing", name="bad.dxf"), "not a readable DXF drawing"),
+        (_write(tmp_path, "", name="empty.vtu"), "the file is empty"),
+        (_write(tmp_path, "<VTKFile garbage", name="bad.vtu"), "meshio cannot read this file"),
+    ]
+    for path, message in cases:
+        with pytest.raises(ValueError) as err:
+            read_layers(path)
+        text = str(err.value)
+        assert text.startswith(f"{path}: ") and message in text, (path, text)
+        assert "\n" not in text
+
+
+def test_an_import_refuses_more_points_than_an_outline_may_have(tmp_path):
+    from geometry.importers import read_layers
+
+    rows = "\n".join(f"{i * 0.01},{5 + 0.001 * i}" for i in range(301))
+    path = _write(tmp_path, "x_m,y_m\n" + rows + "\n", name="long.csv")
+    with pytest.raises(ValueError, match=r"long.csv: the file has 301 points, more than the limit of 300 per "
+                                         r"outline \(docs/project-format.md, size limits\); simplify the profile"):
+        read_layers(path, max_points=300)
+    assert len(read_layers(path, max_points=301)[0].polygon_m) >= 301
+    layered = _write(tmp_path, "x_m,y_m,layer\n" + "\n".join(f"{i},{9 - 0.01 * i},top" for i in range(5)) + "\n"
+                     + "\n".join(f"{i},{5 - 0.01 * i},clay" for i in range(5)) + "\n", name="layers.csv")
+    with pytest.raises(ValueError, match="layer 'top' has 5 points, more than the limit of 4"):
+        read_layers(layered, max_points=4)
