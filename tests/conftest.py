@@ -60,15 +60,20 @@ def covering_sample(items: list, limit: int = MATRIX_SAMPLE) -> list:
 
 def pytest_collection_modifyitems(config, items):
     """Tests marked ``matrix`` (the solver's contact, thrust and scatter matrices) run a covering
-    sample of their cases (:func:`covering_sample`). ``RUNOUT_FULL_MATRIX=1`` runs every case
-    (docs/validation.md says which to run when)."""
+    sample of their cases (:func:`covering_sample`), at most ``MATRIX_SAMPLE`` of them or the
+    marker's ``sample`` (``pytest.mark.matrix(sample=2)``). ``RUNOUT_FULL_MATRIX=1`` runs every
+    case (docs/validation.md says which to run when)."""
     if os.environ.get(FULL_MATRIX) == "1":
         return
     groups: dict = {}
     for item in items:
         if item.get_closest_marker("matrix") is not None:
             groups.setdefault((item.path, item.originalname), []).append(item)
-    keep = {id(i) for group in groups.values() for i in covering_sample(group)}
+
+    def limit(group: list) -> int:
+        return int(group[0].get_closest_marker("matrix").kwargs.get("sample", MATRIX_SAMPLE))
+
+    keep = {id(i) for group in groups.values() for i in covering_sample(group, limit(group))}
     dropped = [i for group in groups.values() for i in group if id(i) not in keep]
     if dropped:
         config.hook.pytest_deselected(items=dropped)
