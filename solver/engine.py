@@ -25,8 +25,9 @@ method's stages (each in its own module): ``contact`` (solver.contact: the conta
 closed sides and the structures, their normals, mirror images and the contact tally), ``walls``
 (solver.walls: the closed sides as mirror planes and a friction side's wall columns),
 ``periodic`` (solver.periodic: periodic left and right sides), ``damping`` (solver.damping:
-the materials' damping stress and local damping) and ``loads`` (solver.loads: the surcharges'
-forces on the surface particles, added where the weight is). :attr:`Engine.recipe` lists the step's stages.
+the materials' damping stress and local damping), ``loads`` (solver.loads: the surcharges'
+forces on the surface particles, added where the weight is) and ``rigid`` (solver.rigid: rigid
+bodies driven at a velocity, whose particles give their nodes a contact instead of mass). :attr:`Engine.recipe` lists the step's stages.
 
 The particle passes (P2G; stress and force for mpm and apic) are written per particle
 (``_update_particle``: the particle's own constitutive update; ``_add_particle``: its shares to
