@@ -38,9 +38,10 @@ from app.gui.document import ProjectDocument, check_value, format_number, get_pa
 from app.gui.units import parse_quantity
 from projects.schema import SEISMIC_DIRECTIONS
 
-#: The table's columns: (title, key); the pressures in kPa.
-COLUMNS = (("Name", "name"), ("From (m)", "from_m"), ("To (m)", "to_m"), ("q (kPa)", "start"),
-           ("q at To", "end"), ("Ramp", "ramp"))
+#: The table's columns: (title, key); the pressures in kPa. The units on a second line: in one
+#: line the titles were clipped in the dock's width ("rom (m" once the row was selected).
+COLUMNS = (("Name", "name"), ("From\n(m)", "from_m"), ("To\n(m)", "to_m"), ("q\n(kPa)", "start"),
+           ("q at To\n(kPa)", "end"), ("Ramp", "ramp"))
 KPA = 1e3
 
 
@@ -79,6 +80,43 @@ def pressure_text(load: dict[str, Any]) -> str:
         return f"{format_number(a / KPA)} kPa"
     return f"{format_number(a / KPA)} to {format_number(b / KPA)} kPa"
 
+
+
+def crest_span(bodies: Any) -> tuple[float, float]:
+    """Where a new surcharge goes: the middle half of the highest stretch of the ground (the bodies'
+    upper outline within 2 % of its height range of its top: a slope's crest, a flat block's whole
+    top), where a load is first put (a building, a fill). The middle fifth of the bodies' width, the
+    default before, lay on the face and the toe of a slope."""
+    import numpy as np
+
+    from projects.loads import ground_height
+
+    polygons = [np.asarray(b["polygon_m"], dtype=float) for b in bodies or []
+                if isinstance(b, dict) and len(b.get("polygon_m") or []) >= 3]
+    if not polygons:
+        return 0.4, 0.6
+    xs = np.concatenate([p[:, 0] for p in polygons])
+    lo, hi = float(xs.min()), float(xs.max())
+    x = np.linspace(lo, hi, 401)
+    y = ground_height(polygons, x)
+    if not np.isfinite(y).any():
+        return lo + 0.4 * (hi - lo), lo + 0.6 * (hi - lo)
+    top, bottom = np.nanmax(y), np.nanmin(y)
+    high = np.isfinite(y) & (y >= top - max(0.02 * (top - bottom), 1e-9 * max(abs(top), 1.0)))
+    best, start = (0, 0), None
+    for i, flag in enumerate([*high, False]):  # the longest run of samples at the top
+        if flag and start is None:
+            start = i
+        elif not flag and start is not None:
+            best = max(best, (i - start, start))
+            start = None
+    count, first = best
+    a, b = float(x[first]), float(x[first + count - 1])
+    if b <= a:
+        return lo + 0.4 * (hi - lo), lo + 0.6 * (hi - lo)
+    step = 10.0 ** np.floor(np.log10((hi - lo) / 100.0))  # round ends: 1 and 3.1 m, not 1.02 and 3.06
+    f, t = (float(np.round(v / step) * step) for v in (a + 0.25 * (b - a), a + 0.75 * (b - a)))
+    return (f, t) if t > f else (a + 0.25 * (b - a), a + 0.75 * (b - a))
 
 class StageLoadsBox(QGroupBox):
     """The surcharges and seismic coefficients of one stage (:meth:`bind` chooses it)."""
@@ -257,12 +295,10 @@ class StageLoadsBox(QGroupBox):
 
     def add_surcharge(self, from_m: float | None = None, to_m: float | None = None, pressure_pa: Any = 10e3,
                       name: str | None = None) -> bool:
-        """Add a surcharge to the bound stage (default: 10 kPa over the middle fifth of the bodies)."""
+        """Add a surcharge to the bound stage (default: 10 kPa over the middle half of the crest,
+        :func:`crest_span`)."""
         if from_m is None or to_m is None:
-            xs = [float(p[0]) for b in self.doc.get("bodies", []) if isinstance(b, dict)
-                  for p in (b.get("polygon_m") or []) if isinstance(p, (list, tuple)) and len(p) == 2]
-            lo, hi = (min(xs), max(xs)) if xs else (0.0, 1.0)
-            from_m, to_m = lo + 0.4 * (hi - lo), lo + 0.6 * (hi - lo)
+            from_m, to_m = crest_span(self.doc.get("bodies", []))
         load = {"name": name or self._free_name(), "from_m": float(from_m), "to_m": float(to_m),
                 "pressure_pa": pressure_pa}
         return self._edit(f"add surcharge {load['name']}", lambda loads: loads.append(load))

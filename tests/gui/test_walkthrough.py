@@ -155,3 +155,32 @@ def test_an_exported_picture_draws_each_structure_with_a_full_outline(window, ma
     widths = [b - a + 1 for a, b in edges]
     # both sides of the wall drawn at least 2 px wide (a wide line came out 1 px on one side)
     assert len(widths) == 2 and min(widths) >= 2, widths
+
+
+SLOPE = [[0.0, 0.0], [16.0, 0.0], [16.0, 1.0], [8.0, 1.0], [4.0, 5.0], [0.0, 5.0]]  # the template's, 4 m high
+
+
+def test_a_new_surcharge_goes_on_the_crest_and_its_table_shows_its_titles(window, tiny_file, qtbot):
+    from app.gui.main_window import MainWindow
+
+    window.resize(*MainWindow.DEFAULT_SIZE)
+    window.open_project(tiny_file, ask=False)
+
+    def slope(d):
+        d["domain"].update(origin_m=[0.0, 0.0], size_m=[16.0, 6.25], cell_size_m=0.25)
+        d["bodies"] = [dict(d["bodies"][0], polygon_m=SLOPE)]
+
+    window.doc.edit("slope", slope)
+    window.panels.setCurrentWidget(window.stages_panel)
+    window.stages_panel.select(1)
+    box = window.stages_panel.loads
+    box.add_button.click()
+    (load,) = window.doc.get("stages.1.surcharges")
+    # on the crest (x 0 to 4 m), not over the middle of the bodies' width (6.4 to 9.6 m: the face
+    # and the toe)
+    assert (load["from_m"], load["to_m"]) == (1.0, 3.1)
+    qtbot.wait(50)
+    header = box.table.horizontalHeader()
+    clipped = [box.table.horizontalHeaderItem(c).text() for c in range(box.table.columnCount())
+               if header.sectionSizeFromContents(c).width() > header.sectionSize(c)]
+    assert clipped == []
