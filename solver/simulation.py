@@ -848,8 +848,17 @@ class Simulation:
             "time_s": float(self.time_s), "kinetic_energy_J_per_m": float(d["kinetic_energy"]),
             "peak_kinetic_energy_J_per_m": float(max(c.run_peak_ke, d["kinetic_energy"])),
             "max_speed_m_s": float(d["max_speed"]),
-            "driven": any(m.rigid and any(m.velocity_m_s) for m in self._materials),
+            "driven": self._driven_now(),
         }
+
+    def _driven_now(self) -> bool:
+        """Whether a rigid body still in the grid moves at a velocity of its own now (a gate lifted
+        out of the grid drives nothing)."""
+        moving = np.array([m.rigid and any(m.velocity_m_s) for m in self._materials], dtype=bool)
+        if not moving.any():
+            return False
+        active = self.engine.state(("active",))["active"].astype(bool)
+        return bool((active & moving[np.asarray(self.particles.material_ids)]).any())
 
     # ------------------------------------------------------------------ driving from outside
     def advance(self, duration_s: float, *, damping: float = 0.0,

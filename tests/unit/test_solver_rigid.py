@@ -225,3 +225,13 @@ def test_a_rigid_body_stands_still_while_a_strength_reduction_trial_advances_the
         held = sim.engine.state(("x",))["x"][rigid]
     assert np.allclose(moved[:, 1] - parts.positions_m[rigid, 1], -0.025, atol=1e-9)
     assert np.array_equal(held, moved)
+
+
+def test_a_rigid_body_lifted_out_of_the_grid_drives_nothing_at_the_end():
+    platen = Material("platen", "rigid", 7850.0, 0.0, 0.0, velocity_m_s=(0.0, 2.0), contact=Boundary("slip"))
+    cfg, parts = _column(0.1, platen, (Stage("lift", "dynamic", duration_s=0.3),))
+    with Simulation(cfg, parts) as sim:
+        frames = list(sim.run())
+        motion = sim.motion_at_end()
+    assert frames[-1].diagnostics.lost_particles == int((parts.material_ids == 1).sum())  # out through the top
+    assert motion["driven"] is False
