@@ -554,6 +554,18 @@ def _ratio(numerator: float, denominator: float) -> float:
     return value if math.isfinite(value) else math.inf
 
 
+def _typical_trials(project: Project) -> int:
+    """How many trials a strength-reduction search usually takes (projects/strength.py): the first
+    and one bracketing step, then bisection of a bracket of ``F bracket_step`` to the tolerance
+    (F: the first trial where given, else 1: Bishop's factor is not worked out for an estimate)."""
+    stage = next(s for s in project.stages if s.type == "strength-reduction")
+    first = stage.first_trial if isinstance(stage.first_trial, (int, float)) else 1.0
+    step = stage.bracket_step or schema.SR_DEFAULT_BRACKET_STEP
+    tolerance = stage.tolerance or schema.SR_DEFAULT_TOLERANCE
+    bisections = max(0, math.ceil(math.log2(max(first * step / tolerance, 1.0))))
+    return min(2 + bisections, stage.max_trials or schema.SR_DEFAULT_MAX_TRIALS)
+
+
 def estimate(project: Project) -> dict[str, object]:
     """Size estimates of a run without seeding or allocating (:func:`resolve` gives it).
 
@@ -579,7 +591,8 @@ def estimate(project: Project) -> dict[str, object]:
         tested), ``time_step_s`` (float, s), ``time_step_source`` ("time_step_s" or "cfl"),
         ``max_p_wave_speed_m_s`` (float), ``simulated_time_s`` (float, s, all stages),
         ``steps`` (int, all stages), ``may_stop_early`` (bool, a stage may end before its duration),
-        ``trial_steps`` (int, one strength-reduction trial at most; 0 without one; the search's trials
+        ``typical_trials`` and ``max_trials`` (the search's usual and largest number of trials, 0
+        without one), ``trial_steps`` (int, one strength-reduction trial at most; 0 without one; the search's trials
         come on top of ``steps``; :mod:`projects.cost` turns both into wall time),
         ``frames`` (int, about one per ``output.interval_s``),
         ``bytes_per_particle`` and ``bytes_per_node`` (int, memory), ``memory_bytes`` (int),
@@ -628,6 +641,7 @@ def estimate(project: Project) -> dict[str, object]:
                                                      if s.type == "gravity"), 0.0))
                     for stage in project.stages if stage.type == "strength-reduction"), 0.0)
     trial_steps = _count(_ratio(trial_s, dt)) if trial_s > 0.0 else 0
+    trials = _typical_trials(project) if trial_steps else 0
     total = float(sum(durations))
     intervals = _ratio(total, project.output.interval_s)
     frames = _count(math.floor(intervals + 1e-9) + 1.0 if math.isfinite(intervals) else math.inf)
@@ -672,6 +686,9 @@ def estimate(project: Project) -> dict[str, object]:
         "steps": steps,
         "may_stop_early": may_stop_early,
         "trial_steps": trial_steps,
+        "typical_trials": trials,
+        "max_trials": next((stage.max_trials or schema.SR_DEFAULT_MAX_TRIALS for stage in project.stages
+                            if stage.type == "strength-reduction"), 0),
         "frames": frames,
         "bytes_per_particle": per_particle,
         "bytes_per_node": per_node,

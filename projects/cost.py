@@ -171,7 +171,8 @@ def run_time(estimate: Mapping[str, Any], cost: StepCost, structures: bool = Fal
         structures), ``arch``, ``source``, ``may_stop_early``
         (a stage may end before its duration: the time is at most this), ``trial_steps`` and
         ``trial_time_s`` (a strength-reduction stage: the steps and time of one trial at most,
-        on top of ``run_time_s``; 0 without one).
+        on top of ``run_time_s``; 0 without one), ``typical_trials`` and ``max_trials`` (the
+        search's usual and largest number of trials).
     """
     particles = float(estimate.get("particles") or 0)
     steps = float(estimate.get("steps") or 0)
@@ -192,6 +193,8 @@ def run_time(estimate: Mapping[str, Any], cost: StepCost, structures: bool = Fal
         "may_stop_early": bool(estimate.get("may_stop_early")),
         "trial_steps": int(trial_steps),
         "trial_time_s": trial_steps * step,
+        "typical_trials": int(estimate.get("typical_trials") or 0),
+        "max_trials": int(estimate.get("max_trials") or 0),
     }
 
 
@@ -221,6 +224,9 @@ def describe(cost_time: Mapping[str, Any]) -> str:
             f"at {c['particles']:,} particles; {c['source']})")
     if c["trial_steps"]:
         text += f", plus each strength-reduction trial up to {format_seconds(c['trial_time_s'])}"
+        if c.get("typical_trials"):
+            text += (f": usually about {c['typical_trials']} trials, up to "
+                     f"{format_seconds(c['typical_trials'] * c['trial_time_s'])} more (at most {c['max_trials']} trials)")
     return text
 
 

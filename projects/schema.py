@@ -122,6 +122,11 @@ PLASTIC_KEYS: tuple[str, ...] = (
 REST_KEYS: tuple[str, ...] = ("stop_when_kinetic_energy_below", "stop_when_max_speed_below_m_s")
 #: Numerics keys of the time step: give one of them (none: cfl = DEFAULT_CFL).
 DEFAULT_CFL = sc.DEFAULT_CFL
+#: The strength-reduction search's defaults: the tolerance on F, the first bracketing step (a
+#: fraction of F, doubled at each step) and the most trials (projects/strength.py)
+SR_DEFAULT_TOLERANCE = 0.01
+SR_DEFAULT_BRACKET_STEP = 0.1
+SR_DEFAULT_MAX_TRIALS = 40
 #: Damping coefficient of a gravity stage that gives none.
 DEFAULT_GRAVITY_DAMPING = 0.7
 #: the part of a gravity stage that ramps gravity up when ``ramp_fraction`` is not given (the solver's)

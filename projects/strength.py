@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from projects.schema import SR_DEFAULT_BRACKET_STEP, SR_DEFAULT_MAX_TRIALS, SR_DEFAULT_TOLERANCE
 from solver import config as sc
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -59,10 +60,11 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 
 logger = logging.getLogger(__name__)
 
-#: Defaults of a strength-reduction stage (docs/project-format.md).
-DEFAULT_TOLERANCE = 0.01
-DEFAULT_BRACKET_STEP = 0.1
-DEFAULT_MAX_TRIALS = 40
+#: Defaults of a strength-reduction stage (docs/project-format.md; the search's are the schema's,
+#: which the run-time estimate reads too).
+DEFAULT_TOLERANCE = SR_DEFAULT_TOLERANCE
+DEFAULT_BRACKET_STEP = SR_DEFAULT_BRACKET_STEP
+DEFAULT_MAX_TRIALS = SR_DEFAULT_MAX_TRIALS
 DEFAULT_DAMPING = 0.7
 DEFAULT_KE_RATIO = 1e-3
 DEFAULT_MIN_SETTLE = 0.2

@@ -73,6 +73,24 @@ def test_a_strength_reduction_counts_its_trials_apart():
     cost = run_time(e, STEP_COSTS["cpu"])
     assert cost["trial_time_s"] == pytest.approx(e["trial_steps"] * STEP_COSTS["cpu"].step_s(e["particles"]))
     assert "plus each strength-reduction trial up to" in describe(cost)
+    # the search's usual count: the first trial and a bracketing step, then bisection of a bracket
+    # of F x bracket_step (0.1 of the first trial, Bishop's where not given: 1 for the estimate)
+    # to the tolerance 0.01: 2 + ceil(log2(10)) = 6
+    assert cost["typical_trials"] == 6 and cost["max_trials"] == 40
+    assert "usually about 6 trials, up to" in describe(cost) and "(at most 40 trials)" in describe(cost)
+
+
+@pytest.mark.parametrize(("sets", "expected"), [
+    (("stages.1.tolerance=0.001",), 2 + 7),
+    (("stages.1.first_trial=2.0", "stages.1.bracket_step=0.2"), 2 + 6),
+    (("stages.1.max_trials=4",), 4),
+])
+def test_the_usual_number_of_trials_follows_the_search_settings(sets, expected):
+    from projects.build import resolve
+    from projects.document import load_project
+
+    resolved = resolve(load_project(EXAMPLES / "slope_fos.toml", sets), seed=False)
+    assert resolved.estimate["typical_trials"] == expected
 
 
 def test_runout_validate_prints_the_run_time(tmp_path):
