@@ -99,6 +99,32 @@ def fast_bodies(project: Project) -> list[str]:
         if speed > c_p:
             found.append(f"{where}: {speed:.3g} m/s is faster than the P-wave speed of materials.{body.material} "
                          f"({c_p:.3g} m/s): an impact no explicit step resolves; the results are not physical")
+    found += _fast_rigid_bodies(project, extent, interval)
+    return found
+
+
+def _fast_rigid_bodies(project: Project, extent: float, interval: float) -> list[str]:
+    """Rigid materials driven across the domain within one output interval, or faster than the
+    P-wave speed of the material they push (a body's velocity holds all its dynamic stages)."""
+    from projects.build import solver_material
+
+    speeds = [solver_material(name, m).p_wave_speed_m_s for name, m in project.materials.items()
+              if m.model != "rigid"]
+    slowest = min(speeds) if speeds else math.inf
+    found = []
+    for name, material in project.materials.items():
+        if material.model != "rigid" or material.velocity_m_s is None:
+            continue
+        vx, vy = material.velocity_m_s
+        speed = math.hypot(vx, vy)
+        where = f"materials.{name}.velocity_m_s = [{vx:g}, {vy:g}]"
+        if speed * interval > extent:
+            found.append(f"{where}: at {speed:.3g} m/s the rigid body crosses the whole domain ({extent:g} m) in "
+                         f"{extent / speed:.3g} s, less than one output interval ({interval:g} s)")
+        elif speed > slowest:
+            found.append(f"{where}: {speed:.3g} m/s is faster than the slowest P-wave speed of the materials "
+                         f"({slowest:.3g} m/s): the body strikes them faster than any explicit step resolves; "
+                         "the results are not physical")
     return found
 
 

@@ -235,3 +235,19 @@ def test_a_rigid_body_lifted_out_of_the_grid_drives_nothing_at_the_end():
         motion = sim.motion_at_end()
     assert frames[-1].diagnostics.lost_particles == int((parts.material_ids == 1).sum())  # out through the top
     assert motion["driven"] is False
+
+
+@pytest.mark.parametrize(("velocity", "expected"), [
+    ("[0.0, -0.01]", None),
+    ("[0.0, -50.0]", "is faster than the slowest P-wave speed of the materials (25.9 m/s)"),
+    ("[0.0, -1e6]", "the rigid body crosses the whole domain (1.5 m)"),
+])
+def test_a_rigid_body_driven_too_fast_is_warned_about(velocity, expected):
+    from projects.checks import project_warnings
+
+    text = RIGID_PROJECT.format(extra="", stage="").replace("velocity_m_s = [0.0, -0.01]", f"velocity_m_s = {velocity}")
+    found = [w for w in project_warnings(loads_project(text)) if w.startswith("materials.platen.velocity_m_s")]
+    if expected is None:
+        assert found == []
+    else:
+        assert len(found) == 1 and expected in found[0], found
