@@ -808,7 +808,7 @@ def deposit_period(project: Project) -> float:
             continue
         shear = material.youngs_modulus_pa / (2.0 * (1.0 + material.poisson_ratio))
         speeds.append(math.sqrt(shear / material.density_kg_m3))
-    slowest = min(speeds)
+    slowest = min(speeds, default=0.0)
     return 4.0 * height / slowest if slowest > 0.0 else math.inf
 
 

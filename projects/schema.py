@@ -1468,6 +1468,11 @@ def _body_rules(bodies: list[Any], materials: Mapping[str, Any], domain: Mapping
                 seen[name] = index
         if box is not None:
             problems += _outside_points(path, _array(body.get("polygon_m")), box, origin, size)
+    models = [_table(materials.get(b.get("material"))).get("model") for b in bodies
+              if isinstance(b, Mapping) and isinstance(b.get("material"), str) and b.get("material") in materials]
+    if models and all(m == "rigid" for m in models):
+        problems.append(Problem("bodies", None, 'every body is of a rigid material: at least one must be of a '
+                                'deformable one ("linear-elastic" or "drucker-prager")'))
     return problems
 
 

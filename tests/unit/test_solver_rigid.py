@@ -164,6 +164,12 @@ def test_a_rigid_materials_keys_are_checked_with_one_line_each(extra, stage, exp
     assert any(p.startswith(expected) for p in problems), problems
 
 
+def test_a_project_of_rigid_bodies_alone_is_refused_with_one_line():
+    text = RIGID_PROJECT.format(extra="", stage="").replace('material = "soil"', 'material = "platen"')
+    assert problems_of_text(text) == ['bodies: every body is of a rigid material: at least one must be of a '
+                                      'deformable one ("linear-elastic" or "drucker-prager")']
+
+
 def test_the_deformable_models_still_need_their_stiffness():
     text = RIGID_PROJECT.format(extra="", stage="").replace("youngs_modulus_pa = 1e6\n", "", 1)
     problems = problems_of_text(text)
