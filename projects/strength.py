@@ -318,7 +318,7 @@ def limit_equilibrium(project: Project, gravity_m_s2=None, water: sc.Water | Non
 
     Each body's material is a Mohr-Coulomb soil (``c'``, ``phi'``, ``rho |g|`` above the phreatic
     line, the saturated density below it, its ``ru``; a linear-elastic body is given a strength
-    no slip circle will go through). ``water`` is the ground water in force (the phreatic and
+    no slip circle will go through; a rigid body, weightless and driven, is left out). ``water`` is the ground water in force (the phreatic and
     free-water lines; None: dry); ``surcharges`` and ``seismic`` the loads (projects.loads: vertical
     loads on the slices' tops, ``k_h W`` at each slice's centroid and ``(1 - k_v) W``). The
     section is rotated so that gravity points down; the circle's centre is rotated back. An end of the section is a free face where the bodies stand
@@ -342,6 +342,8 @@ def limit_equilibrium(project: Project, gravity_m_s2=None, water: sc.Water | Non
     polygons, soils = [], []
     for body in project.bodies:
         m = project.materials[body.material]
+        if m.model == "rigid":  # weightless and driven (solver.rigid): not part of the section
+            continue
         pts = np.asarray(body.polygon_m, dtype=float)
         polygons.append(np.c_[pts @ across, pts @ up])
         if m.model == "drucker-prager":

@@ -920,8 +920,9 @@ class Simulation:
         g = np.asarray(self.config.gravity_m_s2, dtype=float)
         gn = float(np.linalg.norm(g))
         down = g / gn if gn > 0.0 else np.array([0.0, -1.0])
-        forces, carried = surface_forces(now["x"], now["active"].astype(bool), spacing, surcharges, down,
-                                         offset_m=self.origin_m)
+        # the ground's surface: a rigid body (a platen) carries no load of its own
+        ground = now["active"].astype(bool) & ~self._rigid_particles()
+        forces, carried = surface_forces(now["x"], ground, spacing, surcharges, down, offset_m=self.origin_m)
         for load, got in zip(surcharges, carried):
             want = load.force_n_per_m
             if abs(got - want) > 1e-3 * abs(want):

@@ -257,3 +257,31 @@ def test_a_rigid_body_driven_too_fast_is_warned_about(velocity, expected):
         assert found == []
     else:
         assert len(found) == 1 and expected in found[0], found
+
+
+def test_bishops_section_and_the_surcharged_surface_leave_a_rigid_body_out():
+    from projects.strength import limit_equilibrium
+    from solver.config import Surcharge
+
+    # a cohesive slope (a face from (0, 1) down to (1, 0.4)) under the plate
+    text = RIGID_PROJECT.format(extra="", stage="").replace(
+        'model = "linear-elastic"', 'model = "drucker-prager"\ncohesion_pa = 2000\nfriction_angle_deg = 20').replace(
+        "polygon_m = [[0, 0], [1, 0], [1, 1], [0, 1]]", "polygon_m = [[0, 0], [1, 0], [1, 0.4], [0, 1]]")
+    slope = loads_project(text)
+    heavy = loads_project(text.replace('model = "rigid"\ndensity_kg_m3 = 7850\nvelocity_m_s = [0.0, -0.01]\n',
+                                       'model = "linear-elastic"\ndensity_kg_m3 = 7850\nyoungs_modulus_pa = 1e9\n'
+                                       'poisson_ratio = 0.3\n'))
+    alone = loads_project(text.replace('[[bodies]]\nname = "plate"\nmaterial = "platen"\n'
+                                       'polygon_m = [[0, 1], [1, 1], [1, 1.1], [0, 1.1]]\n', ''))
+    factor = limit_equilibrium(slope, gravity_m_s2=(0.0, -9.81)).factor
+    assert factor == pytest.approx(limit_equilibrium(alone, gravity_m_s2=(0.0, -9.81)).factor, rel=1e-12)
+    assert factor != pytest.approx(limit_equilibrium(heavy, gravity_m_s2=(0.0, -9.81)).factor, rel=1e-3)
+    # a surcharge on the column's top is carried by the column's top particles, not the plate's
+    platen = Material("platen", "rigid", 7850.0, 0.0, 0.0, velocity_m_s=(0.0, 0.0), contact=Boundary("fixed"))
+    cfg, parts = _column(0.1, platen, (Stage("hold", "dynamic", duration_s=0.01),), gravity=(0.0, -9.81))
+    with Simulation(cfg, parts, surcharge_support=True) as sim:
+        sim.set_loads((Surcharge("q", 0.0, W, 10e3),))
+        forces = sim.surcharge_forces()
+    rigid = parts.material_ids == 1
+    assert np.allclose(forces[rigid], 0.0)
+    assert forces[~rigid, 1].sum() == pytest.approx(-10e3 * W, rel=1e-6)
