@@ -135,7 +135,7 @@ class FosView(QWidget):
         ax.set_xlabel("x (m)", fontsize=8)
         ax.set_ylabel("y (m)", fontsize=8)
         if ax.get_legend_handles_labels()[0]:
-            ax.legend(loc="lower left", fontsize=7)
+            ax.legend(loc="best", fontsize=7)  # where it hides the fewest particles (the air, not the toe)
         trials = sorted(fos.get("trials") or [], key=lambda tr: tr["factor"])
         for verdict, style in (("stable", "bo"), ("failed", "rx")):
             pts = [(tr["factor"], tr["monitor_displacement_m"]) for tr in trials if tr["verdict"] == verdict]

@@ -558,3 +558,17 @@ def test_the_hazard_profile_draws_the_structures(window, make_results):
     assert len(hatched) == 1 and np.allclose(hatched[0].get_xy()[:4], wall)
     assert "wall" in [t.get_text() for t in ax.texts]
     assert "structure" in [t.get_text() for legend in window.hazard_view.figure.legends for t in legend.get_texts()]
+
+
+def test_the_mechanism_legend_hides_few_of_the_particles(window, make_results):
+    path = make_results()
+    _fos_summary(path)
+    assert window.open_results(path)
+    figure = window.fos_view.figure
+    figure.canvas.draw()
+    mech = figure.axes[0]
+    box = mech.get_legend().get_window_extent()
+    points = mech.transData.transform(mech.collections[0].get_offsets())
+    hidden = np.mean((points[:, 0] >= box.x0) & (points[:, 0] <= box.x1) & (points[:, 1] >= box.y0)
+                     & (points[:, 1] <= box.y1))
+    assert hidden <= 0.05, hidden
