@@ -42,6 +42,7 @@ def _column(h: float, platen: Material, stages, gravity=(0.0, 0.0), scheme="apic
     return cfg, parts
 
 
+@pytest.mark.matrix  # a covering sample of the six (every scheme, both precisions); RUNOUT_FULL_MATRIX=1: all
 @pytest.mark.parametrize("scheme", ["mpm", "apic", "apic-affine"])
 @pytest.mark.parametrize("precision", ["f32", "f64"])
 def test_a_platen_pressing_an_oedometer_reads_the_constrained_modulus(scheme, precision):
