@@ -52,11 +52,11 @@ def test_tiny_sweep_runout_falls_with_friction(ray_local, sweep_dir):
     from sweeps.sweep import run_sweep
 
     seen = []
-    result = run_sweep(sweep_spec({PHI: [15.0, 25.0, 35.0, 45.0]}), sweep_dir, workers=2, threads_per_run=1,
+    result = run_sweep(sweep_spec({PHI: [15.0, 30.0, 45.0]}), sweep_dir, workers=2, threads_per_run=1,
                        on_progress=seen.append)
     table = rows(sweep_dir)
-    assert len(table) == 4
-    assert [r["status"] for r in table] == ["completed"] * 4, [r["message"] for r in table]
+    assert len(table) == 3
+    assert [r["status"] for r in table] == ["completed"] * 3, [r["message"] for r in table]
     for r in table:
         assert r["deposit.front_m"] and r["wall_time_s"] and float(r["summary.steps"]) == 500
         assert (Path(r["results_dir"]) / "summary.json").is_file()
@@ -70,7 +70,7 @@ def test_tiny_sweep_runout_falls_with_friction(ray_local, sweep_dir):
     p_low = np.array([float(r["p_gt_0.02"]) for r in prof])
     p_high = np.array([float(r["p_gt_0.1"]) for r in prof])
     assert len(prof) > 10 and np.all(p_high <= p_low) and p_low.max() == 1.0 and p_low.min() == 0.0
-    assert [p.done for p in seen] == [0, 1, 2, 3, 4]
+    assert [p.done for p in seen] == [0, 1, 2, 3]
     assert result.settings["workers"] == 2 and result.settings["threads_per_run"] == 1
     for name in ("exceedance.csv", "sensitivity.csv", "profile.csv", "report.html", "progress.json"):
         assert (sweep_dir / name).is_file(), name

@@ -9,6 +9,7 @@ volumetric locking): averaging on N = 3.90 (apic-affine), off 4.02; plain apic 3
 (a strict xfail).
 """
 
+import os
 from pathlib import Path
 
 import pytest
@@ -16,6 +17,7 @@ import pytest
 from projects.document import load_project
 from projects.runner import run_project
 from solver.config import Material, averages_volume
+from tests.conftest import FULL_MATRIX
 
 DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 
@@ -33,11 +35,14 @@ SEARCH = ["stages.1.first_trial=1.9", "stages.1.bracket_step=0.03"]
 
 #: plain APIC (the stress from the grid's velocity gradient) reads N = 3.96, +3.4 % over the upper
 #: bound with the averaging on or off (docs/validation.md): outside the tolerance, a strict xfail
-#: so that the suite says when it comes within
+#: (with RUNOUT_FULL_MATRIX=1, beside the other schemes' full runs) that says when it comes within
 APIC_ABOVE = pytest.mark.xfail(strict=True, reason="plain apic: N = 3.96, +3.4 % over the upper bound 3.83")
 
 
-@pytest.mark.parametrize("scheme", ["apic-affine", "mpm", pytest.param("apic", marks=APIC_ABOVE)])
+SCHEMES = ["apic-affine", "mpm"] + ([pytest.param("apic", marks=APIC_ABOVE)] if os.environ.get(FULL_MATRIX) else [])
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
 def test_an_undrained_vertical_cut_has_the_limit_analysis_stability_number(tmp_path, scheme):
     project = load_project(DATA_DIR / "vertical_cut_undrained.toml", [f"numerics.scheme={scheme}", *SEARCH])
     result = run_project(project, tmp_path / "cut")
