@@ -89,7 +89,8 @@ _CELL_CORNERS = {
 MAX_IMPORT_FILE_BYTES = 64_000_000
 
 
-def _kind_of(mode: int) -> str:
+def file_kind(mode: int) -> str:
+    """What a path that is not a regular file is, from its ``st_mode`` (for one-line refusals)."""
     if stat.S_ISDIR(mode):
         return "a folder"
     if stat.S_ISFIFO(mode):
@@ -120,7 +121,7 @@ def check_import_file(path: str | os.PathLike, max_bytes: int = MAX_IMPORT_FILE_
     except OSError as exc:
         raise ValueError(f"{name}: cannot read the file: {exc.strerror or exc}") from None
     if not stat.S_ISREG(info.st_mode):
-        raise ValueError(f"{name}: cannot read the file: it is {_kind_of(info.st_mode)}, not a regular file")
+        raise ValueError(f"{name}: cannot read the file: it is {file_kind(info.st_mode)}, not a regular file")
     if not os.access(name, os.R_OK):
         raise ValueError(f"{name}: cannot read the file: permission denied")
     if info.st_size == 0:

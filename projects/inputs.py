@@ -15,6 +15,7 @@ import os
 import stat
 from pathlib import Path
 
+from geometry.importers import file_kind
 from projects.schema import Problem, ProjectError
 
 #: The largest project file read (bytes): 100,000 outline points with full-precision
@@ -24,20 +25,6 @@ MAX_PROJECT_FILE_BYTES = 8_000_000
 MAX_SPEC_FILE_BYTES = 1_000_000
 #: The largest observation file (CSV of points) read (bytes).
 MAX_OBSERVATION_FILE_BYTES = 16_000_000
-
-
-def _kind(mode: int) -> str:
-    if stat.S_ISDIR(mode):
-        return "a folder"
-    if stat.S_ISFIFO(mode):
-        return "a FIFO (named pipe)"
-    if stat.S_ISCHR(mode):
-        return "a character device"
-    if stat.S_ISBLK(mode):
-        return "a block device"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    return "not a regular file"
 
 
 def _size(count: int) -> str:
@@ -74,7 +61,7 @@ def read_bytes(path: str | os.PathLike[str], *, what: str, max_bytes: int) -> by
     except OSError as exc:
         raise refuse(f"cannot read {what}: {exc.strerror or exc}") from None
     if not stat.S_ISREG(mode):
-        raise refuse(f"cannot read {what}: it is {_kind(mode)}, not a regular file")
+        raise refuse(f"cannot read {what}: it is {file_kind(mode)}, not a regular file")
     flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0)
     try:
         fd = os.open(path, flags)
@@ -83,7 +70,7 @@ def read_bytes(path: str | os.PathLike[str], *, what: str, max_bytes: int) -> by
     try:
         info = os.fstat(fd)
         if not stat.S_ISREG(info.st_mode):  # replaced between the two looks
-            raise refuse(f"cannot read {what}: it is {_kind(info.st_mode)}, not a regular file")
+            raise refuse(f"cannot read {what}: it is {file_kind(info.st_mode)}, not a regular file")
         if info.st_size > max_bytes:
             raise refuse(f"{what} is {_size(info.st_size)}, more than the limit of {_size(max_bytes)}")
         chunks, total = [], 0

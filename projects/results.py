@@ -1412,7 +1412,8 @@ class Results:
         ``material_id`` and ``summary.json``'s ``rigid_materials`` (a frame written without
         ``material_id`` keeps them); None where the frame has no ``active`` and no rigid body."""
         active = arrays.get("active")
-        rigid = [i for i, name in enumerate(self.material_names) if name in set(self.summary.get("rigid_materials", []))]
+        names = set(self.summary.get("rigid_materials", []))
+        rigid = [i for i, name in enumerate(self.material_names) if name in names]
         if not rigid or "material_id" not in arrays:
             return active
         keep = ~np.isin(np.asarray(arrays["material_id"]), rigid)

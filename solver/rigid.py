@@ -57,9 +57,8 @@ class RigidBodies:
         self.node_soil = ti.Vector.field(2, float, nodes)
         self.moving = ti.field(float, ())
 
-    HOST_FIELDS = ("rigid_moving",)
-
     def host_fields(self) -> dict:
+        """The fields the engine's set-up moves, by their state names."""
         return {"rigid_moving": self.moving}
 
     # ---------------------------------------------------------------- particles
