@@ -256,6 +256,16 @@ class DomainPanel(Panel):
 # materials
 
 
+def _show_row(widget: QWidget, visible: bool) -> None:
+    """Show or hide a form row: the field and its label."""
+    widget.setVisible(visible)
+    layout = widget.parentWidget().layout() if widget.parentWidget() is not None else None
+    if isinstance(layout, QFormLayout):
+        label = layout.labelForField(widget)
+        if label is not None:
+            label.setVisible(visible)
+
+
 class MaterialsPanel(Panel):
     """The materials (their order is their id), one form for the selected one, and the library."""
 
@@ -430,6 +440,12 @@ class MaterialsPanel(Panel):
         self.velocity.set_path(f"{base}.velocity_m_s" if rigid else None)
         self.contact.set_path(f"{base}.contact.type" if rigid else None)
         self.rigid_box.setVisible(rigid)
+        # a rigid body has no stiffness, strength or damping: its rows go, so that its own group
+        # (velocity, contact) sits under its density instead of below twenty empty fields
+        soil_rows = [w for k, w in self.fields.items() if k not in RIGID_KEYS]
+        for widget in (*soil_rows, self.damping_model, self.match, self.softening_law):
+            _show_row(widget, not rigid)
+        self.inertial_box.setVisible(not rigid)
         if name is not None:
             users = [b.get("name", "?") for b in self.doc.get("bodies", []) if b.get("material") == name]
             self.used_by.setText("Used by: " + (", ".join(users) if users else "no body"))

@@ -40,6 +40,8 @@ def test_the_platen_shows_its_velocity_and_contact_and_no_stiffness(window, biax
     assert panel.fields["density_kg_m3"].path == "materials.platen.density_kg_m3"
     for key in ("youngs_modulus_pa", "poisson_ratio", "cohesion_pa", "damping_ratio"):
         assert panel.fields[key].path is None, key
+        assert not panel.fields[key].isVisibleTo(panel), key  # no empty soil rows above its own group
+    assert panel.fields["density_kg_m3"].isVisibleTo(panel) and not panel.inertial_box.isVisibleTo(panel)
     panel.velocity.edits[1].setText("-0.02")
     assert panel.velocity.commit()
     panel.contact.choose("slip")
@@ -51,6 +53,7 @@ def test_the_platen_shows_its_velocity_and_contact_and_no_stiffness(window, biax
     panel.select("clay")
     assert not panel.rigid_box.isVisibleTo(panel)
     assert panel.fields["youngs_modulus_pa"].path == "materials.clay.youngs_modulus_pa"
+    assert panel.fields["youngs_modulus_pa"].isVisibleTo(panel) and panel.inertial_box.isVisibleTo(panel)
 
 
 def test_a_material_made_rigid_and_back_keeps_a_valid_project(window, biaxial_file, tmp_path):
