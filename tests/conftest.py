@@ -31,39 +31,48 @@ if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
 FULL_MATRIX = "RUNOUT_FULL_MATRIX"
 
 
-#: The most cases of one matrix test the suite runs.
-MATRIX_SAMPLE = 3
+#: The most cases of one matrix test the suite runs (each case compiles kernels of its own: most
+#: of a matrix case's time with a cold kernel cache).
+MATRIX_SAMPLE = 1
+
+#: The values every matrix file runs where its cases hold them, whatever its tests' samples: the
+#: schemes and the precisions (words of a case id).
+ALWAYS_COVERED = frozenset({"mpm", "apic", "apic_affine", "f32", "f64"})
 
 
-def covering_sample(items: list, limit: int = MATRIX_SAMPLE) -> list:
+def case_words(item) -> set:
+    """The values a parametrised case names in its id (schemes, precisions, sides, cell counts,
+    stiffnesses, angle pairs...)."""
+    spec = getattr(item, "callspec", None)
+    if spec is None:
+        return set()
+    # pytest's own ids of values it cannot show (``cases3``: the fourth list of cases) name no
+    # value: nothing to cover
+    auto = re.compile("^(" + "|".join(re.escape(k) for k in spec.params) + r")\d+$")
+    # a scheme's name holds a hyphen: "apic-affine" is one word, not "apic" and "affine"
+    return {word for word in spec.id.replace("apic-affine", "apic_affine").split("-") if not auto.match(word)}
+
+
+def covering_sample(items: list, limit: int = MATRIX_SAMPLE, covered: frozenset = frozenset()) -> list:
     """A subset of one test's parametrised cases, at most ``limit`` of them, chosen greedily to
-    hold as many words of their ids as they can (schemes, precisions, sides, cell counts,
-    stiffnesses, angle pairs...): a set cover, cut at ``limit``, in the cases' own order
-    (deterministic)."""
-    def pairs(item) -> set:
-        spec = getattr(item, "callspec", None)
-        if spec is None:
-            return set()
-        # pytest's own ids of values it cannot show (``cases3``: the fourth list of cases) name
-        # no value: nothing to cover
-        auto = re.compile("^(" + "|".join(re.escape(k) for k in spec.params) + r")\d+$")
-        # a scheme's name holds a hyphen: "apic-affine" is one word, not "apic" and "affine"
-        words = spec.id.replace("apic-affine", "apic_affine").split("-")
-        return {word for word in words if not auto.match(word)}
-
-    wanted = set().union(*(pairs(i) for i in items)) if items else set()
+    hold as many of their values as they can, values not in ``covered`` (those the file's earlier
+    samples hold) first: a set cover cut at ``limit``, in the cases' own order (deterministic, so
+    that every pytest-xdist worker collects the same cases)."""
+    wanted = set().union(*(case_words(i) for i in items)) if items else set()
     chosen: list = []
     while wanted and len(chosen) < limit:
-        best = max(items, key=lambda i: len(pairs(i) & wanted))
+        best = max(items, key=lambda i: (len(case_words(i) & wanted - covered), len(case_words(i) & wanted)))
         chosen.append(best)
-        wanted -= pairs(best)
+        wanted -= case_words(best)
     return [i for i in items if i in chosen] or items[:1]
 
 
 def pytest_collection_modifyitems(config, items):
-    """Tests marked ``matrix`` (the solver's contact, thrust and scatter matrices) run a covering
-    sample of their cases (:func:`covering_sample`), at most ``MATRIX_SAMPLE`` of them or the
-    marker's ``sample`` (``pytest.mark.matrix(sample=2)``). ``RUNOUT_FULL_MATRIX=1`` runs every
+    """Tests marked ``matrix`` (the solver's contact, thrust, scatter and water matrices) run a
+    covering sample of their cases (:func:`covering_sample`), at most ``MATRIX_SAMPLE`` of them or
+    the marker's ``sample`` (``pytest.mark.matrix(sample=3)``). The tests of one file share out
+    the values: each test's sample prefers those the file's earlier samples left out, and where a
+    scheme or a precision is still left out at the end its first case joins. ``RUNOUT_FULL_MATRIX=1`` runs every
     case (docs/validation.md says which to run when)."""
     if os.environ.get(FULL_MATRIX) == "1":
         return
@@ -75,7 +84,22 @@ def pytest_collection_modifyitems(config, items):
     def limit(group: list) -> int:
         return int(group[0].get_closest_marker("matrix").kwargs.get("sample", MATRIX_SAMPLE))
 
-    keep = {id(i) for group in groups.values() for i in covering_sample(group, limit(group))}
+    keep: set = set()
+    files: dict = {}
+    for (path, _name), group in groups.items():
+        files.setdefault(path, []).append(group)
+    for file_groups in files.values():
+        covered: set = set()
+        for group in file_groups:
+            for item in covering_sample(group, limit(group), frozenset(covered)):
+                keep.add(id(item))
+                covered |= case_words(item)
+        cases = [i for group in file_groups for i in group]
+        for value in sorted(ALWAYS_COVERED & set().union(*map(case_words, cases)) - covered):
+            if value not in covered:  # an earlier addition may have brought it
+                item = next(i for i in cases if value in case_words(i))
+                keep.add(id(item))
+                covered |= case_words(item)
     dropped = [i for group in groups.values() for i in group if id(i) not in keep]
     if dropped:
         config.hook.pytest_deselected(items=dropped)

@@ -93,6 +93,9 @@ def window(qtbot, tmp_path: Path, monkeypatch):
     win.close()
     KEPT_WIDGETS.append(win)  # not deleted: see tests/conftest.py
     gc.collect()
+    # the kept windows live to the end of the session: out of every later collection's way
+    # (otherwise each collection walks all the windows kept so far, teardowns slowing test by test)
+    gc.freeze()
     deadline = time.monotonic() + 5.0
     while threading.active_count() > threads_before and time.monotonic() < deadline:
         time.sleep(0.02)

@@ -56,6 +56,7 @@ CASES += [pytest.param("apic-affine", "f32", 1.2, id="apic-affine-f32-line-insid
           pytest.param("mpm", "f64", 1.2, id="mpm-f64-line-inside")]
 
 
+@pytest.mark.matrix(sample=3)  # a covering sample, one case per scheme (RUNOUT_FULL_MATRIX=1: all eight)
 @pytest.mark.parametrize("scheme, precision, line", CASES)
 def test_a_column_under_water_carries_hydrostatic_pore_pressure_and_buoyant_effective_stress(
         tmp_path, scheme, precision, line):
