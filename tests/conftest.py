@@ -72,7 +72,7 @@ def pytest_collection_modifyitems(config, items):
     covering sample of their cases (:func:`covering_sample`), at most ``MATRIX_SAMPLE`` of them or
     the marker's ``sample`` (``pytest.mark.matrix(sample=3)``). The tests of one file share out
     the values: each test's sample prefers those the file's earlier samples left out, and where a
-    scheme or a precision is still left out at the end its first case joins. ``RUNOUT_FULL_MATRIX=1`` runs every
+    scheme or a precision is still left out at the end a case holding it joins. ``RUNOUT_FULL_MATRIX=1`` runs every
     case (docs/validation.md says which to run when)."""
     if os.environ.get(FULL_MATRIX) == "1":
         return
@@ -97,7 +97,8 @@ def pytest_collection_modifyitems(config, items):
         cases = [i for group in file_groups for i in group]
         for value in sorted(ALWAYS_COVERED & set().union(*map(case_words, cases)) - covered):
             if value not in covered:  # an earlier addition may have brought it
-                item = next(i for i in cases if value in case_words(i))
+                # of the cases that hold it, the one that brings the most values still left out
+                item = max((i for i in cases if value in case_words(i)), key=lambda i: len(case_words(i) - covered))
                 keep.add(id(item))
                 covered |= case_words(item)
     dropped = [i for group in groups.values() for i in group if id(i) not in keep]
