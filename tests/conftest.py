@@ -53,11 +53,18 @@ def case_words(item) -> set:
     return {word for word in spec.id.replace("apic-affine", "apic_affine").split("-") if not auto.match(word)}
 
 
+def _known_limit(item) -> bool:
+    return item.get_closest_marker("xfail") is not None
+
+
 def covering_sample(items: list, limit: int = MATRIX_SAMPLE, covered: frozenset = frozenset()) -> list:
     """A subset of one test's parametrised cases, at most ``limit`` of them, chosen greedily to
     hold as many of their values as they can, values not in ``covered`` (those the file's earlier
     samples hold) first: a set cover cut at ``limit``, in the cases' own order (deterministic, so
     that every pytest-xdist worker collects the same cases)."""
+    # a known limit (an xfail case) is no sample of what the test claims: where a test has other
+    # cases, the sample is drawn from those
+    items = [i for i in items if not _known_limit(i)] or items
     wanted = set().union(*(case_words(i) for i in items)) if items else set()
     chosen: list = []
     while wanted and len(chosen) < limit:
@@ -70,7 +77,8 @@ def covering_sample(items: list, limit: int = MATRIX_SAMPLE, covered: frozenset 
 def pytest_collection_modifyitems(config, items):
     """Tests marked ``matrix`` (the solver's contact, thrust, scatter and water matrices) run a
     covering sample of their cases (:func:`covering_sample`), at most ``MATRIX_SAMPLE`` of them or
-    the marker's ``sample`` (``pytest.mark.matrix(sample=3)``). The tests of one file share out
+    the marker's ``sample`` (``pytest.mark.matrix(sample=3)``), known limits (xfail cases) only
+    where a test has nothing else. The tests of one file share out
     the values: each test's sample prefers those the file's earlier samples left out, and where a
     scheme or a precision is still left out at the end a case holding it joins. ``RUNOUT_FULL_MATRIX=1`` runs every
     case (docs/validation.md says which to run when)."""
@@ -98,7 +106,8 @@ def pytest_collection_modifyitems(config, items):
         for value in sorted(ALWAYS_COVERED & set().union(*map(case_words, cases)) - covered):
             if value not in covered:  # an earlier addition may have brought it
                 # of the cases that hold it, the one that brings the most values still left out
-                item = max((i for i in cases if value in case_words(i)), key=lambda i: len(case_words(i) - covered))
+                item = max((i for i in cases if value in case_words(i)),
+                           key=lambda i: (not _known_limit(i), len(case_words(i) - covered)))
                 keep.add(id(item))
                 covered |= case_words(item)
     dropped = [i for group in groups.values() for i in group if id(i) not in keep]

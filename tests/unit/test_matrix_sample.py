@@ -12,13 +12,16 @@ from tests import conftest
 class FakeItem:
     """Just enough of a pytest item for the sample: an id of hyphen-joined values, a file, a test."""
 
-    def __init__(self, path: str, name: str, case_id: str, sample: int | None = None):
+    def __init__(self, path: str, name: str, case_id: str, sample: int | None = None, known_limit=False):
+        self.known_limit = known_limit
         self.path = path
         self.originalname = name
         self.callspec = SimpleNamespace(id=case_id, params={"scheme": None, "precision": None, "side": None})
         self._marker = SimpleNamespace(kwargs={} if sample is None else {"sample": sample})
 
     def get_closest_marker(self, name):
+        if name == "xfail":
+            return SimpleNamespace(kwargs={"strict": True}) if self.known_limit else None
         return self._marker if name == "matrix" else None
 
 
@@ -77,3 +80,12 @@ def test_the_files_are_sampled_apart(monkeypatch):
     kept = _select(items, monkeypatch)
     for path in ("a.py", "b.py"):
         assert {"mpm", "apic", "apic_affine"} <= set().union(*(conftest.case_words(i) for i in kept if i.path == path))
+
+
+def test_a_known_limit_is_sampled_only_where_a_test_has_nothing_else(monkeypatch):
+    limit = FakeItem("f.py", "test_a", "mpm-f32-left-bottom", known_limit=True)  # the most values
+    kept = _select([limit, FakeItem("f.py", "test_a", "mpm-f32-left")], monkeypatch)
+    assert [i.callspec.id for i in kept] == ["mpm-f32-left"]
+    only_limits = [limit, FakeItem("f.py", "test_b", "apic-f64-left", known_limit=True)]
+    assert len(_select([limit], monkeypatch)) == 1
+    assert {i.originalname for i in _select(only_limits, monkeypatch)} == {"test_a", "test_b"}
