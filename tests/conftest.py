@@ -78,10 +78,10 @@ def pytest_collection_modifyitems(config, items):
     """Tests marked ``matrix`` (the solver's contact, thrust, scatter and water matrices) run a
     covering sample of their cases (:func:`covering_sample`), at most ``MATRIX_SAMPLE`` of them or
     the marker's ``sample`` (``pytest.mark.matrix(sample=3)``), known limits (xfail cases) only
-    where a test has nothing else. The tests of one file share out
-    the values: each test's sample prefers those the file's earlier samples left out, and where a
-    scheme or a precision is still left out at the end a case holding it joins. ``RUNOUT_FULL_MATRIX=1`` runs every
-    case (docs/validation.md says which to run when)."""
+    where a test has nothing else. The tests of one file share out the values: each test's sample
+    prefers those the file's earlier samples left out, and where a scheme or a precision is still
+    left out at the end a case holding it joins. ``RUNOUT_FULL_MATRIX=1`` (scripts/full-matrix.sh)
+    runs every case (docs/validation.md says which to run when)."""
     if os.environ.get(FULL_MATRIX) == "1":
         return
     groups: dict = {}
